@@ -1,0 +1,44 @@
+// vtkvol host lighting: replaces VTK's shading result by ours, per shaded sample.
+// Injected after the technique's code. Tested with VTK 9.7.1, headlight and scene-light variants
+// of computeLighting() (both define `shading_gradient` and `lightingComponent`).
+//
+// Shading formula (documented in docs/architecture.md and docs/techniques.md):
+//   n   = -normalize(gradient)                      outward normal, dataset space
+//   C   = ka * albedo * A(x)                         A: ambient visibility (1 = unoccluded)
+//       + sum_i  V_i(x) * E_i * ( kd * max(n.l_i, 0) * albedo + ks * max(n.h_i, 0)^p )
+//   V_i: light visibility (transmittance towards light i, 1 = unshadowed), E_i: light colour *
+//   intensity. Two-sided lighting (the renderer's default) uses |n.l|. Where the gradient is
+//   zero (homogeneous interior) the sample is lit as an unoriented medium: n.l := 1, no specular.
+//   ka, kd, ks, p come from the vtkVolumeProperty (per component).
+
+//@inject //VTK::ComputeLighting::Dec pre before
+vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
+{
+  vec3 posDS = vv_texToDataset(g_dataPos);
+  float glen = length(gradientDS);
+  bool oriented = glen > 1e-12;
+  vec3 n = oriented ? -gradientDS / glen : vec3(0.0);
+  vec3 v = normalize(in_eyePosObjs[0].xyz - posDS);
+  vec3 color = in_ambient[c] * albedo * vv_ambient_visibility(g_dataPos, n);
+  for (int i = 0; i < vv_numLights; ++i)
+  {
+    vec3 l = vv_directionToLight(i, posDS);
+    float vis = vv_light_visibility(i, g_dataPos, l);
+    float ndl = 1.0;
+    float spec = 0.0;
+    if (oriented)
+    {
+      ndl = dot(n, l);
+      vec3 h = normalize(l + v);
+      float ndh = dot(n, h);
+      if (in_twoSidedLighting) { ndl = abs(ndl); ndh = abs(ndh); }
+      ndl = max(ndl, 0.0);
+      spec = ndl > 0.0 ? pow(max(ndh, 0.0), in_shininess[c]) : 0.0;
+    }
+    color += vis * vv_lightColor(i) * (in_diffuse[c] * ndl * albedo + in_specular[c] * spec);
+  }
+  return color;
+}
+
+//@inject //VTK::ComputeLighting::Exit post replace
+  finalColor.rgb = vv_shade(color.rgb, shading_gradient.xyz, lightingComponent);

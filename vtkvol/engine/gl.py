@@ -1,0 +1,247 @@
+"""GL resources that live in VTK's own context: 3D/2D textures, compute programs, mipmaps.
+
+VTK compiles, links and binds (``vtkShaderProgram``, ``vtkTextureObject``); PyOpenGL only issues
+the calls VTK has no Python binding for (dispatch, image binding, barriers, mipmap generation,
+sub-image uploads). Never call ``glActiveTexture``/``glBindTexture``/``glUseProgram`` here:
+``vtkOpenGLState`` caches them (see ../shared/reference/vtk-probe/FINDINGS.md §2–4).
+
+Every function here expects the render window's context to be current; the technique host
+(:class:`vtkvol.engine.illuminator.Illuminator`) only calls techniques from the renderer's
+``StartEvent``, where it is.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import numpy as np
+import vtk
+
+_GL: Any = None
+
+
+class GLUnavailableError(RuntimeError):
+    """The GL feature needed (compute shaders, PyOpenGL) is not available in this context."""
+
+
+def gl(render_window: vtk.vtkRenderWindow | None = None) -> Any:
+    """PyOpenGL's ``OpenGL.GL`` bound to the platform of ``render_window`` (EGL or GLX).
+
+    PyOpenGL fixes its platform at first import, so the first render window decides. With
+    glvnd both dispatch to whatever context is current, which is what VTK made current.
+    """
+    global _GL
+    if _GL is None:
+        if "PYOPENGL_PLATFORM" not in os.environ:
+            name = type(render_window).__name__ if render_window is not None else ""
+            egl = "EGL" in name or not os.environ.get("DISPLAY")
+            os.environ["PYOPENGL_PLATFORM"] = "egl" if egl else "glx"
+        try:
+            from OpenGL import GL
+        except Exception as exc:  # ImportError, or a platform that cannot load
+            raise GLUnavailableError(f"PyOpenGL could not be loaded: {exc}") from exc
+        _GL = GL
+    return _GL
+
+
+def compute_supported(render_window: vtk.vtkRenderWindow) -> bool:
+    """True when the (initialised) context can run compute shaders through PyOpenGL."""
+    try:
+        gl(render_window)
+    except GLUnavailableError:
+        return False
+    # IsComputeShaderSupported() is only meaningful once a context exists (FINDINGS §3).
+    return bool(vtk.vtkShader.IsComputeShaderSupported())
+
+
+def max_3d_texture_size(render_window: vtk.vtkRenderWindow) -> int:
+    GL = gl(render_window)
+    return int(GL.glGetIntegerv(GL.GL_MAX_3D_TEXTURE_SIZE))
+
+
+class Texture3D:
+    """A single-channel float 3D texture (R32F or R16F) in VTK's context.
+
+    ``shape`` is (nz, ny, nx) like the numpy arrays it is filled from. Linear filtering,
+    clamp-to-edge (or clamp-to-border with ``border``), optional mip chain.
+    """
+
+    def __init__(
+        self,
+        render_window: vtk.vtkRenderWindow,
+        shape_zyx: tuple[int, int, int],
+        *,
+        data: np.ndarray | None = None,
+        mip_levels: int = 1,
+        border: float | None = None,
+    ) -> None:
+        self.render_window = render_window
+        self.shape = tuple(int(s) for s in shape_zyx)
+        self.mip_levels = int(mip_levels)
+        tex = vtk.vtkTextureObject()
+        tex.SetContext(render_window)
+        mip = self.mip_levels > 1
+        tex.SetMinificationFilter(
+            vtk.vtkTextureObject.LinearMipmapLinear if mip else vtk.vtkTextureObject.Linear
+        )
+        tex.SetMagnificationFilter(vtk.vtkTextureObject.Linear)
+        wrap = vtk.vtkTextureObject.ClampToEdge
+        if border is not None:
+            wrap = vtk.vtkTextureObject.ClampToBorder
+            tex.SetBorderColor(border, border, border, border)
+        tex.SetWrapS(wrap)
+        tex.SetWrapT(wrap)
+        tex.SetWrapR(wrap)
+        if mip:
+            tex.SetMaxLevel(self.mip_levels - 1)  # default 0 hides the mips (FINDINGS §4)
+        nz, ny, nx = self.shape
+        if data is None:
+            ok = tex.Allocate3D(nx, ny, nz, 1, vtk.VTK_FLOAT)
+        else:
+            arr = np.ascontiguousarray(data, dtype=np.float32)
+            if arr.shape != self.shape:
+                raise ValueError(f"texture data shape {arr.shape} != {self.shape}")
+            ok = tex.Create3DFromRaw(nx, ny, nz, 1, vtk.VTK_FLOAT, arr)
+        if not ok:
+            raise GLUnavailableError(f"could not allocate a {nx}×{ny}×{nz} float 3D texture")
+        self.tex = tex
+
+    @property
+    def handle(self) -> int:
+        return int(self.tex.GetHandle())
+
+    def activate(self) -> int:
+        """Bind to a texture unit reserved by VTK's unit manager; returns the unit."""
+        self.tex.Activate()
+        return int(self.tex.GetTextureUnit())
+
+    def upload(self, data: np.ndarray, level: int = 0) -> None:
+        """Replace the contents of ``level`` in place (keeps the texture unit)."""
+        GL = gl(self.render_window)
+        arr = np.ascontiguousarray(data, dtype=np.float32)
+        self.tex.Activate()
+        state = self.render_window.GetState()
+        state.vtkglPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        nz, ny, nx = arr.shape
+        if level == 0:
+            GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, 0, nx, ny, nz, GL.GL_RED, GL.GL_FLOAT, arr)
+        else:
+            GL.glTexImage3D(
+                GL.GL_TEXTURE_3D, level, GL.GL_R32F, nx, ny, nz, 0, GL.GL_RED, GL.GL_FLOAT, arr
+            )
+
+    def generate_mipmaps(self) -> None:
+        GL = gl(self.render_window)
+        self.tex.Activate()
+        GL.glGenerateMipmap(GL.GL_TEXTURE_3D)
+
+    def download(self, level: int = 0) -> np.ndarray:
+        """Read back a level (for tests and verification); shape (nz, ny, nx)."""
+        GL = gl(self.render_window)
+        self.tex.Activate()
+        GL.glFinish()
+        nz, ny, nx = (max(1, s >> level) for s in self.shape)
+        out = np.empty((nz, ny, nx), np.float32)
+        self.render_window.GetState().vtkglPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        GL.glGetTexImage(GL.GL_TEXTURE_3D, level, GL.GL_RED, GL.GL_FLOAT, out)
+        return out
+
+    def bind_image(self, unit: int, access: str = "write", level: int = 0) -> None:
+        """Bind as ``image3D`` on image unit ``unit`` for a compute shader."""
+        GL = gl(self.render_window)
+        mode = {"read": GL.GL_READ_ONLY, "write": GL.GL_WRITE_ONLY, "readwrite": GL.GL_READ_WRITE}
+        GL.glBindImageTexture(unit, self.handle, level, GL.GL_TRUE, 0, mode[access], GL.GL_R32F)
+
+    def release(self) -> None:
+        if self.tex is not None:
+            self.tex.Deactivate()
+            self.tex.ReleaseGraphicsResources(self.render_window)
+            self.tex = None
+
+    @property
+    def nbytes(self) -> int:
+        nz, ny, nx = self.shape
+        total = 0
+        for level in range(self.mip_levels):
+            total += max(1, nx >> level) * max(1, ny >> level) * max(1, nz >> level) * 4
+        return total
+
+
+class Texture2D:
+    """A small single-channel float 2D texture (lookup tables such as slice weights)."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow, data: np.ndarray) -> None:
+        self.render_window = render_window
+        arr = np.ascontiguousarray(data, dtype=np.float32)
+        tex = vtk.vtkTextureObject()
+        tex.SetContext(render_window)
+        tex.SetMinificationFilter(vtk.vtkTextureObject.Linear)
+        tex.SetMagnificationFilter(vtk.vtkTextureObject.Linear)
+        tex.SetWrapS(vtk.vtkTextureObject.ClampToEdge)
+        tex.SetWrapT(vtk.vtkTextureObject.ClampToEdge)
+        h, w = arr.shape
+        if not tex.Create2DFromRaw(w, h, 1, vtk.VTK_FLOAT, arr):
+            raise GLUnavailableError(f"could not allocate a {w}×{h} float 2D texture")
+        self.shape = arr.shape
+        self.tex = tex
+
+    def activate(self) -> int:
+        self.tex.Activate()
+        return int(self.tex.GetTextureUnit())
+
+    def upload(self, data: np.ndarray) -> None:
+        GL = gl(self.render_window)
+        arr = np.ascontiguousarray(data, dtype=np.float32)
+        if arr.shape != self.shape:
+            raise ValueError(f"lookup table shape {arr.shape} != {self.shape}")
+        self.tex.Activate()
+        self.render_window.GetState().vtkglPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        h, w = arr.shape
+        GL.glTexSubImage2D(GL.GL_TEXTURE_2D, 0, 0, 0, w, h, GL.GL_RED, GL.GL_FLOAT, arr)
+
+    def release(self) -> None:
+        if self.tex is not None:
+            self.tex.Deactivate()
+            self.tex.ReleaseGraphicsResources(self.render_window)
+            self.tex = None
+
+
+class ComputeProgram:
+    """A compute shader compiled and bound by VTK, dispatched by PyOpenGL."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow, source: str, name: str) -> None:
+        self.render_window = render_window
+        self.name = name
+        if not compute_supported(render_window):
+            raise GLUnavailableError("this OpenGL context has no compute shaders")
+        prog = vtk.vtkShaderProgram()
+        prog.GetComputeShader().SetSource(source)
+        cache = render_window.GetShaderCache()
+        cache.ReadyShaderProgram(prog)
+        if not prog.GetCompiled():
+            error = prog.GetError() or "unknown error"
+            cache.ReleaseCurrentShader()
+            raise GLUnavailableError(f"compute shader {name!r} failed to build:\n{error}")
+        cache.ReleaseCurrentShader()
+        self.prog = prog
+
+    def use(self) -> vtk.vtkShaderProgram:
+        self.render_window.GetShaderCache().ReadyShaderProgram(self.prog)
+        return self.prog
+
+    def dispatch(self, groups: tuple[int, int, int], barrier: bool = True) -> None:
+        GL = gl(self.render_window)
+        GL.glDispatchCompute(*(max(1, int(g)) for g in groups))
+        if barrier:
+            GL.glMemoryBarrier(
+                GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
+            )
+
+    def done(self) -> None:
+        self.render_window.GetShaderCache().ReleaseCurrentShader()
+
+    def release(self) -> None:
+        if self.prog is not None:
+            self.prog.ReleaseGraphicsResources(self.render_window)
+            self.prog = None

@@ -1,0 +1,153 @@
+"""GLSL files sectioned by the VTK template tag they touch, and their composition.
+
+A shader file in ``resources/shaders`` is plain GLSL with marker lines::
+
+    //@inject //VTK::ComputeLighting::Dec pre before
+    float vv_light_visibility(int i, vec3 texPos, vec3 dirDS) { return 1.0; }
+
+Marker fields: the tag; ``pre`` (applied before VTK's own substitutions, so the tag still
+exists) or ``post`` (after them; needed for tags VTK creates itself, such as
+``//VTK::ComputeLighting::Exit``); and where the code goes: ``before`` or ``after`` the tag
+(the tag is kept) or ``replace``. ``//@include common/name.glsl`` inlines a helper file.
+
+VTK keeps one replacement per (tag, pre/post), so every snippet aimed at the same tag by the
+host and the technique is merged into one replacement string by :func:`compose`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections import defaultdict
+from dataclasses import dataclass
+from importlib import resources
+from typing import Literal
+
+import vtk
+
+Phase = Literal["pre", "post"]
+Where = Literal["before", "after", "replace"]
+
+_MARKER = re.compile(r"^\s*//@inject\s+(//VTK::\S+)\s+(pre|post)\s+(before|after|replace)\s*$")
+_INCLUDE = re.compile(r"^\s*//@include\s+(\S+)\s*$")
+
+
+@dataclass(frozen=True)
+class Section:
+    tag: str
+    phase: Phase
+    where: Where
+    code: str
+    origin: str  # file name, for error messages and for the marker comment
+
+
+class ShaderFileError(ValueError):
+    """A shader resource is missing or malformed."""
+
+
+def read_resource(name: str) -> str:
+    """Text of ``resources/shaders/<name>`` (``name`` may contain ``common/``)."""
+    path = resources.files("vtkvol.resources").joinpath("shaders", *name.split("/"))
+    if not path.is_file():
+        raise ShaderFileError(f"shader resource {name!r} not found in vtkvol.resources/shaders")
+    return path.read_text(encoding="utf-8")
+
+
+def _expand_includes(text: str, origin: str, seen: tuple[str, ...] = ()) -> str:
+    out = []
+    for line in text.splitlines():
+        m = _INCLUDE.match(line)
+        if m:
+            name = m.group(1)
+            if name in seen:
+                raise ShaderFileError(f"{origin}: include cycle through {name}")
+            out.append(f"// ---- vtkvol include {name}")
+            out.append(_expand_includes(read_resource(name), name, (*seen, name)))
+        else:
+            out.append(line)
+    return "\n".join(out)
+
+
+def parse(text: str, origin: str) -> list[Section]:
+    """Split a sectioned GLSL text into :class:`Section` objects."""
+    sections: list[Section] = []
+    current: tuple[str, Phase, Where] | None = None
+    body: list[str] = []
+
+    def flush() -> None:
+        if current is not None:
+            code = _expand_includes("\n".join(body).strip("\n"), origin)
+            sections.append(Section(*current, code=code, origin=origin))
+
+    for line in text.splitlines():
+        m = _MARKER.match(line)
+        if m:
+            flush()
+            current = (m.group(1), m.group(2), m.group(3))  # type: ignore[assignment]
+            body = []
+        elif line.lstrip().startswith("//@"):
+            if not _INCLUDE.match(line):
+                raise ShaderFileError(f"{origin}: unknown marker line {line.strip()!r}")
+            body.append(line)
+        elif current is not None:
+            body.append(line)
+    flush()
+    return sections
+
+
+def load(name: str, defines: dict[str, str] | None = None) -> list[Section]:
+    """Parse ``resources/shaders/<name>``; ``defines`` become ``#define`` lines in every section
+    (compile-time variants: on llvmpipe, branches on uniforms cost as much as all branches)."""
+    sections = parse(read_resource(name), name)
+    if defines:
+        prefix = "\n".join(f"#define {k} {v}" for k, v in defines.items())
+        sections = [
+            Section(s.tag, s.phase, s.where, f"{prefix}\n{s.code}", s.origin) if i == 0 else s
+            for i, s in enumerate(sections)
+        ]
+    return sections
+
+
+def compose(sections: list[Section]) -> dict[tuple[str, Phase], str]:
+    """Merge sections into one replacement string per (tag, phase), in list order."""
+    grouped: dict[tuple[str, Phase], list[Section]] = defaultdict(list)
+    for s in sections:
+        grouped[(s.tag, s.phase)].append(s)
+    result: dict[tuple[str, Phase], str] = {}
+    for (tag, phase), group in grouped.items():
+        replaced = [s for s in group if s.where == "replace"]
+        if len(replaced) > 1:
+            names = ", ".join(s.origin for s in replaced)
+            raise ShaderFileError(f"{tag} ({phase}) is replaced by more than one file: {names}")
+        before = [f"// vtkvol<{s.origin}>\n{s.code}" for s in group if s.where == "before"]
+        after = [f"// vtkvol<{s.origin}>\n{s.code}" for s in group if s.where == "after"]
+        middle = [replaced[0].code] if replaced else [tag]
+        result[(tag, phase)] = "\n".join([*before, *middle, *after])
+    return result
+
+
+class ReplacementSet:
+    """The replacements currently installed on one ``vtkShaderProperty``."""
+
+    def __init__(self, shader_property: vtk.vtkShaderProperty) -> None:
+        self.shader_property = shader_property
+        self.installed: dict[tuple[str, Phase], str] = {}
+
+    def install(self, replacements: dict[tuple[str, Phase], str]) -> bool:
+        """Install ``replacements``, removing ours that are no longer wanted.
+
+        Returns True when anything changed (the program will be rebuilt).
+        """
+        if replacements == self.installed:
+            return False
+        sp = self.shader_property
+        for tag, phase in self.installed:
+            if (tag, phase) not in replacements:
+                sp.ClearFragmentShaderReplacement(tag, phase == "pre")
+        for (tag, phase), text in replacements.items():
+            if self.installed.get((tag, phase)) != text:
+                sp.AddFragmentShaderReplacement(tag, phase == "pre", text, False)
+        self.installed = dict(replacements)
+        return True
+
+    def clear(self) -> None:
+        self.install({})

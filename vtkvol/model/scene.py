@@ -1,0 +1,228 @@
+"""The whole user-visible state of a view: what a session file stores.
+
+Coordinate conventions (docs/architecture.md):
+
+* **World space** is physical, in **µm**, axes x, y, z, with the volume's first voxel centre at
+  the origin: voxel (i, j, k) sits at (i·sx, j·sy, k·sz).
+* Arrays are indexed ``[c, z, y, x]``; per-axis tuples in the model are ordered **(x, y, z)**.
+* Light directions point **from the scene towards the light**, in world space.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import Field, field_validator, model_validator
+
+from vtkvol.model.evented import EventedModel
+from vtkvol.model.transfer_function import RGB, TransferFunction
+
+BlendMode = Literal["composite", "mip", "minip", "average", "additive", "isosurface"]
+BLEND_MODES: tuple[str, ...] = BlendMode.__args__  # type: ignore[attr-defined]
+ChannelMixing = Literal["additive", "composite"]
+Vec3 = tuple[float, float, float]
+
+
+def _finite3(v: Vec3, what: str) -> Vec3:
+    import math
+
+    if not all(math.isfinite(c) for c in v):
+        raise ValueError(f"{what} {v} must be finite")
+    return v
+
+
+class VolumeSource(EventedModel):
+    """Where the data came from and how it was read (not the voxels themselves)."""
+
+    path: str | None = None  #: file or folder; ``None`` for the built-in sample or in-memory data
+    voxel_size_um: Vec3 | None = None  #: user override (x, y, z) in µm; ``None`` = from metadata
+    time_index: int = Field(0, ge=0)
+    fit: Literal["auto", "crop", "subsample", "average", "none"] = "auto"
+    size_bytes: int | None = None  #: recorded on save to detect a changed file
+    sha256_head: str | None = None  #: checksum of the first MiB, recorded on save
+    shape_zyx: tuple[int, int, int] | None = None  #: shape after reading, recorded on save
+    channels: int | None = None
+
+    @field_validator("voxel_size_um")
+    @classmethod
+    def _positive(cls, v: Vec3 | None):
+        if v is not None and not all(c > 0 for c in _finite3(v, "voxel size")):
+            raise ValueError(f"voxel size {v} µm must be positive")
+        return v
+
+
+class Channel(EventedModel):
+    """One fluorescence channel (one component of the rendered volume)."""
+
+    name: str = "channel"
+    visible: bool = True
+    color: RGB = (1.0, 1.0, 1.0)  #: tint used by presets and the channel list
+    tf: TransferFunction = Field(default_factory=TransferFunction)
+    tf_linked_to: int | None = None  #: index of a channel whose TF this one follows
+
+    @field_validator("color")
+    @classmethod
+    def _rgb(cls, v: RGB):
+        if not all(0.0 <= c <= 1.0 for c in v):
+            raise ValueError(f"channel colour {v} must lie in 0…1")
+        return v
+
+
+class Light(EventedModel):
+    """A light in world space.
+
+    ``kind="directional"``: parallel light arriving along ``-direction`` (``direction`` points
+    from the scene towards the light). ``kind="point"``: a point light at ``position`` (µm).
+    """
+
+    kind: Literal["directional", "point"] = "directional"
+    direction: Vec3 = (0.3, 0.5, 0.8)
+    position: Vec3 = (0.0, 0.0, 1000.0)
+    color: RGB = (1.0, 1.0, 1.0)
+    intensity: float = Field(1.0, ge=0.0, le=100.0)
+    enabled: bool = True
+
+    @field_validator("direction")
+    @classmethod
+    def _nonzero(cls, v: Vec3):
+        _finite3(v, "light direction")
+        if sum(c * c for c in v) < 1e-12:
+            raise ValueError("light direction must not be the zero vector")
+        return v
+
+    @field_validator("position")
+    @classmethod
+    def _pos(cls, v: Vec3):
+        return _finite3(v, "light position")
+
+    @field_validator("color")
+    @classmethod
+    def _rgb(cls, v: RGB):
+        if not all(0.0 <= c <= 1.0 for c in v):
+            raise ValueError(f"light colour {v} must lie in 0…1")
+        return v
+
+
+class CropBox(EventedModel):
+    """Per-axis ranges in µm (world space). ``None`` for an axis means the full extent."""
+
+    x: tuple[float, float] | None = None
+    y: tuple[float, float] | None = None
+    z: tuple[float, float] | None = None
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _increasing(cls, v: tuple[float, float] | None):
+        if v is not None and not v[0] < v[1]:
+            raise ValueError(f"range {v} µm must be increasing")
+        return v
+
+    def as_bounds(self, full: tuple[float, float, float, float, float, float]):
+        """(xmin, xmax, ymin, ymax, zmin, zmax) in µm, clipped to ``full``."""
+        out = list(full)
+        for i, rng in enumerate((self.x, self.y, self.z)):
+            if rng is not None:
+                out[2 * i] = max(full[2 * i], rng[0])
+                out[2 * i + 1] = min(full[2 * i + 1], rng[1])
+        return tuple(out)
+
+
+WeightPoints = list[tuple[float, float]]
+
+
+class SliceWeights(EventedModel):
+    """Slice-contribution functions (seed 002 §2.11): one weighting function per axis.
+
+    Each is a list of ``(position, weight)`` with position normalised to 0…1 across the
+    volume's extent on that axis and weight in 0…1, linearly interpolated. A sample's RGBA is
+    multiplied by wX(x)·wY(y)·wZ(z); samples whose weight is below 1e-10 are discarded.
+    """
+
+    x: WeightPoints = Field(default_factory=lambda: [(0.0, 1.0), (1.0, 1.0)])
+    y: WeightPoints = Field(default_factory=lambda: [(0.0, 1.0), (1.0, 1.0)])
+    z: WeightPoints = Field(default_factory=lambda: [(0.0, 1.0), (1.0, 1.0)])
+
+    @field_validator("x", "y", "z")
+    @classmethod
+    def _points(cls, v: WeightPoints):
+        if not v:
+            raise ValueError("a weighting function needs at least one point")
+        for pos, w in v:
+            if not (0.0 <= pos <= 1.0 and 0.0 <= w <= 1.0):
+                raise ValueError(f"weight point {(pos, w)}: position and weight must lie in 0…1")
+        return sorted(v)
+
+    @property
+    def is_identity(self) -> bool:
+        return all(all(w == 1.0 for _, w in pts) for pts in (self.x, self.y, self.z))
+
+
+class Illumination(EventedModel):
+    """The illumination technique and the parameter values of every technique used so far.
+
+    Values are validated against the technique's declared ``PARAMETERS`` by the engine (which
+    knows the installed techniques); the model only stores them.
+    """
+
+    method: str = "local"
+    parameters: dict[str, dict[str, Any]] = Field(default_factory=dict)
+
+    def values_for(self, method: str | None = None) -> dict[str, Any]:
+        return dict(self.parameters.get(method or self.method, {}))
+
+    def set_value(self, name: str, value: Any, method: str | None = None) -> None:
+        method = method or self.method
+        params = {k: dict(v) for k, v in self.parameters.items()}
+        params.setdefault(method, {})[name] = value
+        self.parameters = params
+
+
+class Camera(EventedModel):
+    """Camera in world space (µm). ``None`` position means "reset to fit the volume"."""
+
+    position: Vec3 | None = None
+    focal_point: Vec3 | None = None
+    view_up: Vec3 = (0.0, 1.0, 0.0)
+    view_angle: float = Field(30.0, gt=0.0, lt=180.0)  #: degrees
+    parallel_projection: bool = False
+    parallel_scale: float = Field(1.0, gt=0.0)
+
+
+class RenderSettings(EventedModel):
+    """Ray-casting settings. Distances are in **voxels** of the smallest voxel edge."""
+
+    blend_mode: BlendMode = "composite"
+    channel_mixing: ChannelMixing = "additive"
+    sample_distance: float = Field(0.5, gt=0.01, le=8.0)  #: voxels, at full quality
+    interactive_sample_distance: float = Field(2.0, gt=0.01, le=16.0)  #: voxels, while moving
+    interactive_image_factor: float = Field(2.0, ge=1.0, le=8.0)  #: image subsampling while moving
+    opacity_unit_distance: float | None = Field(None, gt=0.0)  #: µm; None = smallest voxel edge
+    jitter: bool = True
+    shade: bool = True
+    ambient: float = Field(0.3, ge=0.0, le=1.0)
+    diffuse: float = Field(0.7, ge=0.0, le=2.0)
+    specular: float = Field(0.2, ge=0.0, le=2.0)
+    specular_power: float = Field(20.0, ge=1.0, le=128.0)
+    isosurface_value: float | None = None  #: data units; None = mid of the first channel's TF
+    background: RGB = (0.08, 0.08, 0.1)
+
+
+class SceneModel(EventedModel):
+    """Everything the user set for one view."""
+
+    volume: VolumeSource = Field(default_factory=VolumeSource)
+    channels: list[Channel] = Field(default_factory=lambda: [Channel()])
+    lights: list[Light] = Field(default_factory=lambda: [Light()])
+    illumination: Illumination = Field(default_factory=Illumination)
+    crop: CropBox = Field(default_factory=CropBox)
+    slice_weights: SliceWeights = Field(default_factory=SliceWeights)
+    camera: Camera = Field(default_factory=Camera)
+    render: RenderSettings = Field(default_factory=RenderSettings)
+
+    @model_validator(mode="after")
+    def _limits(self):
+        if not 1 <= len(self.channels) <= 4:
+            raise ValueError(f"1 to 4 channels are supported, not {len(self.channels)}")
+        if len(self.lights) > 4:
+            raise ValueError(f"at most 4 lights are supported, not {len(self.lights)}")
+        return self
