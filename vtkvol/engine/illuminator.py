@@ -336,11 +336,12 @@ class Illuminator:
         if first_attach:
             self._technique = self._technique_cls(self)
             self._technique.attach()
-        self._install_shader(values)
         self._upload_weights()
         changes, self._changes = self._changes, Changes()
         changes.first = changes.first or first_attach
         self._technique.prepare(changes, values)  # type: ignore[union-attr]
+        # After prepare: textures bound there must be retyped to samplers in this very build.
+        self._install_shader(values)
         self._upload_uniforms(values)
         # Keep our textures bound to their units (another pass may have re-bound units).
         fu = self.shader_property.GetFragmentCustomUniforms()
