@@ -1,0 +1,97 @@
+"""The two library calls most users need: :func:`illuminate` and :func:`render_image`."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import vtk
+
+from vtkvol.engine.illuminator import Illuminator
+from vtkvol.engine.offscreen import grab, make_render_window
+from vtkvol.engine.scene import VolumeScene
+from vtkvol.model.defaults import scene_for
+from vtkvol.model.presets import apply_preset
+from vtkvol.model.scene import Light, SceneModel
+
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+
+
+def illuminate(
+    volume: vtk.vtkVolume,
+    renderer: Any,
+    *,
+    method: str = "local",
+    lights: Sequence[Light] | None = None,
+    **parameters: Any,
+) -> Illuminator:
+    """Give an existing ``vtkVolume`` a vtkvol illumination technique.
+
+    Parameters
+    ----------
+    volume
+        A ``vtkVolume`` whose mapper is a ``vtkOpenGLGPUVolumeRayCastMapper`` (with PyVista:
+        ``plotter.add_volume(..., mapper="gpu")``).
+    renderer
+        The ``vtkRenderer`` showing it, or a PyVista ``Plotter`` (its active renderer is used).
+    method
+        ``"local"``, ``"shadow_volume"``, ``"cone_traced"``, … (see
+        :func:`vtkvol.engine.technique.available_techniques`).
+    lights
+        World-space :class:`vtkvol.Light` objects (µm); default one directional light.
+    **parameters
+        Technique parameters (validated against its declaration; ``ValueError`` if bad).
+
+    Returns
+    -------
+    Illuminator
+        Keep it: ``set_lights``, ``set_parameters``, ``set_method``; ``release()`` removes
+        everything it added. Transfer-function, data and crop edits made on the VTK objects are
+        picked up automatically at the next render.
+    """
+    if not isinstance(renderer, vtk.vtkRenderer):
+        renderer = getattr(renderer, "renderer", None)
+        if not isinstance(renderer, vtk.vtkRenderer):
+            raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
+    return Illuminator(volume, renderer, method=method, lights=lights, parameters=parameters)
+
+
+def render_image(
+    data: VolumeData,
+    *,
+    model: SceneModel | None = None,
+    size: tuple[int, int] = (512, 512),
+    method: str | None = None,
+    preset: str | None = None,
+    azimuth: float = 0.0,
+    elevation: float = 0.0,
+    parameters: dict[str, Any] | None = None,
+) -> np.ndarray:
+    """Render ``data`` offscreen and return an ``(h, w, 3)`` uint8 image.
+
+    ``model`` (e.g. from a session file) gives the full view; otherwise a default scene is made.
+    ``method``/``preset``/``parameters`` override it; ``azimuth``/``elevation`` (degrees) rotate
+    the camera from the model's view (or the default view).
+    """
+    model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
+    if preset is not None:
+        for channel in model.channels:
+            apply_preset(channel.tf, preset, tint=channel.color)
+    if method is not None:
+        model.illumination.method = method
+    if parameters:
+        for name, value in parameters.items():
+            model.illumination.set_value(name, value)
+    rw = make_render_window(size)
+    renderer = vtk.vtkRenderer()
+    rw.AddRenderer(renderer)
+    scene = VolumeScene(renderer, model, data, request_render=lambda: None)
+    try:
+        if azimuth or elevation:
+            scene.orbit(azimuth, elevation)
+        return grab(rw)
+    finally:
+        scene.close()
+        rw.Finalize()

@@ -1,0 +1,383 @@
+"""``VolumeScene``: a :class:`SceneModel` and a :class:`VolumeData` made into a VTK scene.
+
+The scene listens to the model and applies each change to the VTK objects; it never writes the
+model except :meth:`VolumeScene.sync_camera_to_model` (the camera is moved by the interactor).
+Illumination is delegated to an :class:`~vtkvol.engine.illuminator.Illuminator`, the same host
+that :func:`vtkvol.illuminate` attaches to foreign volumes.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+import numpy as np
+import vtk
+from vtk.util.numpy_support import numpy_to_vtk
+
+from vtkvol.engine.illuminator import Illuminator
+from vtkvol.model.defaults import default_channels
+from vtkvol.model.scene import Channel, SceneModel
+
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+
+#: Model blend mode → vtkVolumeMapper blend mode.
+_BLEND = {
+    "composite": vtk.vtkVolumeMapper.COMPOSITE_BLEND,
+    "mip": vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND,
+    "minip": vtk.vtkVolumeMapper.MINIMUM_INTENSITY_BLEND,
+    "average": vtk.vtkVolumeMapper.AVERAGE_INTENSITY_BLEND,
+    "additive": vtk.vtkVolumeMapper.ADDITIVE_BLEND,
+    "isosurface": vtk.vtkVolumeMapper.ISOSURFACE_BLEND,
+}
+#: Weight-table resolution for the slice-contribution functions.
+WEIGHT_SAMPLES = 256
+
+# VTK mixes independent components with an opacity-weighted mean alpha ("additive" colours).
+# "composite" mixing treats the channels as independent absorbers: alpha = 1 - prod(1 - a_i).
+_VTK_MIX_LINE = "tmp.w += ((color[i].w * color[i].w)/totalAlpha);"
+_ABSORBER_MIX_LINE = "tmp.w = 1.0 - (1.0 - tmp.w) * (1.0 - color[i].w * in_componentWeight[i]);"
+
+
+class VolumeScene:
+    """Owns the ``vtkVolume`` for one :class:`SceneModel` in a ``vtkRenderer``.
+
+    Parameters
+    ----------
+    renderer
+        Where to add the volume.
+    model
+        The state to show; changes to it are applied as they happen.
+    data
+        The voxels. ``None`` shows nothing until :meth:`set_data`.
+    request_render
+        Called when the view needs a new frame (the app coalesces these on a Qt timer);
+        default: render the window at once.
+    """
+
+    def __init__(
+        self,
+        renderer: vtk.vtkRenderer,
+        model: SceneModel,
+        data: VolumeData | None = None,
+        *,
+        request_render: Callable[[], None] | None = None,
+    ) -> None:
+        self.renderer = renderer
+        self.model = model
+        self._request_render = request_render
+        self.data: VolumeData | None = None
+        self._image: vtk.vtkImageData | None = None
+        self._keepalive: np.ndarray | None = None  # numpy buffer VTK reads without copying
+        self._interactive = False
+        self._syncing_camera = False
+        self.illuminator: Illuminator | None = None
+        self.volume = vtk.vtkVolume()
+        self.mapper = vtk.vtkOpenGLGPUVolumeRayCastMapper()
+        self.mapper.SetAutoAdjustSampleDistances(0)  # quality never changes behind the user's back
+        self.mapper.SetLockSampleDistanceToInputSpacing(0)
+        self.property = vtk.vtkVolumeProperty()
+        self.property.SetInterpolationTypeToLinear()
+        self.volume.SetMapper(self.mapper)
+        self.volume.SetProperty(self.property)
+        model.changed.connect(self._on_model_changed)
+        if data is not None:
+            self.set_data(data)
+
+    # -- read-only access to VTK (changes there are not tracked or saved) ----------------------
+    @property
+    def vtk_volume(self) -> vtk.vtkVolume:
+        return self.volume
+
+    @property
+    def vtk_mapper(self) -> vtk.vtkOpenGLGPUVolumeRayCastMapper:
+        return self.mapper
+
+    @property
+    def vtk_property(self) -> vtk.vtkVolumeProperty:
+        return self.property
+
+    # -- data -------------------------------------------------------------------------------------
+    def set_data(self, data: VolumeData, *, reset_channels: bool | None = None) -> None:
+        """Show ``data``. Channels are reset to defaults when their count differs from the
+        model's (or when ``reset_channels``); otherwise the model's channels are kept."""
+        self.data = data
+        self._image, self._keepalive = _to_image(data)
+        self.mapper.SetInputData(self._image)
+        if reset_channels or (reset_channels is None and len(self.model.channels) != data.n_channels):
+            with self.model.batch():
+                self.model.channels = default_channels(data)
+        if self.renderer.HasViewProp(self.volume) == 0:
+            self.renderer.AddVolume(self.volume)
+        if self.illuminator is None:
+            self.illuminator = Illuminator(
+                self.volume,
+                self.renderer,
+                method=self.model.illumination.method,
+                lights=self.model.lights,
+                parameters=self.model.illumination.values_for(),
+            )
+        self._apply_all()
+        if self.model.camera.position is None:
+            self.reset_camera()
+        self.request_render()
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float, float, float]:
+        """(xmin, xmax, ymin, ymax, zmin, zmax) of the data in world µm (voxel centres)."""
+        if self._image is None:
+            return (0.0, 1.0, 0.0, 1.0, 0.0, 1.0)
+        return tuple(self._image.GetBounds())  # type: ignore[return-value]
+
+    # -- model → VTK ----------------------------------------------------------------------------
+    def _on_model_changed(self, paths: frozenset[str]) -> None:
+        if self.data is None:
+            return
+        tops = {p.split(".", 1)[0] for p in paths}
+        if "channels" in tops:
+            self._apply_channels()
+        if "render" in tops:
+            self._apply_render()
+            self._apply_channels()  # unit distance and shading constants are per component
+        if "lights" in tops:
+            self.illuminator.set_lights(self.model.lights)  # type: ignore[union-attr]
+        if "illumination" in tops:
+            self._apply_illumination()
+        if "crop" in tops:
+            self._apply_crop()
+        if "slice_weights" in tops:
+            self._apply_slice_weights()
+        if "camera" in tops and not self._syncing_camera:
+            self._apply_camera()
+        self.request_render()
+
+    def _apply_all(self) -> None:
+        self._apply_render()
+        self._apply_channels()
+        self._apply_illumination()
+        self._apply_crop()
+        self._apply_slice_weights()
+        if self.model.camera.position is not None:
+            self._apply_camera()
+        assert self.illuminator is not None
+        self.illuminator.set_lights(self.model.lights)
+
+    def _apply_channels(self) -> None:
+        prop, render = self.property, self.model.render
+        channels = self.model.channels
+        n = len(channels)
+        prop.SetIndependentComponents(n > 1)
+        unit = render.opacity_unit_distance or self._min_spacing()
+        for c, channel in enumerate(channels):
+            tf = self._effective_tf(channel)
+            ctf = vtk.vtkColorTransferFunction()
+            for value, r, g, b in tf.colors:
+                ctf.AddRGBPoint(value, r, g, b)
+            otf = vtk.vtkPiecewiseFunction()
+            for value, alpha in tf.opacity:
+                otf.AddPoint(value, alpha)
+            prop.SetColor(c, ctf)
+            prop.SetScalarOpacity(c, otf)
+            prop.SetScalarOpacityUnitDistance(c, unit)
+            prop.SetComponentWeight(c, 1.0 if channel.visible else 0.0)
+            prop.SetShade(c, int(render.shade))
+            prop.SetAmbient(c, render.ambient)
+            prop.SetDiffuse(c, render.diffuse)
+            prop.SetSpecular(c, render.specular)
+            prop.SetSpecularPower(c, render.specular_power)
+        if n == 1 and not channels[0].visible:
+            prop.SetScalarOpacity(0, _zero_function())
+        if render.blend_mode == "isosurface":
+            iso = prop.GetIsoSurfaceValues()
+            iso.SetNumberOfContours(1)
+            iso.SetValue(0, self._isosurface_value())
+
+    def _effective_tf(self, channel: Channel):
+        link = channel.tf_linked_to
+        channels = self.model.channels
+        if link is not None and 0 <= link < len(channels) and channels[link] is not channel:
+            return channels[link].tf
+        return channel.tf
+
+    def _isosurface_value(self) -> float:
+        value = self.model.render.isosurface_value
+        if value is not None:
+            return value
+        lo, hi = self.model.channels[0].tf.value_span
+        return 0.5 * (lo + hi)
+
+    def _apply_render(self) -> None:
+        render = self.model.render
+        self.mapper.SetBlendMode(_BLEND[render.blend_mode])
+        self.mapper.SetUseJittering(int(render.jitter))
+        self._apply_sampling()
+        self.renderer.SetBackground(*render.background)
+        mixing = render.channel_mixing == "composite" and len(self.model.channels) > 1
+        sp = self.volume.GetShaderProperty()
+        if mixing:
+            sp.AddFragmentShaderReplacement(_VTK_MIX_LINE, False, _ABSORBER_MIX_LINE, False)
+        else:
+            sp.ClearFragmentShaderReplacement(_VTK_MIX_LINE, False)
+
+    def _apply_sampling(self) -> None:
+        render = self.model.render
+        step = render.interactive_sample_distance if self._interactive else render.sample_distance
+        self.mapper.SetSampleDistance(step * self._min_spacing())
+        self.mapper.SetImageSampleDistance(
+            render.interactive_image_factor if self._interactive else 1.0
+        )
+
+    def _apply_illumination(self) -> None:
+        assert self.illuminator is not None
+        illum = self.model.illumination
+        self.illuminator.set_method(illum.method)
+        self.illuminator.set_parameters(**illum.values_for())
+
+    def _apply_crop(self) -> None:
+        if self._image is None:
+            return
+        crop = self.model.crop
+        if crop.x is None and crop.y is None and crop.z is None:
+            self.mapper.SetCropping(0)
+            return
+        self.mapper.SetCropping(1)
+        self.mapper.SetCroppingRegionPlanes(*crop.as_bounds(self.bounds))
+        self.mapper.SetCroppingRegionFlagsToSubVolume()
+
+    def _apply_slice_weights(self) -> None:
+        assert self.illuminator is not None
+        weights = self.model.slice_weights
+        if weights.is_identity:
+            self.illuminator.set_slice_weights(None)
+            return
+        grid = np.linspace(0.0, 1.0, WEIGHT_SAMPLES)
+        table = np.stack(
+            [
+                np.interp(grid, *np.asarray(points, dtype=np.float64).T)
+                for points in (weights.x, weights.y, weights.z)
+            ]
+        )
+        self.illuminator.set_slice_weights(table.astype(np.float32))
+
+    def _apply_camera(self) -> None:
+        cam = self.renderer.GetActiveCamera()
+        state = self.model.camera
+        if state.position is None or state.focal_point is None:
+            self.reset_camera()
+            return
+        cam.SetPosition(*state.position)
+        cam.SetFocalPoint(*state.focal_point)
+        cam.SetViewUp(*state.view_up)
+        cam.SetViewAngle(state.view_angle)
+        cam.SetParallelProjection(int(state.parallel_projection))
+        cam.SetParallelScale(state.parallel_scale)
+        self.renderer.ResetCameraClippingRange()
+
+    def _min_spacing(self) -> float:
+        if self.data is None:
+            return 1.0
+        return float(min(self.data.voxel_size_um))
+
+    # -- camera ---------------------------------------------------------------------------------
+    def reset_camera(self, *, azimuth: float = 30.0, elevation: float = 20.0) -> None:
+        """Frame the (cropped) volume from the front (−y), z up, then rotate by the angles (°)."""
+        b = self.bounds
+        center = np.array([(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2])
+        cam = self.renderer.GetActiveCamera()
+        cam.SetFocalPoint(*center)
+        cam.SetPosition(*(center - np.array([0.0, 1.0, 0.0])))
+        cam.SetViewUp(0.0, 0.0, 1.0)
+        cam.Azimuth(azimuth)
+        cam.Elevation(elevation)
+        cam.OrthogonalizeViewUp()
+        self.renderer.ResetCamera(*b)
+        self.sync_camera_to_model()
+
+    def orbit(self, azimuth: float = 0.0, elevation: float = 0.0) -> None:
+        """Rotate the camera around the focal point (degrees) and store it in the model."""
+        cam = self.renderer.GetActiveCamera()
+        cam.Azimuth(azimuth)
+        cam.Elevation(elevation)
+        cam.OrthogonalizeViewUp()
+        self.renderer.ResetCameraClippingRange()
+        self.sync_camera_to_model()
+
+    def sync_camera_to_model(self) -> None:
+        """Copy the VTK camera (moved by the interactor) into ``model.camera``."""
+        cam = self.renderer.GetActiveCamera()
+        self._syncing_camera = True
+        try:
+            self.model.camera.update(
+                {
+                    "position": tuple(cam.GetPosition()),
+                    "focal_point": tuple(cam.GetFocalPoint()),
+                    "view_up": tuple(cam.GetViewUp()),
+                    "view_angle": float(cam.GetViewAngle()),
+                    "parallel_projection": bool(cam.GetParallelProjection()),
+                    "parallel_scale": max(float(cam.GetParallelScale()), 1e-9),
+                }
+            )
+        finally:
+            self._syncing_camera = False
+
+    # -- interaction ----------------------------------------------------------------------------
+    def set_interactive(self, interactive: bool) -> None:
+        """Coarser sampling while the camera moves (seed 002's "Reduce"); full when it stops."""
+        if interactive != self._interactive:
+            self._interactive = interactive
+            self._apply_sampling()
+
+    @property
+    def interactive(self) -> bool:
+        return self._interactive
+
+    def request_render(self) -> None:
+        if self._request_render is not None:
+            self._request_render()
+        else:
+            rw = self.renderer.GetRenderWindow()
+            if rw is not None:
+                rw.Render()
+
+    # -- teardown -------------------------------------------------------------------------------
+    def close(self) -> None:
+        """Release GL resources and remove the volume (call while the window still exists)."""
+        self.model.changed.disconnect(self._on_model_changed)
+        if self.illuminator is not None:
+            self.illuminator.release()
+            self.illuminator = None
+        rw = self.renderer.GetRenderWindow()
+        if rw is not None:
+            self.mapper.ReleaseGraphicsResources(rw)
+        self.renderer.RemoveVolume(self.volume)
+        self._keepalive = None
+
+
+def _zero_function() -> vtk.vtkPiecewiseFunction:
+    f = vtk.vtkPiecewiseFunction()
+    f.AddPoint(-1e30, 0.0)
+    f.AddPoint(1e30, 0.0)
+    return f
+
+
+def _to_image(data: VolumeData) -> tuple[vtk.vtkImageData, np.ndarray]:
+    """``vtkImageData`` for ``data``: zero-copy for one contiguous channel; channels interleaved
+    (a copy VTK requires) otherwise. NaN/inf are replaced by the finite minimum (copy).
+    Returns the image and the numpy buffer it reads, which the caller must keep alive."""
+    arr = data.array
+    c, nz, ny, nx = arr.shape
+    if arr.dtype.kind == "f" and not np.isfinite(arr).all():
+        lo = min(data.channel_range(i)[0] for i in range(c))
+        arr = np.nan_to_num(np.asarray(arr), nan=lo, posinf=lo, neginf=lo)
+    flat = np.ascontiguousarray(arr[0]).reshape(-1) if c == 1 else (
+        np.ascontiguousarray(np.moveaxis(np.asarray(arr), 0, -1)).reshape(-1, c)
+    )
+    image = vtk.vtkImageData()
+    image.SetDimensions(nx, ny, nz)
+    image.SetSpacing(*(float(s) for s in data.voxel_size_um))
+    image.SetOrigin(0.0, 0.0, 0.0)
+    scalars = numpy_to_vtk(flat, deep=False)
+    scalars.SetName("intensity")
+    image.GetPointData().SetScalars(scalars)
+    return image, flat
