@@ -47,7 +47,8 @@ def _parser() -> argparse.ArgumentParser:
 
     p_bench = sub.add_parser("bench", help="speed against accuracy benchmark")
     p_bench.add_argument("--quick", action="store_true", help="a run of a few minutes")
-    p_bench.add_argument("--out", default="docs", help="folder for benchmarks.{json,csv,md} and charts")
+    p_bench.add_argument("--out", default="docs",
+                         help="folder for benchmarks.{json,csv,md} and charts")
     p_bench.add_argument("--size", type=int, default=None, help="override the scene size (voxels)")
     return parser
 

@@ -7,7 +7,8 @@
 //   C   = ka * albedo * A(x)                         A: ambient visibility (1 = unoccluded)
 //       + sum_i  V_i(x) * E_i * ( kd * max(n.l_i, 0) * albedo + ks * max(n.h_i, 0)^p )
 //   V_i: light visibility (transmittance towards light i, 1 = unshadowed), E_i: light colour *
-//   intensity. Two-sided lighting (the renderer's default) uses |n.l|. Where the gradient is
+//   intensity. With two-sided lighting (the renderer's default) n is first flipped to face the
+//   viewer, so a surface seen from inside is lit like one seen from outside. Where the gradient is
 //   zero (homogeneous interior) the sample is lit as an unoriented medium: n.l := 1, no specular.
 //   ka, kd, ks, p come from the vtkVolumeProperty (per component).
 
@@ -19,6 +20,7 @@ vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
   bool oriented = glen > 1e-12;
   vec3 n = oriented ? -gradientDS / glen : vec3(0.0);
   vec3 v = normalize(in_eyePosObjs[0].xyz - posDS);
+  if (in_twoSidedLighting && dot(n, v) < 0.0) n = -n;
   vec3 color = in_ambient[c] * albedo * vv_ambient_visibility(g_dataPos, n);
   for (int i = 0; i < vv_numLights; ++i)
   {
@@ -31,7 +33,6 @@ vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
       ndl = dot(n, l);
       vec3 h = normalize(l + v);
       float ndh = dot(n, h);
-      if (in_twoSidedLighting) { ndl = abs(ndl); ndh = abs(ndh); }
       ndl = max(ndl, 0.0);
       spec = ndl > 0.0 ? pow(max(ndh, 0.0), in_shininess[c]) : 0.0;
     }

@@ -125,7 +125,9 @@ class Texture3D:
         state.vtkglPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
         nz, ny, nx = arr.shape
         if level == 0:
-            GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, 0, nx, ny, nz, GL.GL_RED, GL.GL_FLOAT, arr)
+            GL.glTexSubImage3D(
+                GL.GL_TEXTURE_3D, 0, 0, 0, 0, nx, ny, nz, GL.GL_RED, GL.GL_FLOAT, arr
+            )
         else:
             GL.glTexImage3D(
                 GL.GL_TEXTURE_3D, level, GL.GL_R32F, nx, ny, nz, 0, GL.GL_RED, GL.GL_FLOAT, arr

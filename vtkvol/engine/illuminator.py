@@ -115,12 +115,17 @@ class Illuminator:
         self.last_prepare_ms = 0.0
         self.render_window: vtk.vtkRenderWindow | None = None
         self.set_parameters(**(parameters or {}))
+        # Illumination lives in VTK's shaded computeLighting(): switch shading on (PyVista's
+        # add_volume leaves it off) and restore the user's setting on release().
+        prop = volume.GetProperty()
+        self._user_shade = [prop.GetShade(c) for c in range(4)]
+        for c in range(4):
+            prop.SetShade(c, 1)
         self._start_tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._on_start)
         self._capture = _capture_source(self)  # keep a reference: VTK holds it weakly
         self._shader_tag = volume.GetMapper().AddObserver(
             vtk.vtkCommand.UpdateShaderEvent, self._capture
         )
-        volume.GetProperty().ShadeOn()  # our lighting runs inside VTK's computeLighting()
 
     # -- public state ---------------------------------------------------------------------------
     @property
@@ -313,6 +318,16 @@ class Illuminator:
             self.shader_property.GetFragmentCustomUniforms().RemoveUniform(uniform)
 
     @property
+    def shaded(self) -> bool:
+        """True when VTK generates its shaded ``computeLighting()`` (where our lighting hooks in):
+        shading on for a component and a composite or isosurface blend. MIP, MinIP, average and
+        additive blends, and unshaded composite, show no illumination."""
+        prop = self.volume.GetProperty()
+        blend = self.volume.GetMapper().GetBlendMode()
+        shading_blends = (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ISOSURFACE_BLEND)
+        return blend in shading_blends and any(prop.GetShade(c) for c in range(4))
+
+    @property
     def fragment_source(self) -> str:
         """The last fragment shader VTK built with our replacements (for tests/diagnostics)."""
         return self._fragment_source
@@ -361,7 +376,8 @@ class Illuminator:
                 "host_slice_weights.glsl", {"VV_INDEPENDENT": "1"} if independent else None
             )
         sections += shaders.load(tech.SHADER, tech.shader_defines(values))
-        sections += shaders.load("host_lighting.glsl")
+        if self.shaded:
+            sections += shaders.load("host_lighting.glsl")
         replacements = shaders.compose(sections)
         for name, (_texture, sampler) in self._textures.items():
             replacements[(f"uniform int {name};", "post")] = f"uniform {sampler} {name};"
@@ -454,6 +470,9 @@ class Illuminator:
         for p in self._technique_cls.PARAMETERS:
             fu.RemoveUniform(f"vv_{self._technique_cls.NAME}_{p.name}")
         self._replacements.clear()
+        prop = self.volume.GetProperty()
+        for c, shade in enumerate(self._user_shade):
+            prop.SetShade(c, shade)
         self.renderer.RemoveObserver(self._start_tag)
         self.volume.GetMapper().RemoveObserver(self._shader_tag)
 
@@ -463,7 +482,7 @@ def _capture_source(illuminator: Illuminator) -> Callable[..., None]:
     fire on the frame a program is (re)built (FINDINGS §1), only on the frames after."""
 
     @vtk.calldata_type(vtk.VTK_OBJECT)
-    def capture(_mapper: Any, _event: str, program: Any) -> None:
+    def capture(_mapper: Any, _event: str, program: Any = None) -> None:
         if program is not None:
             illuminator._fragment_source = program.GetFragmentShader().GetSource()
 

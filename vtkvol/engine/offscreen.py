@@ -46,7 +46,9 @@ def grab(render_window: vtk.vtkRenderWindow, *, render: bool = True) -> np.ndarr
 def image_from_array(
     array: np.ndarray, spacing: tuple[float, float, float] = (1.0, 1.0, 1.0)
 ) -> vtk.vtkImageData:
-    """``vtkImageData`` from a ``[z, y, x]`` or ``[z, y, x, c]`` array (copied); spacing (x, y, z)."""
+    """``vtkImageData`` from a ``[z, y, x]`` or ``[z, y, x, c]`` array (copied).
+
+    ``spacing`` is (x, y, z) in µm."""
     arr = np.ascontiguousarray(array)
     nz, ny, nx = arr.shape[:3]
     ncomp = 1 if arr.ndim == 3 else arr.shape[3]

@@ -105,7 +105,8 @@ class VolumeScene:
         self.data = data
         self._image, self._keepalive = _to_image(data)
         self.mapper.SetInputData(self._image)
-        if reset_channels or (reset_channels is None and len(self.model.channels) != data.n_channels):
+        count_changed = len(self.model.channels) != data.n_channels
+        if reset_channels or (reset_channels is None and count_changed):
             with self.model.batch():
                 self.model.channels = default_channels(data)
         if self.renderer.HasViewProp(self.volume) == 0:
@@ -167,7 +168,7 @@ class VolumeScene:
         prop, render = self.property, self.model.render
         channels = self.model.channels
         n = len(channels)
-        prop.SetIndependentComponents(n > 1)
+        prop.SetIndependentComponents(True)  # one TF per channel, also for a single channel
         unit = render.opacity_unit_distance or self._min_spacing()
         for c, channel in enumerate(channels):
             tf = self._effective_tf(channel)
@@ -285,6 +286,7 @@ class VolumeScene:
         b = self.bounds
         center = np.array([(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2])
         cam = self.renderer.GetActiveCamera()
+        cam.SetParallelProjection(int(self.model.camera.parallel_projection))
         cam.SetFocalPoint(*center)
         cam.SetPosition(*(center - np.array([0.0, 1.0, 0.0])))
         cam.SetViewUp(0.0, 0.0, 1.0)

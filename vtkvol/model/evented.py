@@ -13,6 +13,7 @@ dependencies, no per-field emitter objects. Listeners receive the set of paths a
 from __future__ import annotations
 
 import contextlib
+import types
 import weakref
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
@@ -29,7 +30,9 @@ class Signal:
         self._slots: list[Any] = []
 
     def connect(self, slot: Callable[..., Any]) -> Callable[..., Any]:
-        ref: Any = weakref.WeakMethod(slot) if hasattr(slot, "__self__") else slot
+        # Bound Python methods are held weakly so a view that forgets to disconnect does not
+        # keep itself alive; plain functions and builtins are held strongly.
+        ref: Any = weakref.WeakMethod(slot) if isinstance(slot, types.MethodType) else slot
         self._slots.append(ref)
         return slot
 
