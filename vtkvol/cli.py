@@ -29,8 +29,10 @@ def _parser() -> argparse.ArgumentParser:
     p_render.add_argument("file", help="volume file/folder, session file, or 'sample'")
     p_render.add_argument("-o", "--output", required=True, help="PNG file to write")
     p_render.add_argument("--size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"))
-    p_render.add_argument("--azimuth", type=float, default=0.0, help="degrees, camera orbit")
-    p_render.add_argument("--elevation", type=float, default=0.0, help="degrees, camera orbit")
+    p_render.add_argument("--azimuth", type=float, default=None,
+                          help="degrees from the front view (default 30; sessions: orbit)")
+    p_render.add_argument("--elevation", type=float, default=None,
+                          help="degrees from the front view (default 20; sessions: orbit)")
     p_render.add_argument("--preset", help="transfer-function preset or colormap name")
     p_render.add_argument("--method", help="illumination method (e.g. local, shadow_volume)")
     p_render.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",

@@ -65,15 +65,16 @@ def render_image(
     size: tuple[int, int] = (512, 512),
     method: str | None = None,
     preset: str | None = None,
-    azimuth: float = 0.0,
-    elevation: float = 0.0,
+    azimuth: float | None = None,
+    elevation: float | None = None,
     parameters: dict[str, Any] | None = None,
 ) -> np.ndarray:
     """Render ``data`` offscreen and return an ``(h, w, 3)`` uint8 image.
 
     ``model`` (e.g. from a session file) gives the full view; otherwise a default scene is made.
-    ``method``/``preset``/``parameters`` override it; ``azimuth``/``elevation`` (degrees) rotate
-    the camera from the model's view (or the default view).
+    ``method``/``preset``/``parameters`` override it. ``azimuth``/``elevation`` (degrees): with a
+    model whose camera is set, they orbit from that view; otherwise they place the camera from the
+    front view (looking along +y, z up; default 30°/20°, the app's opening view).
     """
     model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
     if preset is not None:
@@ -87,10 +88,17 @@ def render_image(
     rw = make_render_window(size)
     renderer = vtk.vtkRenderer()
     rw.AddRenderer(renderer)
+    has_camera = model.camera.position is not None
     scene = VolumeScene(renderer, model, data, request_render=lambda: None)
     try:
-        if azimuth or elevation:
-            scene.orbit(azimuth, elevation)
+        if has_camera:
+            if azimuth or elevation:
+                scene.orbit(azimuth or 0.0, elevation or 0.0)
+        else:
+            scene.reset_camera(
+                azimuth=30.0 if azimuth is None else azimuth,
+                elevation=20.0 if elevation is None else elevation,
+            )
         return grab(rw)
     finally:
         scene.close()
