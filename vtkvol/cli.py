@@ -127,6 +127,9 @@ def _write_png(image, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
     os.close(fd)
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a PNG gets the usual permissions
     writer = vtk.vtkPNGWriter()
     writer.SetFileName(tmp)
     writer.SetInputData(img)

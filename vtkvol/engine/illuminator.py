@@ -15,6 +15,7 @@ through vtkvol's model or from user code touching the VTK objects directly.
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -29,6 +30,8 @@ from vtkvol.engine.gl import Texture2D
 from vtkvol.engine.technique import Technique, get_technique
 from vtkvol.model.params import Invalidates, validate_values
 from vtkvol.model.scene import Light
+
+logger = logging.getLogger(__name__)
 
 MAX_LIGHTS = 4
 WEIGHT_TABLE_WIDTH = 256
@@ -122,6 +125,9 @@ class Illuminator:
         for c in range(4):
             prop.SetShade(c, 1)
         self._start_tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._on_start)
+        self.last_error: str | None = None
+        self.on_error: Callable[[str], None] | None = None  # e.g. the app's error dialog
+        self._error_tag = mapper.AddObserver(vtk.vtkCommand.ErrorEvent, self._on_mapper_error)
         self._capture = _capture_source(self)  # keep a reference: VTK holds it weakly
         self._shader_tag = volume.GetMapper().AddObserver(
             vtk.vtkCommand.UpdateShaderEvent, self._capture
@@ -333,6 +339,22 @@ class Illuminator:
         return self._fragment_source
 
     # -- frame ----------------------------------------------------------------------------------
+    def _on_mapper_error(self, _mapper: Any, _event: str, *_args: Any) -> None:
+        # The mapper reports "Shader failed to compile" (the GLSL log goes to VTK's output
+        # window). A technique whose shader does not build on this GPU/driver must not leave
+        # the view black: fall back to local shading at the next frame and tell the user.
+        if self.method == "local":
+            return
+        failed = self.method
+        self.last_error = (
+            f"The {self._technique_cls.LABEL!r} illumination could not be compiled by this "
+            "OpenGL driver; showing local shading instead. The driver's message is in the log."
+        )
+        self.set_method("local")
+        if self.on_error is not None:
+            self.on_error(self.last_error)
+        logger.error("illumination %s failed to compile; fell back to local shading", failed)
+
     def _on_start(self, _renderer: Any, _event: str) -> None:
         if self._closed:
             return
@@ -375,7 +397,7 @@ class Illuminator:
             sections += shaders.load(
                 "host_slice_weights.glsl", {"VV_INDEPENDENT": "1"} if independent else None
             )
-        sections += shaders.load(tech.SHADER, tech.shader_defines(values))
+        sections += tech.sections(values)
         if self.shaded:
             sections += shaders.load("host_lighting.glsl")
         replacements = shaders.compose(sections)
@@ -475,6 +497,7 @@ class Illuminator:
             prop.SetShade(c, shade)
         self.renderer.RemoveObserver(self._start_tag)
         self.volume.GetMapper().RemoveObserver(self._shader_tag)
+        self.volume.GetMapper().RemoveObserver(self._error_tag)
 
 
 def _capture_source(illuminator: Illuminator) -> Callable[..., None]:

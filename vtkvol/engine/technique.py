@@ -27,6 +27,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
+from vtkvol.engine import shaders
+
 from vtkvol.model.params import Param, defaults
 
 if TYPE_CHECKING:
@@ -58,6 +60,10 @@ class Technique:
     def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
         """Compile-time constants for the GLSL (``SHADER``-invalidating parameters)."""
         return {}
+
+    def sections(self, values: Mapping[str, Any]) -> list[shaders.Section]:
+        """The technique's GLSL sections: ``SHADER`` with :meth:`shader_defines` applied."""
+        return shaders.load(self.SHADER, self.shader_defines(values))
 
     def attach(self) -> None:
         """Create GL resources (textures, compute programs). Context is current."""

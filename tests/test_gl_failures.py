@@ -1,0 +1,53 @@
+"""GL failures: a technique whose shader does not compile falls back with a clear message."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+import pytest
+
+import vtkvol.engine.technique as technique_module
+from vtkvol.engine import shaders
+from vtkvol.engine.illuminator import Illuminator
+from vtkvol.engine.offscreen import grab, simple_volume_scene
+from vtkvol.engine.technique import Technique
+
+pytestmark = pytest.mark.gl
+
+BROKEN_GLSL = """
+//@inject //VTK::ComputeLighting::Dec pre before
+float vv_light_visibility(int light, vec3 texPos, vec3 dirDS) { return this_does_not_exist; }
+float vv_ambient_visibility(vec3 texPos, vec3 normalDS) { return 1.0; }
+"""
+
+
+class BrokenTechnique(Technique):
+    NAME: ClassVar[str] = "broken"
+    LABEL: ClassVar[str] = "Broken on purpose"
+    SHADER: ClassVar[str] = "broken.glsl"
+
+    def sections(self, values):
+        return shaders.parse(BROKEN_GLSL, "broken.glsl")
+
+
+@pytest.fixture
+def broken_registered(monkeypatch):
+    table = {**technique_module._BUILTIN, "broken": f"{__name__}:BrokenTechnique"}
+    monkeypatch.setattr(technique_module, "_BUILTIN", table)
+
+
+def test_shader_compile_failure_falls_back_to_local_and_reports(broken_registered):
+    arr = np.zeros((16, 16, 16), np.float32)
+    arr[4:12, 4:12, 4:12] = 1.0
+    rw, ren, volume = simple_volume_scene(arr, size=(64, 64))
+    il = Illuminator(volume, ren, method="broken")
+    messages: list[str] = []
+    il.on_error = messages.append
+    grab(rw)  # fails to compile: black frame, error reported
+    image = grab(rw)  # next frame: local shading
+    assert il.method == "local"
+    assert messages and "'Broken on purpose'" in messages[0] and "local shading" in messages[0]
+    assert image.max() > 50, "the fallback frame shows the volume again"
+    il.release()
+    rw.Finalize()

@@ -1,0 +1,124 @@
+"""Session-file versions and the step-wise migrations between them (pure functions on dicts).
+
+A session file carries ``"format": "vtkvol-session"`` and an integer ``"version"``. Reading
+runs :func:`migrate`, which applies one migration per version step (``v0→v1``, later
+``v1→v2``, …) until the file has the layout this vtkvol writes, and only then validates it.
+Each migration is a pure function ``dict -> dict`` (no I/O, no clock, input untouched) with a
+fixture in ``tests/fixtures/sessions/`` that pins its behaviour. See docs/session-format.md.
+
+Adding version 2: write ``_v1_to_v2``, register it in :data:`MIGRATIONS`, bump
+:data:`VERSION`, add a v1 fixture and its expected v2 output, and document the change.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+__all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version", "migrate"]
+
+FORMAT = "vtkvol-session"
+"""The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
+
+VERSION = 1
+"""The format version this vtkvol writes, and the newest it reads."""
+
+V0_SCENE_KEYS: tuple[str, ...] = (
+    "volume", "channels", "lights", "illumination", "crop", "slice_weights", "camera", "render",
+)
+"""Top-level keys of a version-0 (pre-release) file: the scene's fields, frozen as they were.
+
+This list is history, not a description of the current model, so it is kept by hand on
+purpose: it must not change when :class:`~vtkvol.model.SceneModel` gains fields.
+"""
+
+_DATA_RECORD_KEYS = ("size_bytes", "sha256_head", "shape_zyx", "channels")
+
+Migration = Callable[[dict[str, Any]], dict[str, Any]]
+
+
+def detect_version(raw: dict[str, Any]) -> int:
+    """The format version of a parsed session file.
+
+    Version 0 is the pre-release layout: no ``"format"``/``"version"`` keys, the scene's fields
+    directly at the top level.
+
+    Raises
+    ------
+    ValueError
+        If ``raw`` is not a vtkvol session at all, or its version is not a whole number ≥ 0.
+    """
+    if "format" not in raw:
+        if any(key in raw for key in V0_SCENE_KEYS):
+            return 0
+        raise ValueError(
+            f'not a vtkvol session (no "format": "{FORMAT}" key and no scene settings)'
+        )
+    if raw["format"] != FORMAT:
+        raise ValueError(
+            f'not a vtkvol session ("format" is {raw["format"]!r}, expected {FORMAT!r})'
+        )
+    version = raw.get("version")
+    # bool is an int subclass; "version": true is a broken file, not version 1.
+    if isinstance(version, bool) or not isinstance(version, int) or version < 0:
+        raise ValueError(f'"version" must be a whole number ≥ 0, not {version!r}')
+    return version
+
+
+def _v0_to_v1(raw: dict[str, Any]) -> dict[str, Any]:
+    """v0 → v1: move the scene under ``"scene"``, add the envelope and the ``"data"`` record.
+
+    v0 kept the data file only in ``volume.path`` (absolute, or relative to the session's
+    folder, the same rule as v1). v1 copies it, and whatever fingerprint ``volume`` recorded,
+    into ``"data"``. An optional v0 ``"window"`` object is kept; other top-level keys are kept
+    as they are, so the reader can warn about them.
+    """
+    scene = {key: raw[key] for key in V0_SCENE_KEYS if key in raw}
+    volume = scene.get("volume") if isinstance(scene.get("volume"), dict) else {}
+    data: dict[str, Any] = {"path": volume.get("path")}
+    data.update({key: volume.get(key) for key in _DATA_RECORD_KEYS})
+    rest = {key: value for key, value in raw.items() if key not in V0_SCENE_KEYS}
+    rest.pop("window", None)
+    return {
+        "format": FORMAT,
+        "version": 1,
+        "vtkvol": None,  # v0 files did not record the writer
+        "saved": None,
+        "data": data,
+        "scene": scene,
+        "window": raw.get("window", {}),
+        **rest,
+    }
+
+
+MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1}
+"""``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
+
+
+def migrate(raw: dict[str, Any]) -> dict[str, Any]:
+    """Bring a parsed session file to the current :data:`VERSION`, one step at a time.
+
+    Pure: ``raw`` is not modified (it is deep-copied first) and nothing is read or written.
+    A file already at :data:`VERSION` comes back as an equal copy.
+
+    Raises
+    ------
+    ValueError
+        If ``raw`` is not a session, or was written by a newer vtkvol (its version is above
+        :data:`VERSION`); the message says so in words, for the user.
+    """
+    version = detect_version(raw)
+    if version > VERSION:
+        raise ValueError(
+            f"written by a newer vtkvol (format version {version}; "
+            f"this version reads up to {VERSION})"
+        )
+    out = copy.deepcopy(raw)
+    while version < VERSION:
+        out = MIGRATIONS[version](out)
+        version += 1
+        # A step that forgets to stamp its version would loop or skip silently; fail loudly.
+        if out.get("version") != version:
+            raise AssertionError(f"migration to version {version} did not set it")
+    return out

@@ -1,0 +1,916 @@
+"""Session files (``*.vtkvol.json``): everything the user set for a view, saved and restored.
+
+A session is a versioned JSON dump of the :class:`~vtkvol.model.SceneModel` (generated from the
+model, never from a hand-kept list of keys) plus a reference to the data file (path, size and
+a checksum of its first MiB; the voxels are never embedded) and the window layout, which is
+opaque UI state. The format is described in docs/session-format.md.
+
+Safety properties, each relied on by the app:
+
+* **No code runs.** Files are parsed with :func:`json.loads` and validated by pydantic; the
+  only names looked up are illumination techniques, in the registry of installed ones.
+* **Only the chosen file is written.** Saving writes a temporary file beside the target and
+  renames it over the target (:func:`os.replace`), so a failed save leaves the previous file
+  intact and no temporary file behind. It never overwrites a file that is not a session.
+* **Nothing is applied half-way.** :func:`read_session` returns a new model or raises, so
+  the caller's scene is untouched by a bad file. Apply a good one in one batch with
+  :meth:`Session.apply_to` (one event, one engine rebuild).
+
+Paths to data are stored relative to the session's folder when the data lies in it or below
+(so a folder moved or shared as a whole keeps working), absolute otherwise.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import json
+import math
+import os
+import secrets
+import stat
+import warnings
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import pydantic
+from pydantic import BaseModel, ConfigDict, Field
+
+from vtkvol.model.migrations import FORMAT, VERSION, migrate
+from vtkvol.model.params import Param
+from vtkvol.model.scene import SceneModel
+
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+    from vtkvol.io.progress import CancelCallback, ProgressCallback
+
+__all__ = [
+    "FORMAT",
+    "SUFFIX",
+    "VERSION",
+    "DataMismatchError",
+    "MissingDataError",
+    "Session",
+    "SessionError",
+    "SessionWarning",
+    "load_session_with_data",
+    "migrate",
+    "read_session",
+    "save_session",
+]
+
+SUFFIX = ".vtkvol.json"
+"""The file-name ending of session files; :func:`save_session` appends it when missing."""
+
+MAX_SESSION_BYTES = 16 * 2**20
+"""Sessions are a few KiB; anything above this is refused unread (probably a data file)."""
+
+HEAD_BYTES = 2**20
+"""How much of the data file the recorded checksum covers (enough to notice a new file)."""
+
+_MAX_LISTED = 6  # problems / missing keys named in one message before "and N more"
+_TOP_LEVEL_KEYS = frozenset({"format", "version", "vtkvol", "saved", "data", "scene", "window"})
+
+
+# -- errors -------------------------------------------------------------------------------------
+class SessionError(ValueError):
+    """A session file cannot be read or written; the message names the file and the problem.
+
+    E.g. ``"view.vtkvol.json: lights[0].intensity = -2 is below 0"``. The app shows it
+    unchanged. ``path`` is the session file, ``problem`` the text after the file name.
+    """
+
+    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
+        self.path = Path(path)
+        self.problem = problem
+        super().__init__(f"{self.path.name}: {problem}")
+
+    @property
+    def session_path(self) -> Path:
+        """The session file (same as ``path``)."""
+        return self.path
+
+
+class MissingDataError(SessionError):
+    """The session's data file is gone (or the session names none); offer "Locate…".
+
+    Retry with ``load_session_with_data(session_path, data_path=<the located file>)``.
+    ``data_path`` is the absolute path that was looked for, or ``None`` when the session
+    records no data file (in-memory or sample data).
+    """
+
+    def __init__(
+        self,
+        session_path: str | os.PathLike[str],
+        data_path: Path | None,
+        *,
+        chosen: bool = False,
+    ) -> None:
+        self.data_path = data_path
+        if data_path is None:
+            problem = "the session names no data file (it was saved with in-memory data)"
+        elif chosen:
+            problem = f"the chosen data file {data_path} does not exist"
+        else:
+            beside = Path(session_path).absolute().parent / data_path.name
+            also = (
+                f" (also looked for {data_path.name} next to the session)"
+                if beside.resolve() != data_path
+                else ""
+            )
+            problem = f"the data file {data_path} is missing{also}"
+        super().__init__(session_path, problem)
+
+
+class DataMismatchError(SessionError):
+    """The data file no longer matches the session (shape or number of channels changed).
+
+    ``expected`` and ``found`` are ``{"shape_zyx": (z, y, x), "channels": n}``.
+    """
+
+    def __init__(
+        self,
+        session_path: str | os.PathLike[str],
+        data_path: Path,
+        expected: dict[str, Any],
+        found: dict[str, Any],
+    ) -> None:
+        self.data_path = data_path
+        self.expected = expected
+        self.found = found
+        super().__init__(
+            session_path,
+            f"the data no longer matches the session: {data_path.name} now has "
+            f"{_describe_shape(found)}, the session was saved with {_describe_shape(expected)}",
+        )
+
+
+class SessionWarning(UserWarning):
+    """Something in a session was repaired or ignored; the view still opens."""
+
+
+def _describe_shape(d: Mapping[str, Any]) -> str:
+    parts = []
+    if d.get("shape_zyx") is not None:
+        parts.append("shape (z, y, x) = ({})".format(", ".join(str(n) for n in d["shape_zyx"])))
+    if d.get("channels") is not None:
+        parts.append(f"{d['channels']} channel(s)")
+    return " and ".join(parts) or "an unknown shape"
+
+
+# -- the result of reading ----------------------------------------------------------------------
+@dataclass
+class Session:
+    """A session file, read, migrated and validated.
+
+    Attributes
+    ----------
+    model
+        A new :class:`SceneModel`; ``model.volume.path`` is ``data_path`` as a string.
+    data_path
+        Absolute path of the data, resolved against the session's folder; ``None`` when the
+        session names no data file. It may not exist (see :func:`load_session_with_data`).
+    window
+        Opaque UI state as saved (e.g. ``{"geometry": ..., "state": ..., "docks": {...}}``).
+    path
+        The session file.
+    warnings
+        What was repaired or ignored (missing keys given defaults, unknown techniques, …).
+    """
+
+    model: SceneModel
+    data_path: Path | None
+    window: dict[str, Any]
+    path: Path
+    warnings: list[str] = field(default_factory=list)
+
+    def apply_to(self, target: SceneModel) -> None:
+        """Make ``target`` equal to this session's model with one ``changed`` event.
+
+        Nested models are updated in place (views bound to ``target.crop`` stay bound), lists
+        are replaced, and the engine rebuilds once.
+        """
+        target.update(self.model.model_dump())
+
+
+# -- saving -------------------------------------------------------------------------------------
+def save_session(
+    path: str | os.PathLike[str],
+    model: SceneModel,
+    *,
+    data: VolumeData | None = None,
+    window: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write ``model`` (and the window layout) to a session file, atomically.
+
+    Parameters
+    ----------
+    path
+        The session file. ``.vtkvol.json`` is appended when the name does not end with it, so
+        a session never replaces a file of another kind; the path really written is returned.
+    model
+        The scene. With ``data``, its ``volume`` record (``path``, ``size_bytes``,
+        ``sha256_head``, ``shape_zyx``, ``channels``) is updated to describe ``data`` once the
+        file is written.
+    data
+        The volume on screen. Its ``source`` file is referenced (relative to the session's
+        folder when it lies in it or below) with its size and the SHA-256 of its first MiB.
+        Without it, ``model.volume`` is saved as it is.
+    window
+        Opaque, JSON-serialisable UI state (geometry, dock state) restored as-is.
+
+    Returns
+    -------
+    Path
+        The file written (absolute).
+
+    Raises
+    ------
+    SessionError
+        The target exists and is not a vtkvol session, its folder does not exist, the state
+        cannot be represented as JSON (a non-finite number, a non-JSON window value), or the
+        write failed. In every case the previous file, if any, is unchanged.
+    """
+    target = _with_suffix(Path(path).expanduser()).absolute()
+    folder = target.parent
+    if not folder.is_dir():
+        raise SessionError(target, f"cannot save: the folder {folder} does not exist")
+    if target.is_dir():
+        raise SessionError(target, "cannot save: a folder has this name")
+    if target.exists() and not _is_replaceable(target):
+        raise SessionError(
+            target, "exists and is not a vtkvol session; not overwriting it (choose another name)"
+        )
+    if window is not None and not isinstance(window, Mapping):
+        raise SessionError(
+            target, f"cannot save: window must be a dict, not {type(window).__name__}"
+        )
+
+    record = _data_record(model, data)
+    session_dir = folder.resolve()
+    data_abs = None if record["path"] is None else Path(record["path"])
+    stored_path = None if data_abs is None else _stored_path(data_abs, session_dir)
+
+    # Technique values are the model's only free-form (Any) field; pydantic cannot dump a
+    # numpy scalar a slider may have put there, so they are converted separately.
+    scene = model.model_dump(mode="json", exclude={"illumination": {"parameters"}})
+    scene["illumination"]["parameters"] = _plain(model.illumination.parameters)
+    data_section = {"path": stored_path, **{k: v for k, v in record.items() if k != "path"}}
+    scene["volume"].update(data_section)  # the same text as "data": one rule, one place
+    from vtkvol import __version__
+
+    document = {
+        "format": FORMAT,
+        "version": VERSION,
+        "vtkvol": __version__,
+        "saved": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+        "data": data_section,
+        "scene": scene,
+        "window": dict(window or {}),
+    }
+    # Serialise completely before touching the disk, so a bad value costs nothing.
+    try:
+        text = _dumps(document) + "\n"
+    except ValueError as exc:
+        raise SessionError(
+            target, f"cannot save: a value is not finite (NaN or infinity): {exc}"
+        ) from exc
+    except TypeError as exc:
+        raise SessionError(target, f"cannot save: a value is not JSON data ({exc})") from exc
+
+    try:
+        _write_atomic(target, text)
+    except OSError as exc:
+        raise SessionError(target, f"could not be written: {exc.strerror or exc}") from exc
+
+    if data is not None:
+        # Record only after a successful write, so a refused save leaves the model as it was.
+        model.update({"volume": record})
+    return target
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with numpy scalars turned into Python numbers (containers copied)."""
+    if isinstance(value, Mapping):
+        return {key: _plain(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(item) for item in value]
+    if type(value).__module__ == "numpy" and hasattr(value, "item"):
+        return value.item()
+    return value
+
+
+def _dumps(value: Any, level: int = 0) -> str:
+    """JSON with objects indented and short arrays on one line (``[0.3, 0.5, 0.8]``).
+
+    ``json.dumps(indent=2)`` puts every number of every point on its own line, which makes
+    sessions long and hard to read or diff. Raises ``ValueError`` for NaN/infinity and
+    ``TypeError`` for anything that is not JSON data, like :func:`json.dumps`.
+    """
+    pad, inner = "  " * level, "  " * (level + 1)
+    if isinstance(value, dict):
+        if not value:
+            return "{}"
+        items = []
+        for key, item in value.items():
+            if not isinstance(key, str):
+                raise TypeError(f"keys must be strings, not {key!r}")
+            items.append(f"{inner}{json.dumps(key, ensure_ascii=False)}: {_dumps(item, level + 1)}")
+        return "{\n" + ",\n".join(items) + f"\n{pad}}}"
+    if isinstance(value, (list, tuple)):
+        if not any(isinstance(v, dict) for v in value):
+            flat = json.dumps(value, ensure_ascii=False, allow_nan=False)
+            if len(flat) + len(inner) <= 96:
+                return flat
+        if not value:
+            return "[]"
+        items = [f"{inner}{_dumps(item, level + 1)}" for item in value]
+        return "[\n" + ",\n".join(items) + f"\n{pad}]"
+    return json.dumps(value, ensure_ascii=False, allow_nan=False)
+
+
+def _with_suffix(path: Path) -> Path:
+    name = path.name
+    if name.lower().endswith(SUFFIX):
+        return path
+    if name.lower().endswith(".vtkvol"):
+        return path.with_name(name + ".json")
+    return path.with_name(name + SUFFIX)
+
+
+def _is_replaceable(path: Path) -> bool:
+    """Whether ``path`` may be overwritten: an empty file or a readable vtkvol session."""
+    try:
+        size = path.stat().st_size
+        if size == 0:
+            return True
+        if size > MAX_SESSION_BYTES:
+            return False
+        raw = json.loads(path.read_bytes().decode("utf-8-sig"))
+    except (OSError, ValueError, RecursionError):
+        return False
+    if not isinstance(raw, dict):
+        return False
+    from vtkvol.model.migrations import detect_version
+
+    try:
+        detect_version(raw)
+    except ValueError:
+        return False
+    return True
+
+
+def _data_record(model: SceneModel, data: VolumeData | None) -> dict[str, Any]:
+    """``path`` (absolute or None) and the fingerprint fields to store for the data."""
+    vol = model.volume
+    if data is None:
+        # Keep what was recorded when the data was loaded: re-hashing the file now would
+        # hide a change made to it since.
+        path = None if vol.path is None else str(Path(vol.path).expanduser().resolve())
+        return {
+            "path": path,
+            "size_bytes": vol.size_bytes,
+            "sha256_head": vol.sha256_head,
+            "shape_zyx": None if vol.shape_zyx is None else list(vol.shape_zyx),
+            "channels": vol.channels,
+        }
+    source = None if data.source is None else Path(data.source).expanduser().resolve()
+    size, digest = _fingerprint(source) if source is not None and source.exists() else (None, None)
+    return {
+        "path": None if source is None else str(source),
+        "size_bytes": size,
+        "sha256_head": digest,
+        "shape_zyx": [int(n) for n in data.shape_zyx],
+        "channels": int(data.n_channels),
+    }
+
+
+def _stored_path(data_abs: Path, session_dir: Path) -> str:
+    """Relative (POSIX separators) when the data is in or below the session's folder."""
+    try:
+        return data_abs.relative_to(session_dir).as_posix()
+    except ValueError:
+        return str(data_abs)
+
+
+def _fingerprint(path: Path) -> tuple[int, str]:
+    """``(size in bytes, SHA-256 hex of the first MiB)`` of a file.
+
+    For a folder (a series of slices): the total size of the files directly in it, and the
+    checksum of the first MiB of the first of them by name.
+    """
+    if path.is_dir():
+        files = sorted(p for p in path.iterdir() if p.is_file())
+        size = sum(p.stat().st_size for p in files)
+        head = files[0] if files else None
+    else:
+        size, head = path.stat().st_size, path
+    digest = hashlib.sha256()
+    if head is not None:
+        with head.open("rb") as fh:
+            digest.update(fh.read(HEAD_BYTES))
+    return size, digest.hexdigest()
+
+
+def _write_atomic(target: Path, text: str) -> None:
+    """Write ``text`` to a temporary file beside ``target``, then rename it over ``target``.
+
+    The rename is atomic on one file system, so readers see the old file or the new one,
+    never a mix; on any failure the temporary file is removed and ``target`` is untouched.
+    """
+    tmp = target.with_name(f".{target.name}.{secrets.token_hex(6)}.tmp")
+    # O_EXCL: never follow or reuse something already there. Mode 0o666 lets the umask decide
+    # the permissions, as for any newly created file (mkstemp would force 0o600).
+    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        if target.exists():
+            # Replacing a session keeps its permissions (e.g. group-readable in a shared folder).
+            os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))
+        os.replace(tmp, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    # Make the rename itself durable; not possible (nor needed) on every platform.
+    with contextlib.suppress(OSError, AttributeError):
+        dir_fd = os.open(target.parent, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)
+        finally:
+            os.close(dir_fd)
+
+
+# -- reading ------------------------------------------------------------------------------------
+class _DataRecord(BaseModel):
+    """The ``"data"`` section: where the voxels are and how to recognise them."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+    path: str | None = None
+    size_bytes: int | None = Field(None, ge=0)
+    sha256_head: str | None = Field(None, pattern=r"^[0-9a-f]{64}$")
+    shape_zyx: tuple[Annotated[int, Field(ge=1)], ...] | None = Field(
+        None, min_length=3, max_length=3
+    )
+    channels: int | None = Field(None, ge=1)
+
+
+_FROM_DATA_SECTION = frozenset(f"volume.{name}" for name in _DataRecord.model_fields)
+
+
+def read_session(path: str | os.PathLike[str]) -> Session:
+    """Parse, migrate and validate a session file; the data file is not read.
+
+    Missing keys take their defaults and unknown techniques keep their stored values, each
+    with a note in :attr:`Session.warnings`. Technique parameters are checked against the
+    technique's declared ``PARAMETERS`` when it is installed.
+
+    Raises
+    ------
+    SessionError
+        Unreadable file, invalid JSON (with line and column), not a session, written by a
+        newer vtkvol, or a wrong type or out-of-range value (with its place in the file,
+        e.g. ``lights[0].intensity = -2 is below 0``).
+    """
+    session_path = Path(path).expanduser().absolute()
+    raw = _load_json(session_path)
+    try:
+        doc = migrate(raw)
+    except ValueError as exc:
+        raise SessionError(session_path, str(exc)) from exc
+
+    notes: list[str] = []
+    unknown = sorted(set(doc) - _TOP_LEVEL_KEYS)
+    if unknown:
+        notes.append(f"ignored unknown top-level key(s): {', '.join(unknown)}")
+
+    # -- data record
+    data_raw = doc.get("data")
+    if data_raw is not None and not isinstance(data_raw, dict):
+        raise SessionError(session_path, f'"data" must be an object, not {_show(data_raw)}')
+    try:
+        record = _DataRecord.model_validate_json(json.dumps(data_raw or {}))
+    except pydantic.ValidationError as exc:
+        raise SessionError(session_path, _describe_validation_error(exc, "data")) from exc
+
+    # -- scene
+    scene_raw = doc.get("scene", {})
+    if "scene" not in doc:
+        notes.append('no "scene" section: every setting takes its default')
+    if not isinstance(scene_raw, dict):
+        raise SessionError(session_path, f'"scene" must be an object, not {_show(scene_raw)}')
+    try:
+        # Strict JSON validation: "2" is not a number and 1 is not true, yet arrays are
+        # accepted for tuples, as JSON has no tuples.
+        model = SceneModel.model_validate_json(json.dumps(scene_raw), strict=True)
+    except pydantic.ValidationError as exc:
+        raise SessionError(session_path, _describe_validation_error(exc)) from exc
+    missing = _missing_paths(scene_raw, model.model_dump(mode="json"))
+    if "data" in doc:
+        # These come from the "data" section, so their absence from the scene is no loss.
+        missing = [m for m in missing if m not in _FROM_DATA_SECTION]
+    if missing:
+        # Whole sections first: "camera" says more than "lights[0].color".
+        missing.sort(key=lambda p: p.count(".") + p.count("["))
+        notes.append("missing from the file, defaults used: " + _listing(missing, 10))
+
+    parameters = _check_parameters(session_path, model.illumination.parameters, notes)
+    if model.illumination.method not in parameters and not _technique_known(
+        model.illumination.method
+    ):
+        notes.append(
+            f"illumination method {model.illumination.method!r} is not installed here; "
+            "its settings are kept"
+        )
+
+    # -- data path: the "data" section is authoritative; a hand-written file may only have
+    # scene.volume.path.
+    stored = record.path if "data" in doc else model.volume.path
+    if "data" not in doc:
+        notes.append(
+            'no "data" section: the data file is taken from scene.volume.path'
+            if stored
+            else 'no "data" section: the session names no data file'
+        )
+    data_path = None
+    if stored:
+        data_path = _resolve_data_path(stored, session_path.parent.resolve(), notes)
+
+    window = doc.get("window", {})
+    if not isinstance(window, dict):
+        notes.append(f"window layout is not an object ({_show(window)}); ignored")
+        window = {}
+
+    with model.batch():  # a fresh model has no listeners; batch keeps it one logical step
+        model.illumination.parameters = parameters
+        if "data" in doc:
+            model.volume.update(record.model_dump(exclude={"path"}))
+        model.volume.path = None if data_path is None else str(data_path)
+    return Session(model=model, data_path=data_path, window=window, path=session_path,
+                   warnings=notes)
+
+
+def _load_json(path: Path) -> dict[str, Any]:
+    """The parsed top-level object of a session file, or a :class:`SessionError`."""
+    try:
+        if path.is_dir():
+            raise SessionError(path, "is a folder, not a session file")
+        size = path.stat().st_size
+        if size > MAX_SESSION_BYTES:
+            raise SessionError(
+                path,
+                f"is {size / 2**20:.0f} MiB, too large for a session file "
+                f"(at most {MAX_SESSION_BYTES // 2**20} MiB); is this a data file?",
+            )
+        blob = path.read_bytes()
+    except FileNotFoundError as exc:
+        raise SessionError(path, "no such file") from exc
+    except OSError as exc:
+        raise SessionError(path, f"cannot be read ({exc.strerror or exc})") from exc
+    try:
+        text = blob.decode("utf-8-sig")  # tolerate a BOM added by a Windows editor
+    except UnicodeDecodeError as exc:
+        raise SessionError(
+            path, f"is not a text file (not UTF-8 at byte {exc.start}); is this a data file?"
+        ) from exc
+    try:
+        raw = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
+    except json.JSONDecodeError as exc:
+        raise SessionError(
+            path, f"is not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}"
+        ) from exc
+    except ValueError as exc:  # from the two hooks above
+        raise SessionError(path, f"is not valid JSON: {exc}") from exc
+    except RecursionError as exc:
+        raise SessionError(path, "is nested too deeply to be a session file") from exc
+    if not isinstance(raw, dict):
+        raise SessionError(
+            path,
+            f"is not a vtkvol session (the file holds a JSON {_json_kind(raw)}, not an object)",
+        )
+    return raw
+
+
+def _reject_constant(name: str) -> float:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _finite_float(text: str) -> float:
+    # 1e999 parses to infinity without complaint; a session never needs it.
+    value = float(text)
+    if not math.isfinite(value):
+        raise ValueError(f"{text} is too large a number")
+    return value
+
+
+def _json_kind(value: Any) -> str:
+    return {list: "array", str: "string", bool: "boolean", type(None): "null"}.get(
+        type(value), "number"
+    )
+
+
+def _resolve_data_path(stored: str, session_dir: Path, notes: list[str]) -> Path:
+    """Absolute data path; falls back to a same-named file next to the session."""
+    candidate = Path(stored).expanduser()
+    if not candidate.is_absolute():
+        candidate = session_dir / candidate
+    candidate = candidate.resolve()
+    if candidate.exists():
+        return candidate
+    # Data moved (or the session was sent along with its data): look beside the session.
+    # Backslashes: the file may have been saved on Windows.
+    name = stored.replace("\\", "/").rstrip("/").rsplit("/", 1)[-1]
+    beside = session_dir / name
+    if name and beside.exists() and beside != candidate:
+        notes.append(
+            f"data file {candidate} not found; using {beside} (same name, next to the session)"
+        )
+        return beside
+    return candidate
+
+
+def _missing_paths(raw: Any, full: Any, prefix: str = "") -> list[str]:
+    """Dotted paths present in the validated model but absent from the file.
+
+    Derived from the model's own dump, so it follows the model as fields are added. A missing
+    section is named once, not field by field.
+    """
+    out: list[str] = []
+    if isinstance(raw, dict) and isinstance(full, dict):
+        for key, value in full.items():
+            where = f"{prefix}.{key}" if prefix else key
+            if key not in raw:
+                out.append(where)
+            else:
+                out.extend(_missing_paths(raw[key], value, where))
+    elif isinstance(raw, list) and isinstance(full, list) and len(raw) == len(full):
+        for i, (r, f) in enumerate(zip(raw, full, strict=True)):
+            out.extend(_missing_paths(r, f, f"{prefix}[{i}]"))
+    return out
+
+
+def _listing(items: list[str], limit: int = _MAX_LISTED) -> str:
+    shown = ", ".join(items[:limit])
+    more = len(items) - limit
+    return f"{shown} and {more} more" if more > 0 else shown
+
+
+# -- technique parameters -----------------------------------------------------------------------
+def _technique_parameters(name: str) -> tuple[tuple[Param, ...] | None, str]:
+    """The declared parameters of an installed technique, or ``(None, why not)``."""
+    # Imported here: vtkvol.model must not depend on the engine at import time.
+    from vtkvol.engine import technique
+
+    try:
+        cls = technique.get_technique(name)
+    except Exception as exc:  # a broken plugin must not stop a session from opening
+        return None, str(exc)
+    return tuple(cls.PARAMETERS), ""
+
+
+def _technique_known(name: str) -> bool:
+    return _technique_parameters(name)[0] is not None
+
+
+def _check_parameters(
+    session_path: Path, stored: Mapping[str, Mapping[str, Any]], notes: list[str]
+) -> dict[str, dict[str, Any]]:
+    """Validate each installed technique's stored values against its ``PARAMETERS``.
+
+    Values are checked one by one and only the stored ones are kept (the engine fills in
+    defaults), so a session round-trips exactly. Names the technique no longer declares are
+    dropped with a note; techniques not installed here keep their values, with a note.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for method, values in stored.items():
+        declared, why = _technique_parameters(method)
+        if declared is None:
+            notes.append(
+                f"illumination.parameters.{method}: technique not installed here ({why}); "
+                "its values are kept unchecked"
+            )
+            out[method] = dict(values)
+            continue
+        by_name = {p.name: p for p in declared}
+        unknown = sorted(set(values) - set(by_name))
+        if unknown:
+            notes.append(
+                f"illumination.parameters.{method}: ignored parameter(s) the technique does "
+                f"not declare: {', '.join(unknown)}"
+            )
+        checked: dict[str, Any] = {}
+        for name, value in values.items():
+            if name not in by_name:
+                continue
+            param = by_name[name]
+            try:
+                checked[name] = _check_value(param, value)
+            except ValueError as exc:
+                raise SessionError(
+                    session_path, f"illumination.parameters.{method}: {exc}"
+                ) from exc
+        out[method] = checked
+    return out
+
+
+def _check_value(param: Param, value: Any) -> Any:
+    # Param.validate is lenient (float("2") works, True counts as 1); a file is held to JSON
+    # types: numbers for numeric parameters.
+    numeric = isinstance(value, (int, float)) and not isinstance(value, bool)
+    if param.kind in ("float", "int") and not numeric:
+        raise ValueError(f"{param.name} must be a number, not {_show(value)}")
+    return param.validate(value)
+
+
+# -- messages -----------------------------------------------------------------------------------
+_TYPE_WORDS = {
+    "float_type": "a number",
+    "float_parsing": "a number",
+    "int_type": "a whole number",
+    "int_parsing": "a whole number",
+    "int_from_float": "a whole number",
+    "bool_type": "true or false",
+    "bool_parsing": "true or false",
+    "string_type": "text",
+    "list_type": "an array",
+    "tuple_type": "an array",
+    "dict_type": "an object",
+    "model_type": "an object",
+    "model_attributes_type": "an object",
+}
+
+
+def _describe_validation_error(exc: pydantic.ValidationError, prefix: str = "") -> str:
+    """pydantic's errors as one line of text with the place in the file of each."""
+    errors = exc.errors(include_url=False)
+    parts = [_describe_one(err, prefix) for err in errors[:_MAX_LISTED]]
+    if len(errors) > _MAX_LISTED:
+        parts.append(f"and {len(errors) - _MAX_LISTED} more problem(s)")
+    return "; ".join(parts)
+
+
+def _where(loc: Iterable[Any], prefix: str) -> str:
+    text = prefix
+    for part in loc:
+        if isinstance(part, int):
+            text += f"[{part}]"
+        else:
+            text = f"{text}.{part}" if text else str(part)
+    return text or "scene"
+
+
+def _describe_one(err: Mapping[str, Any], prefix: str) -> str:
+    kind, loc = err["type"], tuple(err["loc"])
+    ctx = err.get("ctx") or {}
+    where = _where(loc, prefix)
+    shown = _show(err.get("input"))
+    if kind == "missing" and loc and isinstance(loc[-1], int):
+        # A tuple with too few items reports its first absent index as a missing field.
+        return f"{_where(loc[:-1], prefix)} = {shown} has too few values"
+    if kind == "too_long":
+        return (
+            f"{where} = {shown} has {ctx.get('actual_length')} values, "
+            f"at most {ctx.get('max_length')} allowed"
+        )
+    if kind == "too_short":
+        return f"{where} = {shown} has too few values (at least {ctx.get('min_length')})"
+    if kind == "greater_than_equal":
+        return f"{where} = {shown} is below {_num(ctx['ge'])}"
+    if kind == "less_than_equal":
+        return f"{where} = {shown} is above {_num(ctx['le'])}"
+    if kind == "greater_than":
+        return f"{where} = {shown} must be greater than {_num(ctx['gt'])}"
+    if kind == "less_than":
+        return f"{where} = {shown} must be less than {_num(ctx['lt'])}"
+    if kind == "value_error":
+        return f"{where}: {ctx.get('error', err['msg'])}"
+    if kind == "extra_forbidden":
+        return f"{where} is not a known setting"
+    if kind == "literal_error":
+        return f"{where} = {shown} must be one of {ctx.get('expected')}"
+    if kind == "string_pattern_mismatch":
+        return f"{where} = {shown} is not in the expected form"
+    if kind in _TYPE_WORDS:
+        return f"{where} = {shown} should be {_TYPE_WORDS[kind]}"
+    return f"{where}: {err['msg']}"
+
+
+def _num(x: Any) -> str:
+    return f"{x:g}" if isinstance(x, float) else str(x)
+
+
+def _show(value: Any, limit: int = 60) -> str:
+    """A value as it appears in the file (JSON), shortened."""
+    try:
+        text = json.dumps(value, ensure_ascii=False)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= limit else text[: limit - 1] + "…"
+
+
+# -- loading with the data ----------------------------------------------------------------------
+def load_session_with_data(
+    path: str | os.PathLike[str],
+    *,
+    data_path: str | os.PathLike[str] | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelCallback | None = None,
+    on_warning: Callable[[str], None] | None = None,
+) -> tuple[SceneModel, VolumeData]:
+    """Read a session and its data, read the way it was when the session was saved.
+
+    Parameters
+    ----------
+    path
+        The session file.
+    data_path
+        Use this data file instead of the recorded one (the answer to "Locate…").
+    progress, cancel
+        Passed to :func:`vtkvol.io.read_volume`.
+    on_warning
+        Called with each note (session repairs, changed checksum). Default: issued as a
+        :class:`SessionWarning` through :func:`warnings.warn`.
+
+    Returns
+    -------
+    (SceneModel, VolumeData)
+        ``model.volume.path`` is the data file actually read.
+
+    Raises
+    ------
+    SessionError
+        As :func:`read_session`.
+    MissingDataError
+        The data file does not exist, or the session names none; retry with ``data_path``.
+    DataMismatchError
+        The data's shape (z, y, x) or number of channels differs from what was recorded. A
+        different size or checksum with the same shape is only a warning.
+    vtkvol.io.VolumeReadError
+        The data file exists but cannot be read.
+    """
+    session = read_session(path)
+    model = session.model
+    target = (
+        Path(data_path).expanduser().resolve() if data_path is not None else session.data_path
+    )
+    if target is None or not target.exists():
+        raise MissingDataError(session.path, target, chosen=data_path is not None)
+
+    vol = model.volume
+    changed = _fingerprint_change(target, vol.size_bytes, vol.sha256_head)
+
+    from vtkvol.io import read_volume
+
+    data = read_volume(
+        target,
+        voxel_size_um=vol.voxel_size_um,
+        time_index=vol.time_index,
+        fit=vol.fit,
+        progress=progress,
+        cancel=cancel,
+    )
+    expected = {"shape_zyx": vol.shape_zyx, "channels": vol.channels}
+    found = {"shape_zyx": tuple(int(n) for n in data.shape_zyx), "channels": int(data.n_channels)}
+    if any(v is not None and _as_tuple(v) != _as_tuple(found[k]) for k, v in expected.items()):
+        raise DataMismatchError(session.path, target, expected, found)
+
+    notes = list(session.warnings)
+    if changed:
+        notes.append(
+            f"data file {target.name} changed since the session was saved ({changed}); "
+            "its shape and channels match, so the view is restored"
+        )
+    model.volume.path = str(target)
+    for note in notes:
+        if on_warning is not None:
+            on_warning(note)
+        else:
+            warnings.warn(f"{session.path.name}: {note}", SessionWarning, stacklevel=2)
+    return model, data
+
+
+def _as_tuple(value: Any) -> Any:
+    """Lists and tuples compare equal by content (JSON gives lists, readers give tuples)."""
+    return tuple(value) if isinstance(value, (list, tuple)) else value
+
+
+def _fingerprint_change(path: Path, size: int | None, digest: str | None) -> str:
+    """What differs from the recorded size and checksum, in words ('' when nothing does)."""
+    if size is None and digest is None:
+        return ""
+    try:
+        now_size, now_digest = _fingerprint(path)
+    except OSError:
+        return ""  # unreadable here; read_volume will say why
+    if size is not None and size != now_size:
+        return f"size {size} → {now_size} bytes"
+    if digest is not None and digest != now_digest:
+        return "different content at the start of the file"
+    return ""
