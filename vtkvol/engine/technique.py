@@ -28,7 +28,6 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from vtkvol.engine import shaders
-
 from vtkvol.model.params import Param, defaults
 
 if TYPE_CHECKING:
