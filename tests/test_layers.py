@@ -1,0 +1,39 @@
+"""Import direction is the architecture: the library never imports Qt; io and model no VTK."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+
+def imported_after(modules: list[str]) -> set[str]:
+    code = (
+        "import importlib, sys\n"
+        f"for m in {modules!r}:\n"
+        "    importlib.import_module(m)\n"
+        "print('\\n'.join(sys.modules))\n"
+    )
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    return set(result.stdout.split())
+
+
+def test_library_never_imports_qt():
+    from vtkvol.engine.technique import installed_techniques
+
+    library = [
+        "vtkvol", "vtkvol.io", "vtkvol.model", "vtkvol.engine.api", "vtkvol.engine.scene",
+        "vtkvol.reference", "vtkvol.cli",
+        *(cls.__module__ for cls in installed_techniques().values()),
+    ]
+    loaded = imported_after(library)
+    qt = sorted(m for m in loaded if m.startswith(("PySide6", "pyvistaqt", "qtpy", "superqt")))
+    assert qt == []
+
+
+@pytest.mark.parametrize("package", ["vtkvol.io", "vtkvol.model", "vtkvol.reference"])
+def test_io_model_and_references_do_not_import_vtk(package):
+    loaded = imported_after([package])
+    assert not any(m == "vtk" or m.startswith("vtkmodules") for m in loaded)
