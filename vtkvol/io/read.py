@@ -1,0 +1,113 @@
+"""`read_volume`: path in, display-ready :class:`VolumeData` out."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from os import PathLike
+from pathlib import Path
+
+from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.fit import FIT_STRATEGIES, FitStrategy, fit_volume
+from vtkvol.io.progress import CancelCallback, Progress, ProgressCallback
+from vtkvol.io.registry import VoxelSizeArg, available_readers, get_reader
+from vtkvol.io.volume_data import VolumeData
+
+__all__ = ["read_volume"]
+
+
+def read_volume(
+    path: str | PathLike[str],
+    *,
+    voxel_size_um: VoxelSizeArg = None,
+    time_index: int = 0,
+    channels: Sequence[int | str] | int | str | None = None,
+    fit: FitStrategy = "auto",
+    max_texture_size: int | None = 2048,
+    memory_budget_bytes: int | None = None,
+    progress: ProgressCallback | None = None,
+    cancel: CancelCallback | None = None,
+) -> VolumeData:
+    """Read a volume file or folder into a checked, GPU-sized :class:`VolumeData`.
+
+    Parameters
+    ----------
+    path
+        A file (``.tif``/``.tiff``, ``.raw``, ``.nhdr``/``.nrrd``, ``.dat``, ``.npy``/``.npz``,
+        ``.vti``/``.vtk``/``.mha``/``.mhd``, or any pattern a ``vtkvol.readers`` plugin
+        declares) or a folder of single-slice TIFFs.
+    voxel_size_um
+        Overrides the file's voxel size: (x, y, z) in µm, one number for isotropic voxels,
+        or a tuple with None entries to keep the file's value on those axes.
+    time_index
+        Time point to read from files with a T axis (0-based).
+    channels
+        Channel indices or names to keep, in this order; default all.
+    fit
+        What to do when the volume exceeds ``max_texture_size`` along an axis or
+        ``memory_budget_bytes`` in total: ``"auto"`` (= ``"average"``: block-mean
+        downsampling), ``"subsample"``, ``"crop"`` (centred) or ``"none"`` (raise).
+    max_texture_size
+        Largest number of voxels per axis (the GPU's 3-D texture limit); None: no limit.
+    memory_budget_bytes
+        Largest size of the voxel data, all channels together; None: no limit.
+    progress
+        ``progress(fraction, message)``, called per page/slice/chunk with the fraction of
+        the whole read (0…1).
+    cancel
+        ``cancel() -> bool``, polled as often as ``progress``; returning True stops the read
+        with :class:`~vtkvol.io.ReadCancelled`.
+
+    Returns
+    -------
+    VolumeData
+        ``array`` 4-D ``[c, z, y, x]`` (uint8/uint16/int16/float32, possibly memory-mapped),
+        ``voxel_size_um`` (x, y, z) in µm, channel names, metadata and user-visible notes.
+
+    Raises
+    ------
+    VolumeReadError
+        The file is missing, of an unknown type, corrupt, truncated, ambiguous, empty, all
+        NaN, of an unsupported dtype, or does not fit with ``fit="none"``. The message names
+        the file and the problem.
+    ReadCancelled
+        ``cancel()`` returned True.
+    ValueError
+        Invalid arguments (voxel size ≤ 0, unknown fit strategy).
+    """
+    p = Path(path).expanduser()
+    if fit not in FIT_STRATEGIES:  # checked before a possibly long read
+        raise ValueError(f"unknown fit strategy {fit!r}; use one of {FIT_STRATEGIES}")
+    prog = Progress(progress, cancel)
+    if not p.exists():
+        raise VolumeReadError(p, f"no such file or folder: {p}")
+    reader = get_reader(p)
+    if reader is None:
+        raise VolumeReadError(p, _unknown_type(p))
+    data = reader(
+        p,
+        voxel_size_um=voxel_size_um,
+        time_index=time_index,
+        channels=channels,
+        progress=prog.sub(0.0, 0.9),
+    )
+    data = fit_volume(
+        data,
+        max_texture_size=max_texture_size,
+        memory_budget_bytes=memory_budget_bytes,
+        strategy=fit,
+        progress=prog.sub(0.9, 1.0),
+    )
+    prog(1.0, f"loaded {p.name}")
+    return data
+
+
+def _unknown_type(path: Path) -> str:
+    patterns = sorted({pat for spec in available_readers() for pat in spec.filename_patterns})
+    if path.is_dir():
+        folders = [spec.label for spec in available_readers() if spec.accepts_directories]
+        return (
+            "the folder holds no file that a reader accepts as a stack "
+            f"({'; '.join(folders)}); expected e.g. *.tif slices"
+        )
+    suffix = path.suffix or "(no extension)"
+    return f"unknown file type {suffix!r}; vtkvol reads {', '.join(patterns)}"
