@@ -1,0 +1,708 @@
+"""Cone-traced ambient occlusion and soft shadows (seed 000's method 1, thesis §6.2).
+
+Precomputation (only when the data, the transfer function, the crop/slice weights or an
+ILLUMINATION parameter change — never for light or camera moves):
+
+* the transfer-function opacity α (``host.opacity_volume()``, per opacity unit distance u) is
+  reduced to a **source pyramid** S_L: level L+1 is the area-weighted 2×2×2 box average of
+  level L (GL's mip geometry, ``floor(n/2)`` texels, fractional weights for odd sizes), i.e.
+  opacities are averaged, not intensities (see ``docs/cone-tracing.md`` for the measurement);
+* every level is blurred by a separable, normalised Gaussian of σ texels of *that* level
+  (radius ``int(span·σ + 0.5)``, zero outside the volume), so level L represents a Gaussian
+  neighbourhood of about σ·2^L voxels — twice as wide per level (thesis §2.6.1);
+* the result F_L (a mean opacity) is stored as the optical depth per unit distance
+  D_L = −ln(1 − F_L), which the cone accumulates linearly:
+  τ += D·Δs/u, i.e. per step α_step = 1 − (1 − F)^(Δs/u), independent of the step h.
+
+The GPU path runs compute shaders (``cone_traced_filter.comp.glsl``); the numpy/scipy path
+(:func:`filtered_pyramid_cpu`) is the verification reference and the fallback without compute
+shaders.
+
+Rendering (``cone_traced.glsl``): for shaded samples whose opacity exceeds the threshold, one
+ray per cone marches the filtered pyramid in voxel space from the offset h0 with step h; when the
+cone's half-width b·sin α exceeds lod_width·σ·2^L voxels (thesis: 2σ·2^L, with its unit mix-up
+fixed; default 4σ·2^L, measured closer to the references) the level L and the step double; the
+march stops at 95 % occlusion, at the volume's box, at the point light or at the AO maximum
+distance.
+Shadows: one cone towards each light. AO: one cone towards the viewer (the thesis) or a
+hemisphere of 1/3/6/12 cones about the outward normal, cosine-weighted.
+
+Spaces: arrays ``[z, y, x]``; voxel space = index coordinates (voxel centres at integers);
+directions arrive in dataset space (µm) and are converted with the texture–dataset matrix, so
+anisotropic spacing is handled. Distances h, h0, σ are voxels of the data grid along the cone;
+the AO maximum distance is in voxels of the smallest voxel edge (converted to µm).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Mapping, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from vtkvol.engine.technique import Technique
+from vtkvol.model.params import Invalidates, Param
+
+if TYPE_CHECKING:
+    from vtkvol.engine.gl import ComputeProgram, Texture3D
+    from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
+
+#: Mean opacities are clamped below 1 before −ln(1 − F): D ≤ 13.8 per unit distance, so a fully
+#: opaque voxel still gives finite optical depths (the same clamp as vtkvol.reference).
+MAX_OPACITY = 1.0 - 1e-6
+
+#: The cone stops once its transmittance drops below 5 % (the thesis' ERT at 0.95 occlusion).
+TAU_EXIT = -math.log(0.05)
+
+#: Largest Gaussian radius (texels): σ ≤ 4 texels × span ≤ 4 → 16.
+MAX_RADIUS = 16
+
+#: Rings of the AO hemisphere patterns (cones per ring, inner to outer).
+_AO_RINGS: dict[int, tuple[int, ...]] = {1: (1,), 3: (3,), 6: (1, 5), 12: (3, 9)}
+
+#: Never trace further than this many steps (the march normally ends at the box, the light,
+#: the maximum distance or 95 % occlusion long before; this bounds pathological inputs).
+MAX_STEPS = 4096
+
+#: AO "infinite" distance for shadow cones towards directional lights (µm).
+_FAR = 1e30
+
+PARAMETERS: tuple[Param, ...] = (
+    Param(
+        "shadows", True, "Soft shadows",
+        "Trace one cone towards every light and darken its diffuse and specular light.",
+        kind="bool", invalidates=Invalidates.SHADER, uniform=False,
+    ),
+    Param(
+        "shadow_angle", 5.0, "Shadow cone angle",
+        "Half-angle of the cone traced towards each light; larger = softer shadows (thesis 5°).",
+        range=(0.0, 90.0), step=0.5, unit="°", uniform=False,
+    ),
+    Param(
+        "shadow_strength", 1.0, "Shadow strength",
+        "How much of the light the shadow cone's occlusion removes (diffuse × (1 − s·occlusion)).",
+        range=(0.0, 1.0), step=0.05,
+    ),
+    Param(
+        "ao_mode", "hemisphere", "Ambient occlusion",
+        "off; view_cone: one cone towards the viewer (the thesis' directional AO); "
+        "hemisphere: N cones about the outward normal, cosine-weighted (closer to the reference).",
+        kind="choice", choices=("off", "view_cone", "hemisphere"),
+        invalidates=Invalidates.SHADER, uniform=False,
+    ),
+    Param(
+        "ao_cones", "6", "AO cones",
+        "Cones of the AO hemisphere (half-angle chosen so they tile it: 90°, 48°, 34°, 24°).",
+        kind="choice", choices=("1", "3", "6", "12"),
+        invalidates=Invalidates.SHADER, uniform=False,
+    ),
+    Param(
+        "ao_angle", 30.0, "View-cone AO angle",
+        "Half-angle of the single AO cone towards the viewer (view_cone mode; thesis 30°).",
+        range=(0.0, 90.0), step=1.0, unit="°", uniform=False,
+    ),
+    Param(
+        "max_distance", 24.0, "AO distance",
+        "Only absorbers within this distance occlude (AO cones), in voxels of the smallest edge.",
+        range=(1.0, 1024.0), step=1.0, unit="voxel", scale="log", uniform=False,
+    ),
+    Param(
+        "ao_strength", 1.0, "AO strength",
+        "How much of the ambient light the occlusion removes (ambient × (1 − s·AO)).",
+        range=(0.0, 1.0), step=0.05,
+    ),
+    Param(
+        "sigma", 1.0, "Filter σ",
+        "Standard deviation of the Gaussian that filters the opacity, in texels of each mip "
+        "level (voxels at level 0). The cone changes level when its half-width exceeds 2σ·2^L.",
+        range=(0.5, 4.0), step=0.25, unit="voxel", invalidates=Invalidates.ILLUMINATION,
+    ),
+    Param(
+        "span", 3.0, "Filter span",
+        "Gaussian kernel radius in σ (kernel radius = round(span·σ) texels; thesis 3σ).",
+        range=(1.0, 4.0), step=0.5, unit="σ", invalidates=Invalidates.ILLUMINATION,
+        uniform=False,
+    ),
+    Param(
+        "lod_width", 4.0, "LOD switch width",
+        "The cone moves up one mip level (and doubles its step) when its half-width b·sin α "
+        "exceeds lod_width·σ·2^L voxels. The thesis used 2; 4 is closer to the Monte-Carlo "
+        "references for shadows and AO (docs/cone-tracing.md).",
+        range=(1.0, 8.0), step=0.5, unit="σ",
+    ),
+    Param(
+        "h", 2.5, "Cone step",
+        "Step of the cone march at mip level 0, in voxels; doubles with every level (thesis 2.5σ).",
+        range=(0.5, 8.0), step=0.25, unit="voxel",
+    ),
+    Param(
+        "h0", 3.0, "Start offset",
+        "Distance of the first cone segment from the sample, against self-occlusion (thesis 3σ).",
+        range=(0.0, 12.0), step=0.25, unit="voxel",
+    ),
+    Param(
+        "opacity_threshold", 0.05, "Opacity threshold",
+        "Shadows and AO are computed only for samples whose transfer-function opacity "
+        "(per unit distance) exceeds this (thesis 0.05).",
+        range=(0.0, 1.0), step=0.01,
+    ),
+)
+
+
+# ------------------------------------------------------------------------------------------------
+# Pyramid geometry and the CPU filter (the verification reference and the no-compute fallback)
+# ------------------------------------------------------------------------------------------------
+def mip_level_count(shape_zyx: Sequence[int]) -> int:
+    """Levels of the full GL mip chain (down to 1×1×1) of a volume of ``shape_zyx`` texels."""
+    return math.floor(math.log2(max(1, *(int(s) for s in shape_zyx)))) + 1
+
+
+def level_shapes(shape_zyx: Sequence[int], levels: int) -> list[tuple[int, int, int]]:
+    """Shapes ``[z, y, x]`` of levels 0…levels−1 (GL: ``max(1, n >> L)`` per axis)."""
+    return [tuple(max(1, int(s) >> lev) for s in shape_zyx) for lev in range(levels)]  # type: ignore[misc]
+
+
+def gaussian_weights(sigma: float, span: float) -> np.ndarray:
+    """Normalised 1D Gaussian taps (float64) of σ texels, radius ``int(span·σ + 0.5)`` texels
+    (the rule of ``scipy.ndimage.gaussian_filter(truncate=span)``); the 3D kernel is their
+    outer product, which sums to 1 like the thesis' normalised (2s+1)³ kernel."""
+    if not (sigma > 0 and span > 0):
+        raise ValueError(f"sigma {sigma} and span {span} must be positive")
+    radius = min(MAX_RADIUS, int(span * sigma + 0.5))
+    x = np.arange(-radius, radius + 1, dtype=np.float64)
+    w = np.exp(-0.5 * (x / sigma) ** 2)
+    return w / w.sum()
+
+
+def area_weights(n: int, m: int) -> np.ndarray:
+    """(m, n) matrix: destination texel j of ``m`` covers source texels [j·n/m, (j+1)·n/m) of
+    ``n``; entries are the overlaps divided by n/m (rows sum to 1)."""
+    scale = n / m
+    lo = np.arange(m)[:, None] * scale
+    hi = lo + scale
+    i = np.arange(n)[None, :]
+    overlap = np.clip(np.minimum(hi, i + 1.0) - np.maximum(lo, i), 0.0, None)
+    return overlap / scale
+
+
+def downsample_area(volume: np.ndarray) -> np.ndarray:
+    """One mip step: area-weighted box reduction to ``max(1, n // 2)`` texels per axis
+    (float32; even axes are plain pair means, odd ones use :func:`area_weights`)."""
+    out = np.asarray(volume, dtype=np.float32)
+    for axis in range(3):
+        n = out.shape[axis]
+        m = max(1, n // 2)
+        if m == n:
+            continue
+        if n == 2 * m:
+            shape = (*out.shape[:axis], m, 2, *out.shape[axis + 1 :])
+            out = out.reshape(shape).mean(axis=axis + 1, dtype=np.float64).astype(np.float32)
+        else:
+            w = area_weights(n, m)
+            moved = np.tensordot(w, np.moveaxis(out, axis, 0).astype(np.float64), axes=(1, 0))
+            out = np.ascontiguousarray(np.moveaxis(moved, 0, axis), dtype=np.float32)
+    return out
+
+
+def source_pyramid(values: np.ndarray, levels: int) -> list[np.ndarray]:
+    """``values`` and its ``levels − 1`` area-averaged reductions (float32, ``[z, y, x]``)."""
+    pyramid = [np.asarray(values, dtype=np.float32)]
+    for _ in range(1, levels):
+        pyramid.append(downsample_area(pyramid[-1]))
+    return pyramid
+
+
+def blur_level(level: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """Separable Gaussian (``weights`` taps) over one level, zero outside it."""
+    from scipy.ndimage import correlate1d
+
+    out = np.asarray(level, dtype=np.float32)
+    for axis in (2, 1, 0):  # x, y, z: the order of the GPU passes
+        out = correlate1d(out, weights, axis=axis, output=np.float32, mode="constant", cval=0.0)
+    return out
+
+
+def optical_depth(mean_opacity: np.ndarray) -> np.ndarray:
+    """D = −ln(1 − F): optical depth per opacity unit distance of a mean opacity F (float32)."""
+    f = np.clip(np.asarray(mean_opacity, dtype=np.float32), 0.0, np.float32(MAX_OPACITY))
+    return -np.log1p(-f)
+
+
+def filtered_pyramid_cpu(
+    opacity: np.ndarray, sigma: float = 1.0, span: float = 3.0, levels: int | None = None,
+    *, alpha_levels: Sequence[np.ndarray] | None = None,
+) -> list[np.ndarray]:
+    """The filtered-opacity pyramid the cone tracer samples, computed with numpy/scipy.
+
+    Parameters
+    ----------
+    opacity
+        TF opacity α per opacity unit distance, ``[z, y, x]`` (``host.opacity_volume()``).
+    sigma, span
+        Gaussian σ in texels of each level and kernel radius in σ.
+    levels
+        Number of mip levels (default: the full chain, :func:`mip_level_count`).
+    alpha_levels
+        Optional per-level opacities to filter instead of the area-averaged pyramid of
+        ``opacity`` (used to measure the thesis' variant, TF applied to averaged intensities).
+
+    Returns
+    -------
+    One float32 array per level: D_L = −ln(1 − G_σ * S_L), where S_L is the level's mean opacity.
+    """
+    levels = mip_level_count(opacity.shape) if levels is None else int(levels)
+    src = list(alpha_levels) if alpha_levels is not None else source_pyramid(opacity, levels)
+    w = gaussian_weights(sigma, span)
+    return [optical_depth(blur_level(s, w)).astype(np.float32) for s in src[:levels]]
+
+
+# ------------------------------------------------------------------------------------------------
+# AO hemisphere patterns and the CPU cone tracer (same algorithm as cone_traced.glsl)
+# ------------------------------------------------------------------------------------------------
+def hemisphere_pattern(cones: int) -> tuple[np.ndarray, float]:
+    """Cone axes in a local frame (z = normal), shape (cones, 3), and the cone half-angle (°).
+
+    Cosine-weighted equal-weight quadrature (Malley): the unit disk, which is the projection of
+    the hemisphere under cosine weighting, is cut into equal-area annular sectors (rings of
+    ``_AO_RINGS[cones]``); each cone's axis is its sector's centroid lifted back onto the
+    hemisphere, so every cone carries weight 1/N of (1/π)∫(1−T)(n·ω)dω. The half-angle makes
+    N cones cover the hemisphere's solid angle: cos θ = 1 − 1/N (90°, 48.2°, 33.6°, 23.6°).
+    """
+    if cones not in _AO_RINGS:
+        raise ValueError(f"AO cone count must be one of {sorted(_AO_RINGS)}, not {cones}")
+    dirs = []
+    done = 0
+    for ring, count in enumerate(_AO_RINGS[cones]):
+        r0, r1 = math.sqrt(done / cones), math.sqrt((done + count) / cones)
+        wedge = 2.0 * math.pi / count
+        # Centroid radius of an annular sector: (2/3)(r1³−r0³)/(r1²−r0²)·sin(θ/2)/(θ/2).
+        shrink = math.sin(wedge / 2) / (wedge / 2) if count > 1 else 0.0
+        rc = (2.0 / 3.0) * (r1**3 - r0**3) / (r1**2 - r0**2) * shrink
+        for k in range(count):
+            phi = (k + 0.5 * ring) * wedge  # stagger alternate rings
+            dirs.append((rc * math.cos(phi), rc * math.sin(phi), math.sqrt(max(0.0, 1 - rc * rc))))
+        done += count
+    return np.array(dirs), math.degrees(math.acos(1.0 - 1.0 / cones))
+
+
+def orthonormal_basis(n: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Tangent and bitangent of unit normals ``n`` (M, 3) (Duff et al. 2017, branchless)."""
+    s = np.where(n[:, 2] >= 0.0, 1.0, -1.0)
+    a = -1.0 / (s + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = np.stack([1.0 + s * n[:, 0] ** 2 * a, s * b, -s * n[:, 0]], axis=1)
+    bt = np.stack([b, s + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
+    return t, bt
+
+
+def _sample_level(level: np.ndarray, tc: np.ndarray) -> np.ndarray:
+    """Trilinear fetch of a level at texture coordinates ``tc`` (M, 3) (x, y, z) with GL's
+    clamp-to-border(0) behaviour."""
+    from scipy.ndimage import map_coordinates
+
+    shape = np.array(level.shape[::-1], dtype=np.float64)  # (mx, my, mz)
+    coords = tc * shape - 0.5
+    return map_coordinates(level, coords[:, ::-1].T, order=1, mode="grid-constant", cval=0.0)
+
+
+def cone_trace_cpu(
+    pyramid: Sequence[np.ndarray],
+    spacing: Sequence[float],
+    points: np.ndarray,
+    directions: np.ndarray,
+    *,
+    sin_angle: float,
+    sigma: float = 1.0,
+    lod_width: float = 4.0,
+    h: float = 2.5,
+    h0: float = 3.0,
+    max_distance_um: float | np.ndarray = _FAR,
+    unit_distance: float | None = None,
+) -> np.ndarray:
+    """Cone transmittance (0…1) from ``points`` along ``directions``: the shader's algorithm.
+
+    Parameters
+    ----------
+    pyramid
+        Optical-depth levels D_L (:func:`filtered_pyramid_cpu`), ``[z, y, x]``.
+    spacing
+        Voxel size (x, y, z) µm.
+    points
+        (M, 3) voxel index coordinates (x, y, z), voxel centres at integers.
+    directions
+        (M, 3) dataset-space unit vectors (µm), the cone axes.
+    sin_angle
+        sin of the cone half-angle.
+    sigma, lod_width
+        Filter σ (texels); the level rises while b·sin α > lod_width·σ·2^L voxels.
+    h, h0
+        Level-0 step and start offset (voxels along the cone).
+    max_distance_um
+        Where the march stops (µm; scalar or (M,)), besides the box and 95 % occlusion.
+    unit_distance
+        Opacity unit distance u (µm); default the smallest voxel edge.
+    """
+    spacing_a = np.asarray(spacing, dtype=np.float64)
+    u = float(spacing_a.min()) if unit_distance is None else float(unit_distance)
+    dims = np.array(pyramid[0].shape[::-1], dtype=np.float64)
+    pts = np.asarray(points, dtype=np.float64)
+    d_vox = np.asarray(directions, dtype=np.float64) / spacing_a  # voxels per µm
+    per_um = np.linalg.norm(d_vox, axis=1)
+    per_um = np.where(per_um > 0, per_um, 1.0)
+    step_tex = d_vox / per_um[:, None] / dims  # texture coordinates per voxel along the cone
+    depth_per_voxel = 1.0 / (per_um * u)  # unit distances per voxel along the cone
+    b_max = np.broadcast_to(np.asarray(max_distance_um, dtype=np.float64), per_um.shape) * per_um
+    tex0 = (pts + 0.5) / dims
+    tau = np.zeros(len(pts))
+    active = np.ones(len(pts), dtype=bool)
+    max_lod = len(pyramid) - 1
+    lod, scale, b = 0, 1.0, float(h0)
+    width = lod_width * sigma
+    for _ in range(MAX_STEPS):
+        while b * sin_angle > width * scale and lod < max_lod:
+            lod += 1
+            scale *= 2.0
+        s = np.clip(b_max - b, 0.0, h * scale)
+        active &= s > 0.0
+        if not active.any():
+            break
+        idx = np.nonzero(active)[0]
+        tc = tex0[idx] + (b + 0.5 * s[idx, None]) * step_tex[idx]
+        inside = np.all((tc >= 0.0) & (tc <= 1.0), axis=1)
+        active[idx[~inside]] = False
+        idx, tc = idx[inside], tc[inside]
+        if idx.size == 0:
+            break
+        tau[idx] += _sample_level(pyramid[lod], tc) * s[idx]
+        active[idx[tau[idx] * depth_per_voxel[idx] > TAU_EXIT]] = False
+        b += h * scale
+    return np.exp(-tau * depth_per_voxel)
+
+
+def voxel_normals(opacity: np.ndarray, spacing: Sequence[float]) -> np.ndarray:
+    """Outward unit normals (x, y, z) per voxel, ``[z, y, x, 3]``: −∇α by central differences
+    in µm (zero where the gradient vanishes), like the ray caster's −gradient."""
+    gz, gy, gx = np.gradient(np.asarray(opacity, dtype=np.float64))
+    g = np.stack([gx / spacing[0], gy / spacing[1], gz / spacing[2]], axis=-1)
+    length = np.linalg.norm(g, axis=-1, keepdims=True)
+    return np.where(length > 1e-12, -g / np.where(length > 0, length, 1.0), 0.0)
+
+
+def ambient_occlusion_cpu(
+    pyramid: Sequence[np.ndarray],
+    spacing: Sequence[float],
+    points: np.ndarray,
+    normals: np.ndarray,
+    view_direction: Sequence[float],
+    *,
+    mode: str = "hemisphere",
+    cones: int = 6,
+    ao_angle: float = 30.0,
+    max_distance_um: float,
+    sigma: float = 1.0,
+    lod_width: float = 4.0,
+    h: float = 2.5,
+    h0: float = 3.0,
+    unit_distance: float | None = None,
+) -> np.ndarray:
+    """Cone-traced occlusion (0 = open, 1 = closed) at ``points``, as the shader computes it.
+
+    ``normals`` (M, 3) are outward dataset-space normals (zero where undefined: the view
+    direction is used instead); ``view_direction`` points from the scene towards the viewer.
+    """
+    v = np.asarray(view_direction, dtype=np.float64)
+    v = v / np.linalg.norm(v)
+    m = len(points)
+    kw = dict(sigma=sigma, lod_width=lod_width, h=h, h0=h0, max_distance_um=max_distance_um,
+              unit_distance=unit_distance)
+    if mode == "view_cone":
+        dirs = np.broadcast_to(v, (m, 3))
+        sin_a = math.sin(math.radians(ao_angle))
+        return 1.0 - cone_trace_cpu(pyramid, spacing, points, dirs, sin_angle=sin_a, **kw)
+    if mode != "hemisphere":
+        raise ValueError(f"unknown AO mode {mode!r}")
+    n = np.asarray(normals, dtype=np.float64).reshape(m, 3)
+    length = np.linalg.norm(n, axis=1)
+    n = np.where(length[:, None] > 0, n / np.where(length > 0, length, 1.0)[:, None], v)
+    t, bt = orthonormal_basis(n)
+    pattern, half_angle = hemisphere_pattern(cones)
+    sin_a = math.sin(math.radians(half_angle))
+    occ = np.zeros(m)
+    for px, py, pz in pattern:
+        dirs = px * t + py * bt + pz * n
+        occ += 1.0 - cone_trace_cpu(pyramid, spacing, points, dirs, sin_angle=sin_a, **kw)
+    return occ / len(pattern)
+
+
+def voxel_points(shape_zyx: Sequence[int]) -> np.ndarray:
+    """(M, 3) voxel index coordinates (x, y, z) of every voxel centre, C order."""
+    z, y, x = np.meshgrid(*(np.arange(int(s)) for s in shape_zyx), indexing="ij")
+    return np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1).astype(np.float64)
+
+
+# ------------------------------------------------------------------------------------------------
+# GPU filter
+# ------------------------------------------------------------------------------------------------
+class GpuFilter:
+    """The compute-shader pipeline: source pyramid, then three blur passes per level.
+
+    The blur program is compiled per kernel radius (a compile-time constant lets the sliding
+    window live in registers); programs are kept, so changing σ back and forth is cheap.
+    """
+
+    def __init__(self, render_window: Any) -> None:
+        from vtkvol.engine.gl import gl
+        from vtkvol.engine.shaders import read_resource
+
+        self.render_window = render_window
+        self._gl = gl(render_window)
+        self._source = read_resource("cone_traced_filter.comp.glsl")
+        self.down = self._build(0, 0)
+        self._blur: dict[int, ComputeProgram] = {}
+
+    def _build(self, pass_id: int, radius: int) -> ComputeProgram:
+        from vtkvol.engine.gl import ComputeProgram
+
+        head = (
+            f"#version 430\n#define VV_PASS {pass_id}\n#define VV_RADIUS {radius}\n"
+            f"#define VV_MAX_OPACITY {MAX_OPACITY!r}\n"
+        )
+        name = "cone_traced.down" if pass_id == 0 else f"cone_traced.blur{radius}"
+        return ComputeProgram(self.render_window, head + self._source, name)
+
+    def blur(self, radius: int) -> ComputeProgram:
+        if radius not in self._blur:
+            self._blur[radius] = self._build(1, radius)
+        return self._blur[radius]
+
+    def run(
+        self, source: Texture3D, filtered: Texture3D, scratch: Texture3D, weights: np.ndarray
+    ) -> None:
+        """Fill ``source`` levels 1… from level 0, then ``filtered`` with D_L of every level."""
+        shapes = level_shapes(source.shape, source.mip_levels)
+        if all(n & (n - 1) == 0 for n in source.shape):
+            # Power-of-two sizes: every reduction is an exact 2×2×2 (or 2×2×1, …) box, which
+            # the driver's own mipmap generation computes faster than our shader on llvmpipe.
+            source.generate_mipmaps()
+            self._gl.glMemoryBarrier(self._gl.GL_ALL_BARRIER_BITS)
+        else:
+            prog = self.down.use()
+            for lev in range(1, len(shapes)):
+                nz, ny, nx = shapes[lev]
+                prog.SetUniform1iv("srcSize", 3, list(shapes[lev - 1][::-1]))
+                prog.SetUniform1iv("dstSize", 3, [nx, ny, nz])
+                source.bind_image(0, "read", lev - 1)
+                source.bind_image(1, "write", lev)
+                self.down.dispatch(((nx + 15) // 16, ny, 1))
+            self.down.done()
+        radius = (len(weights) - 1) // 2
+        blur = self.blur(radius)
+        prog = blur.use()
+        prog.SetUniform1fv("weights", len(weights), [float(w) for w in weights])
+        # x: source → filtered, y: filtered → scratch, z: scratch → filtered (+ −ln(1 − F)).
+        passes = ((source, filtered, 0), (filtered, scratch, 1), (scratch, filtered, 2))
+        for lev, shape in enumerate(shapes):
+            nz, ny, nx = shape
+            prog.SetUniform1iv("size", 3, [nx, ny, nz])
+            for src, dst, axis in passes:
+                prog.SetUniformi("axis", axis)
+                prog.SetUniformi("convert", 1 if axis == 2 else 0)
+                src.bind_image(0, "read", lev)
+                dst.bind_image(1, "write", lev)
+                lanes, rows = {0: (ny, nz), 1: (nx, nz), 2: (nx, ny)}[axis]
+                blur.dispatch(((lanes + 15) // 16, rows, 1))
+        blur.done()
+
+    def release(self) -> None:
+        self.down.release()
+        for prog in self._blur.values():
+            prog.release()
+        self._blur.clear()
+
+
+# ------------------------------------------------------------------------------------------------
+# The technique
+# ------------------------------------------------------------------------------------------------
+class ConeTraced(Technique):
+    """Cone-traced soft shadows and ambient occlusion through a filtered-opacity mip chain."""
+
+    NAME: ClassVar[str] = "cone_traced"
+    LABEL: ClassVar[str] = "Cone-traced AO and soft shadows"
+    DESCRIPTION: ClassVar[str] = (
+        "Soft shadows (one cone per light) and ambient occlusion (view cone or a hemisphere of "
+        "cones) traced per sample through a Gaussian-filtered opacity mip chain. Precomputed "
+        "only when data or transfer function change; light and camera moves are free."
+    )
+    PARAMETERS: ClassVar[tuple[Param, ...]] = PARAMETERS
+    SHADER: ClassVar[str] = "cone_traced.glsl"
+    #: "auto" (compute shaders when available), "gpu" or "cpu" (numpy/scipy, then upload).
+    BACKEND: ClassVar[str] = "auto"
+
+    def __init__(self, host: Illuminator) -> None:
+        super().__init__(host)
+        self.recompute_count = 0
+        self.last_recompute_ms = 0.0
+        self.backend: str | None = None  #: backend used by the last recompute
+        self.source: Texture3D | None = None  #: opacity pyramid S_L (level 0 = α)
+        self.filtered: Texture3D | None = None  #: D_L = −ln(1 − G_σ * S_L)
+        self._scratch: Texture3D | None = None
+        self._gpu: GpuFilter | None = None
+        self._gpu_failed = False
+
+    # -- shader ---------------------------------------------------------------------------------
+    def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
+        mode = {"off": 0, "view_cone": 1, "hemisphere": 2}[values["ao_mode"]]
+        cones = int(values["ao_cones"])
+        pattern, half_angle = hemisphere_pattern(cones)
+        dirs = ", ".join(f"vec3({x:.8f}, {y:.8f}, {z:.8f})" for x, y, z in pattern)
+        return {
+            "VV_CT_SHADOWS": "1" if values["shadows"] else "0",
+            "VV_CT_AO": str(mode),
+            "VV_CT_AO_CONES": str(cones),
+            "VV_CT_AO_DIRS": f"vec3[{cones}]({dirs})",
+            "VV_CT_AO_SIN": f"{math.sin(math.radians(half_angle)):.8f}",
+            "VV_CT_MAX_STEPS": str(MAX_STEPS),
+            "VV_CT_TAU_EXIT": f"{TAU_EXIT:.8f}",
+        }
+
+    def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        nz, ny, nx = self.source.shape if self.source is not None else (1, 1, 1)
+        levels = self.filtered.mip_levels if self.filtered is not None else 1
+        spacing = self.host.spacing
+        return {
+            "vv_cone_traced_dims": (float(nx), float(ny), float(nz)),
+            "vv_cone_traced_maxLod": float(levels - 1),
+            "vv_cone_traced_unit": float(self.host.unit_distance),
+            "vv_cone_traced_shadowSin": math.sin(math.radians(values["shadow_angle"])),
+            "vv_cone_traced_aoSin": math.sin(math.radians(values["ao_angle"])),
+            "vv_cone_traced_maxDistanceUm": float(values["max_distance"]) * min(spacing),
+        }
+
+    # -- precomputation -------------------------------------------------------------------------
+    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+        if (
+            changes.first
+            or changes.opacity
+            or self.filtered is None
+            or changes.any_parameter(self.PARAMETERS, Invalidates.ILLUMINATION)
+        ):
+            self.recompute(values)
+
+    def recompute(self, values: Mapping[str, Any]) -> None:
+        """Rebuild the filtered pyramid from ``host.opacity_volume()`` (context current)."""
+        from vtkvol.engine.gl import gl
+
+        t0 = time.perf_counter()
+        opacity = self.host.opacity_volume()
+        self._ensure_textures(opacity.shape)
+        assert self.source is not None and self.filtered is not None
+        self.source.upload(opacity, 0)
+        weights = gaussian_weights(values["sigma"], values["span"])
+        gpu = self._gpu_filter()
+        if gpu is not None:
+            assert self._scratch is not None
+            gpu.run(self.source, self.filtered, self._scratch, weights)
+            self.backend = "gpu"
+        else:
+            levels = self.filtered.mip_levels
+            src = source_pyramid(opacity, levels)
+            for lev in range(1, levels):  # keep the source chain complete for the gate fetch
+                self.source.upload(src[lev].astype(np.float32), lev)
+            for lev, d in enumerate(filtered_pyramid_cpu(opacity, levels=levels,
+                                                         sigma=values["sigma"],
+                                                         span=values["span"], alpha_levels=src)):
+                self.filtered.upload(d, lev)
+            self.backend = "cpu"
+        gl(self.host.render_window).glFinish()  # honest timing: the work is done, not queued
+        self.recompute_count += 1
+        self.last_recompute_ms = (time.perf_counter() - t0) * 1e3
+
+    def _gpu_filter(self) -> GpuFilter | None:
+        if self.BACKEND == "cpu" or self._gpu_failed:
+            return None
+        if self._gpu is None:
+            from vtkvol.engine.gl import GLUnavailableError
+
+            try:
+                self._gpu = GpuFilter(self.host.render_window)
+            except GLUnavailableError:
+                if self.BACKEND == "gpu":
+                    raise
+                self._gpu_failed = True  # fall back to the CPU path for good
+                return None
+        return self._gpu
+
+    def _ensure_textures(self, shape_zyx: tuple[int, ...]) -> None:
+        from vtkvol.engine.gl import Texture3D
+
+        shape = tuple(int(s) for s in shape_zyx)
+        if self.source is not None and self.source.shape == shape:
+            return
+        self._release_textures()
+        rw = self.host.render_window
+        levels = mip_level_count(shape)
+        textures = []
+        for _ in range(3):
+            # Border 0: cones leaving the volume see empty space, also at coarse levels.
+            tex = Texture3D(rw, shape, mip_levels=levels, border=0.0)
+            for lev, lshape in enumerate(level_shapes(shape, levels)[1:], start=1):
+                tex.upload(np.zeros(lshape, np.float32), lev)  # allocate: complete mip chain
+            textures.append(tex)
+        self.source, self.filtered, self._scratch = textures
+        # Levels are chosen by an integer LOD: one level per fetch is enough (half the texels
+        # of LinearMipmapLinear on llvmpipe); the filter is sent at the next Activate().
+        from vtk import vtkTextureObject
+
+        for tex in (self.source, self.filtered):
+            tex.tex.SetMinificationFilter(vtkTextureObject.LinearMipmapNearest)
+        self.host.bind_texture("vv_cone_traced_filtered", self.filtered)
+        self.host.bind_texture("vv_cone_traced_opacity", self.source)
+
+    def _release_textures(self) -> None:
+        for name in ("vv_cone_traced_filtered", "vv_cone_traced_opacity"):
+            self.host.unbind_texture(name)
+        for tex in (self.source, self.filtered, self._scratch):
+            if tex is not None:
+                tex.release()
+        self.source = self.filtered = self._scratch = None
+
+    def release(self) -> None:
+        self._release_textures()
+        if self._gpu is not None:
+            self._gpu.release()
+            self._gpu = None
+        fu = self.host.shader_property.GetFragmentCustomUniforms()
+        for name in self.uniforms(self.defaults()):
+            fu.RemoveUniform(name)
+        for p in self.PARAMETERS:  # the host uploads them again if we come back
+            fu.RemoveUniform(f"vv_{self.NAME}_{p.name}")
+
+    # -- verification ---------------------------------------------------------------------------
+    def light_visibility_cpu(
+        self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
+        values: Mapping[str, Any],
+    ) -> np.ndarray:
+        """Cone transmittance towards ``light`` at every voxel centre (numpy, the shader's
+        algorithm), without the shadow strength: 1 = unshadowed, ``[z, y, x]``."""
+        pyramid = filtered_pyramid_cpu(opacity, values["sigma"], values["span"])
+        pts = voxel_points(opacity.shape)
+        # Dataset space (where LightSpec lives) includes the image origin.
+        world = np.asarray(self.host.image.GetOrigin()) + pts * np.asarray(spacing)
+        if light.is_point:
+            to_light = np.asarray(light.vector) - world
+            dist = np.linalg.norm(to_light, axis=1)
+            dirs = to_light / np.where(dist > 0, dist, 1.0)[:, None]
+            far: float | np.ndarray = dist
+        else:
+            dirs = np.broadcast_to(np.asarray(light.vector, dtype=np.float64), pts.shape)
+            far = _FAR
+        t = cone_trace_cpu(
+            pyramid, spacing, pts, dirs,
+            sin_angle=math.sin(math.radians(values["shadow_angle"])),
+            sigma=values["sigma"], lod_width=values["lod_width"], h=values["h"],
+            h0=values["h0"], max_distance_um=far,
+            unit_distance=self.host.unit_distance,
+        )
+        return t.reshape(opacity.shape).astype(np.float32)

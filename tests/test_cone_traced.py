@@ -1,0 +1,431 @@
+"""Cone-traced AO and soft shadows: filtered pyramid (CPU/GPU), pixels, recompute rules,
+stability and per-voxel accuracy against the Monte-Carlo references."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import vtk
+from scipy.ndimage import gaussian_filter
+from vtkvol.plugins import cone_traced as ct
+
+from vtkvol.engine.illuminator import Illuminator
+from vtkvol.engine.offscreen import grab, simple_volume_scene
+from vtkvol.engine.technique import available_techniques, get_technique
+from vtkvol.model import Light
+from vtkvol.reference import (
+    DirectionalLight,
+    ambient_occlusion_mc,
+    cone_transmittance_mc,
+    phantom_groove,
+    phantom_hollow_sphere,
+    phantom_slab,
+    phantom_sphere_over_slab,
+    volume_metrics,
+)
+
+SIZE = (96, 96)
+
+
+# ------------------------------------------------------------------------------------------------
+# Declaration
+# ------------------------------------------------------------------------------------------------
+def test_registered_with_documented_parameters():
+    assert available_techniques()["cone_traced"] == "vtkvol.plugins.cone_traced:ConeTraced"
+    cls = get_technique("cone_traced")
+    assert cls is ct.ConeTraced
+    names = {p.name for p in cls.PARAMETERS}
+    assert {"sigma", "span", "shadow_angle", "ao_mode", "ao_cones", "ao_angle", "h", "h0",
+            "max_distance", "shadow_strength", "ao_strength", "shadows",
+            "opacity_threshold", "lod_width"} <= names
+    for p in cls.PARAMETERS:
+        assert p.doc and p.label
+        assert p.validate(p.default) == p.default
+        if p.kind in ("float", "int"):
+            assert p.range is not None and p.range[0] <= p.default <= p.range[1]
+    for mode in ("off", "view_cone", "hemisphere"):
+        for cones in ("1", "3", "6", "12"):
+            defines = cls(None).shader_defines({**cls.defaults(), "ao_mode": mode,
+                                                 "ao_cones": cones})
+            assert defines["VV_CT_AO_CONES"] == cones
+
+
+@pytest.mark.parametrize("cones", [1, 3, 6, 12])
+def test_hemisphere_pattern_is_a_cosine_quadrature(cones):
+    dirs, half_angle = ct.hemisphere_pattern(cones)
+    assert dirs.shape == (cones, 3)
+    np.testing.assert_allclose(np.linalg.norm(dirs, axis=1), 1.0, atol=1e-12)
+    assert (dirs[:, 2] > 0).all()
+    # Equal-weight cosine quadrature: the mean of the axes' projections on the disk is 0 and
+    # 1 − cos(half-angle) = 1/N (N cones cover the hemisphere's solid angle).
+    np.testing.assert_allclose(dirs[:, :2].mean(axis=0), 0.0, atol=1e-12)
+    assert math.isclose(1 - math.cos(math.radians(half_angle)), 1 / cones)
+
+
+# ------------------------------------------------------------------------------------------------
+# Filtered pyramid on the CPU
+# ------------------------------------------------------------------------------------------------
+def _box_reference(volume: np.ndarray) -> np.ndarray:
+    """Independent area-weighted 2× reduction: integrate the piecewise-constant volume over
+    each destination cell (brute force, float64)."""
+    out = volume.astype(np.float64)
+    for axis in range(3):
+        n = out.shape[axis]
+        m = max(1, n // 2)
+        if m == n:
+            continue
+        edges = np.linspace(0.0, n, m + 1)
+        rows = []
+        for j in range(m):
+            lo, hi = edges[j], edges[j + 1]
+            weights = np.array([max(0.0, min(hi, i + 1) - max(lo, i)) for i in range(n)])
+            rows.append(np.tensordot(weights / (hi - lo), np.moveaxis(out, axis, 0), axes=1))
+        out = np.moveaxis(np.stack(rows), 0, axis)
+    return out
+
+
+@pytest.mark.parametrize("shape", [(16, 16, 16), (9, 20, 33), (1, 7, 12)])
+def test_mip_chain_matches_numpy_reference(shape):
+    rng = np.random.default_rng(3)
+    alpha = (rng.random(shape) ** 3).astype(np.float32)
+    sigma, span = 1.0, 3.0
+    levels = ct.mip_level_count(shape)
+    pyramid = ct.filtered_pyramid_cpu(alpha, sigma, span)
+    assert len(pyramid) == levels
+    assert [p.shape for p in pyramid] == ct.level_shapes(shape, levels)
+    source = alpha.astype(np.float64)
+    for lev, got in enumerate(pyramid):
+        if lev:
+            source = _box_reference(source)
+        blurred = gaussian_filter(source, sigma, mode="constant", cval=0.0, truncate=span)
+        expected = -np.log1p(-np.clip(blurred, 0, ct.MAX_OPACITY))
+        np.testing.assert_allclose(got, expected, atol=2e-6, err_msg=f"level {lev}")
+        # Box reduction preserves the mean (odd sizes included).
+        assert math.isclose(source.mean(), alpha.astype(np.float64).mean(), rel_tol=1e-9)
+
+
+def test_each_level_represents_a_neighbourhood_twice_as_wide():
+    # A single opaque voxel: the filtered footprint's spread (in level-0 voxels) doubles per level.
+    n = 64
+    alpha = np.zeros((n, n, n), np.float32)
+    alpha[32, 32, 32] = 1.0
+    pyramid = ct.filtered_pyramid_cpu(alpha, 1.0, 3.0)
+    widths = []
+    for lev in range(4):
+        f = -np.expm1(-pyramid[lev].astype(np.float64))  # back to mean opacity
+        profile = f.sum(axis=(0, 1))
+        x = (np.arange(profile.size) + 0.5) * (n / profile.size)
+        mean = (profile * x).sum() / profile.sum()
+        widths.append(math.sqrt((profile * (x - mean) ** 2).sum() / profile.sum()))
+    ratios = np.array(widths[1:]) / np.array(widths[:-1])
+    assert np.all((ratios > 1.6) & (ratios < 2.4)), widths
+
+
+# ------------------------------------------------------------------------------------------------
+# CPU cone tracer: limits and stability
+# ------------------------------------------------------------------------------------------------
+def test_cone_trace_is_step_independent_for_uniform_media():
+    # Uniform medium, α = 0.2 per voxel: a ray of length L µm transmits (1 − α)^L exactly,
+    # whatever the step (this is what the opacity-per-unit-distance correction buys).
+    n = 40
+    alpha = np.full((n, n, n), 0.2, np.float32)
+    pyramid = ct.filtered_pyramid_cpu(alpha)
+    pts = np.array([[20.0, 20.0, 20.0]])
+    up = np.array([[0.0, 0.0, 1.0]])
+    for h in (0.5, 1.0, 2.5):
+        t = ct.cone_trace_cpu(pyramid, (1, 1, 1), pts, up, sin_angle=0.0, h=h, h0=2.0,
+                              max_distance_um=10.0)
+        assert t[0] == pytest.approx(0.8**8, rel=1e-4)
+
+
+@pytest.mark.parametrize("angle", [0.0, 0.01, 45.0, 89.9, 90.0])
+@pytest.mark.parametrize("case", ["tiny", "opaque", "thin", "anisotropic"])
+def test_cpu_trace_is_finite_and_bounded(case, angle):
+    if case == "tiny":
+        alpha, spacing = np.random.default_rng(0).random((3, 4, 5)).astype(np.float32), (1, 1, 1)
+    elif case == "opaque":
+        alpha, spacing = np.ones((12, 12, 12), np.float32), (1, 1, 1)
+    elif case == "thin":
+        alpha, spacing = phantom_slab(16, 1, "z", opacity=1.0), (1, 1, 1)
+    else:
+        alpha, spacing = phantom_sphere_over_slab(16), (0.5, 1.0, 3.0)
+    pyramid = ct.filtered_pyramid_cpu(alpha)
+    pts = ct.voxel_points(alpha.shape)
+    dirs = np.broadcast_to(np.array([0.3, -0.2, 0.93]) / np.linalg.norm([0.3, -0.2, 0.93]),
+                           pts.shape)
+    t = ct.cone_trace_cpu(pyramid, spacing, pts, dirs, sin_angle=math.sin(math.radians(angle)))
+    assert np.isfinite(t).all() and (t >= 0).all() and (t <= 1).all()
+    normals = ct.voxel_normals(alpha, spacing).reshape(-1, 3)
+    for mode in ("hemisphere", "view_cone"):
+        occ = ct.ambient_occlusion_cpu(pyramid, spacing, pts, normals, (0, -1, 0), mode=mode,
+                                       ao_angle=angle, max_distance_um=8.0)
+        assert np.isfinite(occ).all() and (occ >= 0).all() and (occ <= 1).all()
+    if case == "opaque":
+        # Deep inside opaque material the cone stops at 95 % occlusion: T ≤ 0.05.
+        assert t.reshape(alpha.shape)[:5, 4:8, 4:8].max() <= 0.05
+
+
+# ------------------------------------------------------------------------------------------------
+# Per-voxel accuracy against the Monte-Carlo references (loose bounds; numbers in the docs)
+# ------------------------------------------------------------------------------------------------
+def _surface_points(alpha, spacing, count, seed=0):
+    normals = ct.voxel_normals(alpha, spacing)
+    mask = (alpha > 0.05) & (np.linalg.norm(normals, axis=-1) > 0)
+    zyx = np.argwhere(mask)
+    zyx = zyx[np.random.default_rng(seed).choice(len(zyx), min(count, len(zyx)), replace=False)]
+    return zyx[:, ::-1].astype(float), normals[zyx[:, 0], zyx[:, 1], zyx[:, 2]]
+
+
+def test_ao_accuracy_against_monte_carlo():
+    spacing = (1.0, 1.0, 1.0)
+    rmse = {}
+    for name, alpha in (("groove", phantom_groove(32)), ("hollow", phantom_hollow_sphere(32, 3))):
+        pts, nrm = _surface_points(alpha, spacing, 300)
+        ref = ambient_occlusion_mc(alpha, spacing, max_distance=12.0, n_rays=128, points=pts,
+                                   normals=nrm, min_distance=3.0)
+        pyramid = ct.filtered_pyramid_cpu(alpha)
+        for mode, cones in (("view_cone", 1), ("hemisphere", 6)):
+            occ = ct.ambient_occlusion_cpu(pyramid, spacing, pts, nrm, (0, 0, 1), mode=mode,
+                                           cones=cones, max_distance_um=12.0)
+            rmse[name, mode] = volume_metrics(occ, ref)["rmse"]
+    assert rmse["groove", "hemisphere"] < 0.15
+    assert rmse["hollow", "hemisphere"] < 0.15
+    # The hemisphere is closer to the reference than the thesis' single view cone.
+    assert rmse["hollow", "hemisphere"] < rmse["hollow", "view_cone"]
+
+
+def test_shadow_accuracy_against_monte_carlo_cone():
+    alpha = phantom_sphere_over_slab(32)
+    spacing = (1.0, 1.0, 1.0)
+    light = DirectionalLight((0.35, 0.2, 1.0))
+    pts = ct.voxel_points(alpha.shape)[(alpha > 0.05).ravel()]
+    pts = pts[np.random.default_rng(0).choice(len(pts), 400, replace=False)]
+    pyramid = ct.filtered_pyramid_cpu(alpha)
+    for angle in (2.5, 10.0):
+        ref = cone_transmittance_mc(alpha, spacing, light, half_angle_deg=angle, n_rays=64,
+                                    points=pts, min_distance=3.0)
+        t = ct.cone_trace_cpu(pyramid, spacing, pts, np.broadcast_to(light.unit(), pts.shape),
+                              sin_angle=math.sin(math.radians(angle)))
+        assert volume_metrics(t, ref)["rmse"] < 0.15, angle
+
+
+# ------------------------------------------------------------------------------------------------
+# GL: rendering through the Illuminator
+# ------------------------------------------------------------------------------------------------
+class Scene:
+    """An offscreen scene with vtkvol's Illuminator; collects VTK's error output."""
+
+    def __init__(self, volume, *, spacing=(1.0, 1.0, 1.0), method="cone_traced",
+                 parameters=None, light=(0.0, 0.3, 1.0), elevation=0.0, size=SIZE):
+        self.rw, self.ren, self.volume = simple_volume_scene(
+            volume, spacing=spacing, size=size, elevation=elevation)
+        self.il = Illuminator(self.volume, self.ren, method=method,
+                              lights=[Light(direction=light)], parameters=parameters)
+
+    def image(self) -> np.ndarray:
+        return grab(self.rw).astype(np.float64).mean(axis=2)
+
+    @property
+    def tech(self) -> ct.ConeTraced:
+        tech = self.il.technique
+        assert isinstance(tech, ct.ConeTraced)
+        return tech
+
+    def close(self) -> None:
+        self.il.release()
+        self.rw.Finalize()
+
+
+@pytest.fixture
+def scene_factory():
+    made: list[Scene] = []
+    log = vtk.vtkStringOutputWindow()
+    previous = vtk.vtkOutputWindow.GetInstance()
+    vtk.vtkOutputWindow.SetInstance(log)
+
+    def make(*args, **kwargs) -> Scene:
+        made.append(Scene(*args, **kwargs))
+        return made[-1]
+
+    yield make
+    for s in made:
+        s.close()
+    vtk.vtkOutputWindow.SetInstance(previous)
+    text = log.GetOutput()
+    assert "rror" not in text, text  # no shader compile or GL errors
+
+
+def _ratio(shaded: np.ndarray, local: np.ndarray) -> np.ndarray:
+    return np.where(local > 12, shaded / np.maximum(local, 1.0), np.nan)
+
+
+def _render_pair(scene: Scene, params: dict) -> tuple[np.ndarray, np.ndarray]:
+    """(local, cone-traced) images of the same scene."""
+    scene.il.set_method("local")
+    scene.image()
+    local = scene.image()
+    scene.il.set_method("cone_traced", params)
+    scene.il.set_parameters(**params)
+    scene.image()
+    return local, scene.image()
+
+
+@pytest.mark.gl
+def test_ao_darkens_groove_more_than_flat_top(scene_factory):
+    s = scene_factory(phantom_groove(40), elevation=60.0)
+    local, ao = _render_pair(s, {"shadows": False, "ao_mode": "hemisphere"})
+    ratio = _ratio(ao, local)
+    rows = slice(30, 60)
+    groove_floor = np.nanmean(ratio[rows, 44:52])
+    flat_top = np.nanmean(np.concatenate([ratio[rows, 24:30].ravel(), ratio[rows, 66:72].ravel()]))
+    assert flat_top > 0.95
+    assert groove_floor < flat_top - 0.08
+    assert "vv_ct_trace" in s.il.fragment_source
+    assert s.il.method == "cone_traced"
+
+
+@pytest.mark.gl
+def test_ao_darkens_inside_of_hollow_sphere_more_than_outer_face(scene_factory):
+    # (The thesis' view-cone AO cannot pass this: its cone leaves through the opening.)
+    shell = phantom_hollow_sphere(40, 3)
+    cut = shell.copy()
+    cut[:, :20, :] = 0.0  # open towards the camera (which looks along +y)
+    centre = (slice(38, 58), slice(38, 58))
+    params = {"shadows": False, "ao_mode": "hemisphere"}
+    inside = _ratio(*reversed(_render_pair(scene_factory(cut), params)))[centre]
+    outside = _ratio(*reversed(_render_pair(scene_factory(shell), params)))[centre]
+    assert np.nanmean(outside) > 0.9
+    assert np.nanmean(inside) < np.nanmean(outside) - 0.2
+
+
+def _penumbra(scene: Scene, angle: float, local: np.ndarray) -> tuple[int, int]:
+    scene.il.set_parameters(shadow_angle=angle)
+    ratio = _ratio(scene.image(), local)
+    return int(np.sum((ratio > 0.3) & (ratio < 0.95))), int(np.sum(ratio < 0.95))
+
+
+@pytest.mark.gl
+def test_soft_shadow_widens_with_cone_angle(scene_factory):
+    s = scene_factory(phantom_sphere_over_slab(40), elevation=50.0)
+    local, _ = _render_pair(s, {"ao_mode": "off", "shadows": True})
+    count = s.tech.recompute_count
+    narrow = _penumbra(s, 2.0, local)
+    wide = _penumbra(s, 25.0, local)
+    assert narrow[1] > 100, "the sphere casts a shadow on the slab"
+    assert wide[0] > 1.2 * narrow[0] and wide[1] > narrow[1]
+    assert s.tech.recompute_count == count, "the angle is a per-frame uniform"
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("shape,spacing", [((20, 33, 9), (0.5, 1.0, 2.0)), ((16, 16, 16),
+                                                                            (1.0, 1.0, 1.0))])
+def test_gpu_pyramid_matches_cpu(scene_factory, shape, spacing):
+    vol = phantom_sphere_over_slab(36)[: shape[0], : shape[1], : shape[2]]
+    s = scene_factory(np.ascontiguousarray(vol), spacing=spacing,
+                      parameters={"sigma": 1.5, "span": 2.0})
+    s.image()
+    tech = s.tech
+    assert tech.backend == "gpu"
+    opacity = s.il.opacity_volume()
+    levels = ct.mip_level_count(shape)
+    expected = ct.filtered_pyramid_cpu(opacity, 1.5, 2.0, levels)
+    sources = ct.source_pyramid(opacity, levels)
+    assert tech.filtered is not None and tech.source is not None
+    s.rw.MakeCurrent()
+    for lev in range(levels):
+        np.testing.assert_allclose(tech.filtered.download(lev), expected[lev], atol=1e-5)
+        np.testing.assert_allclose(tech.source.download(lev), sources[lev], atol=1e-6)
+
+
+@pytest.mark.gl
+def test_cpu_backend_renders_like_gpu(scene_factory, monkeypatch):
+    vol = phantom_sphere_over_slab(24)
+    gpu = scene_factory(vol, elevation=40.0)
+    gpu.image()
+    gpu_image = gpu.image()
+    monkeypatch.setattr(ct.ConeTraced, "BACKEND", "cpu")
+    cpu = scene_factory(vol, elevation=40.0)
+    cpu.image()
+    cpu_image = cpu.image()
+    assert cpu.tech.backend == "cpu" and gpu.tech.backend == "gpu"
+    assert np.abs(cpu_image - gpu_image).max() <= 2.0
+
+
+@pytest.mark.gl
+def test_recompute_only_for_opacity_and_filter_changes(scene_factory):
+    s = scene_factory(phantom_sphere_over_slab(24))
+    s.image()
+    s.image()
+    tech = s.tech
+    assert tech.recompute_count == 1 and tech.last_recompute_ms > 0
+    s.il.set_lights([Light(direction=(1.0, 0.0, 0.2))])  # light move
+    s.ren.GetActiveCamera().Azimuth(30)  # camera move
+    s.il.set_parameters(shadow_angle=12.0, ao_angle=20.0, h=1.5, h0=2.0, ao_strength=0.5,
+                        max_distance=12.0, lod_width=2.0)
+    s.image()
+    assert tech.recompute_count == 1
+    s.volume.GetProperty().GetScalarOpacity().AddPoint(0.5, 0.2)  # TF edit
+    s.image()
+    assert tech.recompute_count == 2
+    s.il.set_parameters(sigma=2.0)  # filter change
+    s.image()
+    assert tech.recompute_count == 3
+    s.il.set_parameters(ao_mode="view_cone", shadows=False)  # shader variant only
+    s.image()
+    assert tech.recompute_count == 3
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize(
+    "case",
+    ["tiny", "opaque", "thin", "npot_anisotropic", "angle0", "angle90", "point_light",
+     "cones12", "cones1"],
+)
+def test_stability(scene_factory, case):
+    vol = phantom_sphere_over_slab(24)
+    spacing = (1.0, 1.0, 1.0)
+    params: dict = {}
+    if case == "tiny":
+        vol = np.random.default_rng(0).random((3, 5, 4)).astype(np.float32)
+        params = {"shadow_angle": 60.0, "max_distance": 200.0}
+    elif case == "opaque":
+        vol = np.ones((16, 16, 16), np.float32)
+    elif case == "thin":
+        vol = phantom_slab(24, 1, "y", opacity=1.0)
+    elif case == "npot_anisotropic":
+        vol = np.ascontiguousarray(phantom_sphere_over_slab(30)[:, 3:28, 1:18])
+        spacing = (0.4, 1.0, 2.5)
+    elif case == "angle0":
+        params = {"shadow_angle": 0.0, "ao_mode": "view_cone", "ao_angle": 0.0}
+    elif case == "angle90":
+        params = {"shadow_angle": 90.0, "ao_mode": "view_cone", "ao_angle": 90.0}
+    elif case == "cones12":
+        params = {"ao_cones": "12"}
+    elif case == "cones1":
+        params = {"ao_cones": "1"}
+    s = scene_factory(vol, spacing=spacing, parameters=params, elevation=30.0)
+    if case == "point_light":
+        s.il.set_lights([Light(kind="point", position=(12.0, 12.0, 20.0))])
+    s.image()
+    image = s.image()
+    assert s.il.method == "cone_traced", s.il.last_error
+    assert "vv_ct_trace" in s.il.fragment_source
+    assert np.isfinite(image).all()
+    assert image.max() > 20, "the volume is visible"
+    assert s.tech.recompute_count == 1
+
+
+@pytest.mark.gl
+def test_light_visibility_cpu_hook(scene_factory):
+    vol = phantom_sphere_over_slab(24)
+    s = scene_factory(vol, parameters={"shadow_angle": 5.0})
+    s.image()
+    spec = s.il.light_specs()[0]
+    vis = s.tech.light_visibility_cpu(vol, (1.0, 1.0, 1.0), spec, s.il.parameters)
+    assert vis.shape == vol.shape and vis.dtype == np.float32
+    assert np.isfinite(vis).all() and vis.min() >= 0 and vis.max() <= 1
+    # Under the sphere (slab top, centre) vs the slab's open corner.
+    top = int(np.argwhere(vol[:, 2, 2] > 0.3).max())
+    assert vis[top, 9, 12] < 0.3 < 0.8 < vis[top, 2, 2]
