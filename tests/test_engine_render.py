@@ -226,3 +226,20 @@ def test_nan_data_renders_finite(viewer_factory):
     v.model.channels[0].tf = gray_tf(200.0)
     img = v.image()
     assert img.max() > 100
+
+
+def test_unshaded_rendering_compiles_and_shows_the_volume(viewer_factory):
+    v = viewer_factory(VolumeData.from_array(blob(radius=8.0)))
+    v.model.channels[0].tf = gray_tf(200.0)
+    v.model.render.shade = False
+    img = v.image()
+    assert foreground(img).max() > 100
+    assert not v.scene.illuminator.shaded
+
+
+def test_tf_window_change_does_not_touch_vtk(viewer_factory):
+    v = viewer_factory(VolumeData.from_array(blob(radius=8.0)))
+    v.image()
+    mtime = v.scene.property.GetScalarOpacity(0).GetMTime()
+    v.model.channels[0].tf.set_window(10.0, 100.0)
+    assert v.scene.property.GetScalarOpacity(0).GetMTime() == mtime

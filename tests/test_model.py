@@ -168,3 +168,13 @@ def test_illumination_set_value_emits_and_keeps_other_methods():
     assert illum.values_for("shadow_volume") == {"softness": 1.5}
     assert illum.values_for("cone_traced") == {"h0": 3.0}
     assert seen == [frozenset({"parameters"})] * 2
+
+
+def test_equal_but_new_child_objects_still_forward_changes():
+    model = SceneModel()
+    seen: list[frozenset[str]] = []
+    model.changed.connect(seen.append)
+    model.lights = [Light()]  # equal to the default list: no event, but a new object
+    assert seen == []
+    model.lights[0].intensity = 3.0
+    assert seen == [frozenset({"lights.intensity"})]

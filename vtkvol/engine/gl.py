@@ -247,3 +247,8 @@ class ComputeProgram:
         if self.prog is not None:
             self.prog.ReleaseGraphicsResources(self.render_window)
             self.prog = None
+            # ReleaseGraphicsResources() always calls glUseProgram(0) but tells the shader
+            # cache only if this program was its last bound one; otherwise the cache still
+            # believes the ray caster's program is bound and the next frame draws with
+            # program 0 (a blank volume). Resync the cache.
+            self.render_window.GetShaderCache().ReleaseCurrentShader()

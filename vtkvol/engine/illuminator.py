@@ -331,7 +331,12 @@ class Illuminator:
         prop = self.volume.GetProperty()
         blend = self.volume.GetMapper().GetBlendMode()
         shading_blends = (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ISOSURFACE_BLEND)
-        return blend in shading_blends and any(prop.GetShade(c) for c in range(4))
+        scalars = self.image.GetPointData().GetScalars()
+        ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
+        # VTK generates the shaded code when any *used* component is shaded (component 0 for
+        # dependent components).
+        used = range(ncomp) if prop.GetIndependentComponents() else range(1)
+        return blend in shading_blends and any(prop.GetShade(c) for c in used)
 
     @property
     def fragment_source(self) -> str:

@@ -31,6 +31,7 @@ _BLEND = {
     "additive": vtk.vtkVolumeMapper.ADDITIVE_BLEND,
     "isosurface": vtk.vtkVolumeMapper.ISOSURFACE_BLEND,
 }
+_EDITOR_ONLY = ("channels.tf.window",)  # also matches channels.tf.window_range
 #: Weight-table resolution for the slice-contribution functions.
 WEIGHT_SAMPLES = 256
 
@@ -134,6 +135,10 @@ class VolumeScene:
     # -- model → VTK ----------------------------------------------------------------------------
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if self.data is None:
+            return
+        # The TF editor's displayed-value window is editor state: no rebuild, no recompute.
+        paths = frozenset(p for p in paths if not p.startswith(_EDITOR_ONLY))
+        if not paths:
             return
         tops = {p.split(".", 1)[0] for p in paths}
         if "channels" in tops:

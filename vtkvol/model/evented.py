@@ -122,8 +122,10 @@ class EventedModel(BaseModel):
         old = getattr(self, name)
         super().__setattr__(name, value)
         new = getattr(self, name)
-        if not _equal(old, new):
+        if new is not old:
+            # Equal but new child objects must still forward their future changes.
             self._adopt(name, new)
+        if not _equal(old, new):
             self._emit({name})
 
     def update(self, values: Mapping[str, Any] | EventedModel) -> None:

@@ -1,0 +1,89 @@
+"""Screenshots of the app for the documentation: ``docs/screenshots/*.png``.
+
+The whole window twice (the two tabbed dock pairs each in front once) and every dock on its
+own. Only the two whole-window images need a 3-D frame (a few seconds each on a software GL);
+the dock images cost nothing. Deselect with ``-m "not screenshots"``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PySide6.QtCore import QSettings
+from PySide6.QtGui import QImage
+
+from vtkvol.ui.app import MainWindow, configure_gl_platform
+from vtkvol.ui.docks.channels import ChannelsDock
+from vtkvol.ui.docks.lights import LightsDock
+from vtkvol.ui.docks.ranges import RangesDock
+from vtkvol.ui.docks.slice_weights import SliceWeightsDock
+from vtkvol.ui.docks.transfer_function import TransferFunctionDock
+
+pytestmark = [pytest.mark.gui, pytest.mark.screenshots]
+
+OUT = Path(__file__).resolve().parents[1] / "docs" / "screenshots"
+
+
+def _nonblank(path: Path) -> float:
+    image = QImage(str(path)).convertToFormat(QImage.Format.Format_Grayscale8)
+    width, height = image.width(), image.height()
+    bits = np.frombuffer(image.constBits(), np.uint8, image.bytesPerLine() * height)
+    return float(bits.reshape(height, -1)[:, :width].std())
+
+
+def test_write_docs_screenshots(qapp, qtbot, tmp_path):
+    configure_gl_platform(qapp)
+    window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    qtbot.addWidget(window)
+    window.resize(1240, 800)
+    window.show()
+    qtbot.waitExposed(window)
+    window.model.render.sample_distance = 1.0
+    window.model.illumination.method = "shadow_volume" if "shadow_volume" in (
+        window.lights_dock.techniques) else "local"
+    with qtbot.waitSignal(window.dataShown, timeout=60_000):
+        window.open_sample(shape_zyx=(32, 80, 80), voxel_size_um=(0.3, 0.3, 0.9))
+    window.viewport.scene.orbit(-15.0, 5.0)
+    qtbot.wait(100)  # layouts settle (the channel rows, the dock sizes)
+    OUT.mkdir(parents=True, exist_ok=True)
+    written = []
+
+    def save(widget, name: str) -> None:
+        path = OUT / f"{name}.png"
+        assert widget.grab().save(str(path))
+        written.append(path)
+
+    window.tf_dock.raise_()
+    window.lights_dock.raise_()
+    save(window, "main-window")
+    window.slice_dock.raise_()
+    window.ranges_dock.raise_()
+    window.slice_dock.axis_buttons["z"].click()
+    window.model.slice_weights.z = [(0.0, 0.0), (0.15, 1.0), (0.85, 1.0), (1.0, 0.0)]
+    window.model.crop.x = (3.0, 21.0)
+    qtbot.wait(50)
+    save(window, "main-window-slices-ranges")
+    # Each dock on its own: a second instance bound to the same model and data, at a size
+    # that shows all of it. The main window is left alone, so no 3-D frame is rendered.
+    sizes = {"transfer-function": (TransferFunctionDock, 940, 300),
+             "slice-contribution": (SliceWeightsDock, 940, 300),
+             "channels": (ChannelsDock, 380, 270),
+             "lights": (LightsDock, 380, 780),
+             "ranges": (RangesDock, 380, 330)}
+    for name, (cls, width, height) in sizes.items():
+        dock = cls(window.model)
+        qtbot.addWidget(dock)
+        dock.set_data(window.data)
+        if cls is SliceWeightsDock:
+            dock.axis_buttons["z"].click()
+        dock.resize(width, height)
+        dock.show()
+        qtbot.wait(30)
+        save(dock, name)
+        dock.release()
+        dock.close()
+    window.close()
+    for path in written:
+        assert _nonblank(path) > 10.0, path

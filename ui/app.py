@@ -1,0 +1,898 @@
+"""The desktop app: :func:`run_app` (``vtkvol open``) and :class:`MainWindow`.
+
+The window holds one :class:`~vtkvol.model.SceneModel` for its whole life. Opening data or a
+session updates that model in place (one batched event), so the docks and the viewport stay
+bound to it; the viewport's :class:`~vtkvol.engine.scene.VolumeScene` swaps its data. Long
+reads run in a worker thread behind a progress dialog with Cancel; the scene changes only
+after a successful read, so on an error the previous scene stays and a dialog says why
+(:mod:`vtkvol.ui.errors`).
+"""
+
+from __future__ import annotations
+
+import base64
+import contextlib
+import os
+import sys
+import tempfile
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+os.environ.setdefault("QT_API", "pyside6")  # before pyvistaqt/qtpy are imported
+
+import numpy as np
+from PySide6.QtCore import QByteArray, QObject, QSettings, Qt, QThread, QTimer, Signal
+from PySide6.QtGui import (
+    QAction,
+    QCloseEvent,
+    QDragEnterEvent,
+    QDropEvent,
+    QImage,
+    QKeySequence,
+    QShowEvent,
+)
+from PySide6.QtWidgets import (
+    QApplication,
+    QFileDialog,
+    QLabel,
+    QMainWindow,
+    QMessageBox,
+    QProgressDialog,
+    QScrollArea,
+    QWidget,
+)
+
+from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
+from vtkvol.io.volume_data import format_bytes
+from vtkvol.model.defaults import scene_for
+from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
+from vtkvol.model.session import (
+    SUFFIX as SESSION_SUFFIX,
+)
+from vtkvol.model.session import (
+    MissingDataError,
+    SessionError,
+    load_session_with_data,
+    read_session,
+    save_session,
+)
+from vtkvol.ui import errors
+from vtkvol.ui.docks.base import ModelDock
+from vtkvol.ui.docks.channels import ChannelsDock
+from vtkvol.ui.docks.lights import LightsDock
+from vtkvol.ui.docks.ranges import RangesDock
+from vtkvol.ui.docks.slice_weights import SliceWeightsDock
+from vtkvol.ui.docks.transfer_function import TransferFunctionDock
+from vtkvol.ui.undo import UndoRecorder, apply_state
+from vtkvol.ui.viewport import Viewport
+
+APP_NAME = "vtkvol"
+MAX_RECENT = 10
+RECENT_KEY = "recentFiles"
+SCREENSHOT_SCALES = (1, 2, 4)
+#: Progress dialogs appear only for reads longer than this (ms): quick opens do not flash.
+PROGRESS_DELAY_MS = 400
+#: ``window["sample"]`` in a session marks the built-in sample (it has no file to point to).
+SAMPLE_KEY = "sample"
+
+
+def configure_gl_platform(app: QApplication) -> None:
+    """Tell PyOpenGL which GL platform Qt's context uses, before anything imports OpenGL.
+
+    The engine issues some GL calls through PyOpenGL in VTK's (here: Qt's) context; under X
+    (Qt's ``xcb``) that context is GLX, under Wayland EGL. PyOpenGL fixes its platform at
+    first import, so this must run before the first frame.
+    """
+    platform = app.platformName()
+    if platform == "xcb":
+        os.environ["PYOPENGL_PLATFORM"] = "glx"
+    elif platform.startswith("wayland"):
+        os.environ["PYOPENGL_PLATFORM"] = "egl"
+
+
+# -- background reads ------------------------------------------------------------------------------
+class _Worker(QObject):
+    """Runs ``job(progress=, cancel=)`` in a worker thread and reports back by signals."""
+
+    progressed = Signal(float, str)
+    succeeded = Signal(object)
+    failed = Signal(object)
+
+    def __init__(self, job: Callable[..., Any]) -> None:
+        super().__init__()
+        self._job = job
+        self._cancel = threading.Event()
+
+    def cancel(self) -> None:
+        self._cancel.set()
+
+    def run(self) -> None:
+        try:
+            result = self._job(progress=self._progress, cancel=self._cancel.is_set)
+        except BaseException as exc:  # reported to the GUI thread, which decides what to show
+            self.failed.emit(exc)
+        else:
+            self.succeeded.emit(result)
+
+    def _progress(self, fraction: float, message: str) -> None:
+        self.progressed.emit(float(fraction), str(message))
+
+
+class BackgroundTask(QObject):
+    """A read in a ``QThread`` with a ``QProgressDialog``; Cancel makes ``cancel()`` True, so
+    the reader raises ``ReadCancelled`` at its next progress call."""
+
+    finished = Signal()
+
+    def __init__(self, parent: QWidget, label: str, job: Callable[..., Any],
+                 on_success: Callable[[Any], None], on_failure: Callable[[BaseException], None]):
+        super().__init__(parent)
+        self._on_success, self._on_failure = on_success, on_failure
+        self.dialog = QProgressDialog(label, "Cancel", 0, 1000, parent)
+        self.dialog.setWindowTitle(APP_NAME)
+        self.dialog.setWindowModality(Qt.WindowModality.WindowModal)
+        self.dialog.setMinimumDuration(PROGRESS_DELAY_MS)
+        self.dialog.setAutoClose(False)
+        self.dialog.setAutoReset(False)
+        self.dialog.setValue(0)
+        self.thread = QThread(self)
+        self.worker = _Worker(job)
+        self.worker.moveToThread(self.thread)
+        self.thread.started.connect(self.worker.run)
+        self.worker.progressed.connect(self._on_progress)
+        self.worker.succeeded.connect(self._on_succeeded)
+        self.worker.failed.connect(self._on_failed)
+        # Through this object (GUI thread), not to the worker directly: a queued call into the
+        # worker's thread would wait for the read to finish, which is what Cancel must stop.
+        self.dialog.canceled.connect(self.cancel)
+        self._label = label
+
+    def start(self) -> None:
+        self.thread.start()
+
+    def cancel(self) -> None:
+        """Ask the read to stop (thread-safe: sets an event the reader polls)."""
+        self.worker.cancel()
+
+    def _on_progress(self, fraction: float, message: str) -> None:
+        self.dialog.setValue(int(fraction * 1000))
+        if message:
+            self.dialog.setLabelText(f"{self._label}\n{message}")
+
+    def _finish(self) -> None:
+        self.dialog.close()
+        self.thread.quit()
+        self.thread.wait()
+
+    # ``finished`` goes out before the callback: the window forgets this task first, so a
+    # callback may start the next one (the retry after "Locate…").
+    def _on_succeeded(self, result: Any) -> None:
+        self._finish()
+        self.finished.emit()
+        self._on_success(result)
+
+    def _on_failed(self, exc: BaseException) -> None:
+        self._finish()
+        self.finished.emit()
+        self._on_failure(exc)
+
+
+class MainWindow(QMainWindow):
+    """The app window: the 3-D view, the five docks, menus and the status bar.
+
+    Signals
+    -------
+    dataShown()
+        New data (from a file, the sample or a session) is on screen.
+    openFailed(str)
+        Opening failed or was cancelled; the previous scene stays. The text says why.
+    """
+
+    dataShown = Signal()
+    openFailed = Signal(str)
+
+    def __init__(self, *, settings: QSettings | None = None,
+                 parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.settings = settings if settings is not None else QSettings(APP_NAME, APP_NAME)
+        self.model = SceneModel()
+        self.data: VolumeData | None = None
+        self.session_path: Path | None = None
+        self._sample_args: dict[str, Any] | None = None
+        self._task: BackgroundTask | None = None
+        self._closing = False
+        self.setWindowTitle(APP_NAME)
+        self.setAcceptDrops(True)
+        self.setDockNestingEnabled(True)
+        self.setCorner(Qt.Corner.BottomRightCorner, Qt.DockWidgetArea.RightDockWidgetArea)
+
+        self.recorder = UndoRecorder(self.model, self)
+        self.viewport = Viewport(self.model, self)
+        self.setCentralWidget(self.viewport)
+        self._make_docks()
+        self._make_actions()
+        self._make_menus()
+        self._make_status_bar()
+        self.resize(1280, 820)
+        self._refresh_recent()
+
+    def showEvent(self, event: QShowEvent) -> None:
+        super().showEvent(event)
+        if not self._docks_arranged:
+            self._docks_arranged = True
+            self.arrange_docks()
+            # Keyboard focus starts in the 3-D view: a focused spin box would take Ctrl+Z
+            # for its own text instead of the app's undo.
+            self.viewport.plotter.setFocus()
+
+    def arrange_docks(self) -> None:
+        """The default layout: TF and slice editors tabbed below, channels above tabbed
+        lights and ranges on the right. Done once the window is shown: Qt 6.12 leaves a stray
+        tab bar in the middle of the window when docks are tabified before that."""
+        for dock in self.docks:
+            dock.setFloating(False)
+            dock.show()
+        self.tabifyDockWidget(self.tf_dock, self.slice_dock)
+        self.tabifyDockWidget(self.lights_dock, self.ranges_dock)
+        self.tf_dock.raise_()
+        self.lights_dock.raise_()
+        self.resizeDocks([self.tf_dock], [270], Qt.Orientation.Vertical)
+        self.resizeDocks([self.channels_dock], [370], Qt.Orientation.Horizontal)
+        self.fit_channels_dock(shrink=True)
+
+    def fit_channels_dock(self, *, shrink: bool = False) -> None:
+        """Make the channels dock as tall as its rows (the lights dock gives or takes the
+        room). Without ``shrink`` it only grows: the user may have made it taller."""
+        dock = self.channels_dock
+        if dock.isFloating() or not dock.isVisible():
+            return
+        scroll = dock.widget()
+        content = scroll.widget() if isinstance(scroll, QScrollArea) else scroll
+        content.adjustSize()
+        wanted = content.sizeHint().height() + 12  # a little slack: no scroll bar for 2 px
+        have = scroll.viewport().height() if isinstance(scroll, QScrollArea) else dock.height()
+        if wanted > have or (shrink and wanted < have):
+            extra = wanted - have
+            self.resizeDocks([dock, self.lights_dock],
+                             [dock.height() + extra, max(self.lights_dock.height() - extra, 120)],
+                             Qt.Orientation.Vertical)
+
+    # -- construction ---------------------------------------------------------------------------
+    def _make_docks(self) -> None:
+        self.tf_dock = TransferFunctionDock(self.model, self)
+        self.slice_dock = SliceWeightsDock(self.model, self)
+        self.channels_dock = ChannelsDock(self.model, self)
+        self.lights_dock = LightsDock(self.model, self)
+        self.ranges_dock = RangesDock(self.model, self)
+        self.docks: list[ModelDock] = [self.tf_dock, self.slice_dock, self.channels_dock,
+                                       self.lights_dock, self.ranges_dock]
+        bottom = Qt.DockWidgetArea.BottomDockWidgetArea
+        right = Qt.DockWidgetArea.RightDockWidgetArea
+        self.addDockWidget(bottom, self.tf_dock)
+        self.addDockWidget(bottom, self.slice_dock)
+        self.tabifyDockWidget(self.tf_dock, self.slice_dock)
+        self.addDockWidget(right, self.channels_dock)
+        self.addDockWidget(right, self.lights_dock)
+        self.addDockWidget(right, self.ranges_dock)
+        self._docks_arranged = False  # tabs are made when first shown (see showEvent)
+        for dock in self.docks:
+            dock.gestureStarted.connect(self.recorder.begin_gesture)
+            dock.gestureFinished.connect(self.recorder.end_gesture)
+        self.lights_dock.currentLightChanged.connect(self.viewport.set_gizmo_light)
+        self.viewport.set_gizmo_light(self.lights_dock.current_light)
+
+    def _action(self, text: str, slot: Callable[..., Any], shortcut: Any = None,
+                tip: str = "") -> QAction:
+        action = QAction(text, self)
+        if shortcut is not None:
+            action.setShortcut(shortcut)
+        if tip:
+            action.setStatusTip(tip)
+            action.setToolTip(tip)
+        action.triggered.connect(lambda *_: slot())
+        return action
+
+    def _make_actions(self) -> None:
+        self.open_action = self._action("&Open…", self.choose_file, QKeySequence.StandardKey.Open,
+                                        "Open a volume file (TIFF, NumPy, raw, NRRD, VTK…)")
+        self.open_folder_action = self._action("Open &folder…", self.choose_folder, None,
+                                               "Open a folder of single-slice TIFF files")
+        self.open_sample_action = self._action("Open &sample", self.open_sample, None,
+                                               "Open the built-in synthetic confocal stack")
+        self.open_session_action = self._action(
+            "Open s&ession…", self.choose_session, QKeySequence("Ctrl+Shift+O"),
+            "Restore a view saved with Save session")
+        self.save_session_action = self._action(
+            "&Save session", self.save_session_interactive, QKeySequence.StandardKey.Save,
+            "Save the view (settings, camera, window layout) to a session file")
+        self.save_session_as_action = self._action(
+            "Save session &as…", lambda: self.save_session_interactive(choose=True),
+            QKeySequence.StandardKey.SaveAs, "Save the view to a new session file")
+        self.quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.undo_action = self.recorder.stack.createUndoAction(self, "&Undo")
+        self.undo_action.setShortcuts([QKeySequence.StandardKey.Undo])
+        self.redo_action = self.recorder.stack.createRedoAction(self, "&Redo")
+        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
+        self.reset_camera_action = self._action("&Reset camera", self.viewport.reset_camera,
+                                                QKeySequence("Ctrl+R"),
+                                                "Frame the whole volume from the default angle")
+        self.gizmo_action = QAction("Light &handle", self)
+        self.gizmo_action.setCheckable(True)
+        self.gizmo_action.setChecked(True)
+        self.gizmo_action.setStatusTip("Show the draggable handle of the selected light")
+        self.gizmo_action.toggled.connect(self.viewport.set_gizmo_visible)
+        self.reduce_action = QAction("Faster while &moving", self)
+        self.reduce_action.setCheckable(True)
+        self.reduce_action.setChecked(True)
+        self.reduce_action.setStatusTip(
+            "Coarser sampling while the camera moves; full quality when it stops")
+        self.reduce_action.toggled.connect(self._on_reduce_toggled)
+        self.about_action = self._action("&About vtkvol", self.show_about)
+        self.controls_action = self._action("&Mouse and keyboard", self.show_controls,
+                                            QKeySequence.StandardKey.HelpContents)
+
+    def _make_menus(self) -> None:
+        bar = self.menuBar()
+        file_menu = bar.addMenu("&File")
+        file_menu.addAction(self.open_action)
+        file_menu.addAction(self.open_folder_action)
+        self.recent_menu = file_menu.addMenu("Open &recent")
+        file_menu.addAction(self.open_sample_action)
+        file_menu.addSeparator()
+        file_menu.addAction(self.open_session_action)
+        file_menu.addAction(self.save_session_action)
+        file_menu.addAction(self.save_session_as_action)
+        file_menu.addSeparator()
+        self.screenshot_menu = file_menu.addMenu("Save screens&hot")
+        self.screenshot_actions: dict[int, QAction] = {}
+        for scale in SCREENSHOT_SCALES:
+            action = self._action(f"{scale}×", lambda s=scale: self.save_screenshot_interactive(s))
+            self.screenshot_menu.addAction(action)
+            self.screenshot_actions[scale] = action
+        self.screenshot_actions[1].setShortcut(QKeySequence("Ctrl+Shift+S"))
+        self.screenshot_menu.aboutToShow.connect(self._label_screenshot_actions)
+        file_menu.addSeparator()
+        file_menu.addAction(self.quit_action)
+        file_menu.aboutToShow.connect(self._refresh_recent)
+        file_menu.aboutToShow.connect(self._update_file_actions)
+
+        edit = bar.addMenu("&Edit")
+        edit.addAction(self.undo_action)
+        edit.addAction(self.redo_action)
+
+        view = bar.addMenu("&View")
+        view.addAction(self.reset_camera_action)
+        view.addAction(self.gizmo_action)
+        view.addAction(self.reduce_action)
+        view.addSeparator()
+        for dock in self.docks:
+            view.addAction(dock.toggleViewAction())
+
+        help_menu = bar.addMenu("&Help")
+        help_menu.addAction(self.controls_action)
+        help_menu.addAction(self.about_action)
+        self._update_file_actions()
+
+    def _make_status_bar(self) -> None:
+        status = self.statusBar()
+        self.data_label = QLabel("No data")
+        self.data_label.setObjectName("status_data")
+        self.frame_label = QLabel("")
+        self.frame_label.setObjectName("status_frame")
+        self.frame_label.setToolTip("Last frame's render time and the illumination "
+                                    "technique's last precomputation time")
+        # Room for the widest value, so the bar does not re-layout (or clip) every frame.
+        self.frame_label.setMinimumWidth(
+            self.frame_label.fontMetrics().horizontalAdvance("frame 99999 ms · light 99999 ms"))
+        self.frame_label.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        status.addPermanentWidget(self.data_label)
+        status.addPermanentWidget(self.frame_label)
+        self.viewport.frameRendered.connect(self._on_frame)
+
+    # -- status ---------------------------------------------------------------------------------
+    def _on_frame(self, frame_ms: float, illumination_ms: float) -> None:
+        self.frame_label.setText(f"frame {frame_ms:.0f} ms · light {illumination_ms:.0f} ms")
+
+    def _show_data_info(self) -> None:
+        data = self.data
+        if data is None:
+            self.data_label.setText("No data")
+            return
+        c, z, y, x = data.array.shape
+        sx, sy, sz = data.voxel_size_um
+        name = self._data_name()
+        channels = f", {c} channels" if c > 1 else ""
+        self.data_label.setText(
+            f"{name} — {x}×{y}×{z}{channels}, {data.array.dtype}, voxel {sx:.3g}×{sy:.3g}×"
+            f"{sz:.3g} µm, {format_bytes(data.nbytes)}")
+        self.data_label.setToolTip(data.describe())
+
+    def _data_name(self) -> str:
+        if self.data is None:
+            return ""
+        if self.data.source:
+            return Path(self.data.source).name
+        return "sample" if self._sample_args is not None else "in-memory volume"
+
+    def _update_title(self) -> None:
+        parts = [APP_NAME]
+        if self.session_path is not None:
+            parts.insert(0, self.session_path.name)
+        elif self.data is not None:
+            parts.insert(0, self._data_name())
+        self.setWindowTitle(" — ".join(parts))
+
+    def _update_file_actions(self) -> None:
+        has_data = self.data is not None
+        for action in (self.save_session_action, self.save_session_as_action):
+            action.setEnabled(has_data)
+        self.screenshot_menu.setEnabled(has_data)
+
+    def _on_reduce_toggled(self, on: bool) -> None:
+        self.viewport.reduce_while_moving = on
+
+    # -- opening --------------------------------------------------------------------------------
+    def _file_filter(self) -> str:
+        patterns: list[str] = []
+        entries = []
+        try:
+            readers = available_readers()
+        except Exception:  # a broken reader plugin must not take the Open dialog down
+            readers = ()
+        for spec in readers:
+            pats = " ".join(spec.filename_patterns)
+            patterns.extend(spec.filename_patterns)
+            entries.append(f"{spec.label} ({pats})")
+        everything = f"Volumes and sessions ({' '.join(patterns)} *{SESSION_SUFFIX})"
+        return ";;".join([everything, *entries, f"vtkvol session (*{SESSION_SUFFIX})",
+                          "All files (*)"])
+
+    def _start_dir(self) -> str:
+        recent = self.recent_files()
+        return str(Path(recent[0]).parent) if recent else str(Path.home())
+
+    def choose_file(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open volume", self._start_dir(),
+                                              self._file_filter())
+        if path:
+            self.open_path(path)
+
+    def choose_folder(self) -> None:
+        path = QFileDialog.getExistingDirectory(self, "Open folder of slices", self._start_dir())
+        if path:
+            self.open_path(path)
+
+    def choose_session(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Open session", self._start_dir(),
+                                              f"vtkvol session (*{SESSION_SUFFIX});;All files (*)")
+        if path:
+            self.open_session(path)
+
+    def open_path(self, path: str | os.PathLike[str], *,
+                  voxel_size: tuple[float, float, float] | None = None) -> None:
+        """Open a volume file or folder, or a session file (by its suffix), in the background."""
+        text = str(path)
+        if text.lower().endswith(SESSION_SUFFIX):
+            self.open_session(text)
+            return
+        name = Path(text).name or text
+
+        def job(progress, cancel):
+            return read_volume(text, voxel_size_um=voxel_size, progress=progress, cancel=cancel)
+
+        def success(data: VolumeData) -> None:
+            self.show_volume(data, voxel_size=voxel_size)
+            self._add_recent(text)
+
+        self._run(f"Reading {name}…", job, success,
+                  lambda exc: self._open_failed(exc, f"Could not open {name}"))
+
+    def open_sample(self, **sample_args: Any) -> None:
+        """Show the built-in synthetic confocal stack (``confocal_phantom(**sample_args)``)."""
+
+        def job(progress, cancel):
+            progress(0.0, "generating the sample")
+            return confocal_phantom(**sample_args)
+
+        def success(data: VolumeData) -> None:
+            self.show_volume(data, sample_args=dict(sample_args))
+
+        self._run("Generating the sample…", job, success,
+                  lambda exc: self._open_failed(exc, "Could not generate the sample"))
+
+    def _run(self, label: str, job: Callable[..., Any], on_success: Callable[[Any], None],
+             on_failure: Callable[[BaseException], None]) -> None:
+        if self._task is not None:
+            self.statusBar().showMessage("Still opening the previous file…", 4000)
+            return
+        task = BackgroundTask(self, label, job, on_success, on_failure)
+        task.finished.connect(self._task_done)
+        self._task = task
+        task.start()
+
+    def _task_done(self) -> None:
+        task, self._task = self._task, None
+        if task is not None:
+            task.deleteLater()
+
+    def _open_failed(self, exc: BaseException, action: str) -> None:
+        if isinstance(exc, ReadCancelled):
+            self.statusBar().showMessage("Opening cancelled; the previous view is unchanged.", 6000)
+            self.openFailed.emit("cancelled")
+            return
+        errors.show_error(self, exc, action=action)
+        self.openFailed.emit(str(exc))
+
+    def show_volume(self, data: VolumeData, *,
+                    voxel_size: tuple[float, float, float] | None = None,
+                    sample_args: dict[str, Any] | None = None) -> None:
+        """Show ``data`` with fresh channels, crop, weights and camera (lights, illumination
+        and render settings stay: they are the user's preferences, not the data's).
+        ``sample_args`` marks the built-in sample (so a session can regenerate it)."""
+        fresh = scene_for(data)
+        fresh.volume.voxel_size_um = voxel_size
+        with self.model.batch():
+            apply_state(self.model, {
+                "volume": fresh.volume.model_dump(),
+                "channels": [c.model_dump() for c in fresh.channels],
+                "crop": CropBox().model_dump(),
+                "slice_weights": SliceWeights().model_dump(),
+                "camera": Camera().model_dump(),
+            })
+            self._set_data(data, reset_channels=False, sample_args=sample_args)
+        self.session_path = None
+        self._after_open()
+
+    def _set_data(self, data: VolumeData, *, reset_channels: bool,
+                  sample_args: dict[str, Any] | None = None) -> None:
+        """Give the viewport and the docks ``data`` (inside the caller's model batch)."""
+        self._sample_args = sample_args
+        self.data = data
+        self.viewport.show_data(data, reset_channels=reset_channels)
+        for dock in self.docks:
+            dock.set_data(data)
+
+    def _after_open(self) -> None:
+        self.recorder.reset()
+        # Next event-loop pass: new channel rows are shown (and measurable) only then.
+        QTimer.singleShot(0, self.fit_channels_dock)
+        self._show_data_info()
+        self._update_title()
+        self._update_file_actions()
+        if self.data is not None and self.data.notes:
+            # The full notes are in the data label's tooltip (describe()); the bar shows the
+            # first, elided so it does not run under the permanent labels.
+            more = len(self.data.notes) - 1
+            text = self.data.notes[0] + (f" (+{more} more: see the data's tooltip)" if more else "")
+            width = max(120, self.statusBar().width() - self.data_label.sizeHint().width()
+                        - self.frame_label.sizeHint().width() - 48)
+            metrics = self.statusBar().fontMetrics()
+            self.statusBar().showMessage(
+                metrics.elidedText(text, Qt.TextElideMode.ElideRight, width), 15000)
+        self.dataShown.emit()
+
+    # -- sessions -------------------------------------------------------------------------------
+    def open_session(self, path: str | os.PathLike[str], *,
+                     data_path: str | os.PathLike[str] | None = None) -> None:
+        """Restore a session (view, settings, window layout) and its data, in the background.
+
+        A bad file shows a dialog and leaves the scene untouched; a missing data file offers
+        "Locate…" and retries with the located file.
+        """
+        try:
+            session = read_session(path)
+        except SessionError as exc:
+            self._open_failed(exc, "Could not open the session")
+            return
+        window = session.window
+        notes: list[str] = []
+        if session.data_path is None and data_path is None and isinstance(
+                window.get(SAMPLE_KEY), dict):
+            sample_args = dict(window[SAMPLE_KEY])
+
+            def sample_job(progress, cancel):
+                progress(0.0, "generating the sample")
+                return session.model, confocal_phantom(**_sample_kwargs(sample_args))
+
+            self._run("Generating the sample…", sample_job,
+                      lambda result: self._apply_session(session.path, *result, window,
+                                                         session.warnings, sample_args),
+                      lambda exc: self._open_failed(exc, "Could not open the session"))
+            return
+
+        def job(progress, cancel):
+            return load_session_with_data(path, data_path=data_path, progress=progress,
+                                          cancel=cancel, on_warning=notes.append)
+
+        def failure(exc: BaseException) -> None:
+            if isinstance(exc, MissingDataError) and exc.data_path is not None:
+                if errors.ask_locate(self, exc):
+                    located = self._locate_data(exc)
+                    if located:
+                        self.open_session(path, data_path=located)
+                        return
+                self.openFailed.emit(str(exc))
+                return
+            self._open_failed(exc, "Could not open the session")
+
+        self._run(f"Opening {Path(path).name}…", job,
+                  lambda result: self._apply_session(Path(path), *result, window, notes),
+                  failure)
+
+    def _locate_data(self, exc: MissingDataError) -> str:
+        """Ask for the moved data file (tests replace this)."""
+        start = str(exc.data_path.parent) if exc.data_path is not None else self._start_dir()
+        path, _ = QFileDialog.getOpenFileName(self, "Locate the data file", start,
+                                              self._file_filter())
+        return path
+
+    def _apply_session(self, path: Path, model: SceneModel, data: VolumeData,
+                       window: dict[str, Any], notes: list[str],
+                       sample_args: dict[str, Any] | None = None) -> None:
+        with self.model.batch():
+            apply_state(self.model, model.model_dump())
+            self._set_data(data, reset_channels=False, sample_args=sample_args)
+        self.session_path = Path(path)
+        self._restore_window(window)
+        self._add_recent(str(path))
+        self._after_open()
+        errors.show_warnings(self, f"{Path(path).name} was opened with notes:", notes)
+
+    def _window_state(self) -> dict[str, Any]:
+        state: dict[str, Any] = {
+            "geometry": base64.b64encode(bytes(self.saveGeometry().data())).decode("ascii"),
+            "state": base64.b64encode(bytes(self.saveState().data())).decode("ascii"),
+        }
+        if self._sample_args is not None:
+            state[SAMPLE_KEY] = {k: list(v) if isinstance(v, tuple) else v
+                                 for k, v in self._sample_args.items()}
+        return state
+
+    def _restore_window(self, window: dict[str, Any]) -> None:
+        for key, restore in (("geometry", self.restoreGeometry), ("state", self.restoreState)):
+            text = window.get(key)
+            if isinstance(text, str):
+                # A damaged layout is not worth a dialog: the current one is kept.
+                with contextlib.suppress(ValueError, TypeError):
+                    restore(QByteArray(base64.b64decode(text.encode("ascii"), validate=True)))
+
+    def save_session_interactive(self, *, choose: bool = False) -> None:
+        if self.data is None:
+            return
+        path = self.session_path
+        if choose or path is None:
+            suggestion = (self.session_path or Path(self._start_dir()) /
+                          f"{Path(self._data_name()).stem or 'view'}{SESSION_SUFFIX}")
+            chosen, _ = QFileDialog.getSaveFileName(self, "Save session", str(suggestion),
+                                                    f"vtkvol session (*{SESSION_SUFFIX})")
+            if not chosen:
+                return
+            target = _session_target(Path(chosen))
+            if target != Path(chosen) and target.exists() and not self._confirm_overwrite(target):
+                return
+            path = target
+        self.save_session(path)
+
+    def save_session(self, path: str | os.PathLike[str]) -> Path | None:
+        """Write the session (model, data reference, window layout); a dialog on failure."""
+        try:
+            written = save_session(path, self.model, data=self.data, window=self._window_state())
+        except SessionError as exc:
+            errors.show_error(self, exc, action="Could not save the session")
+            return None
+        self.session_path = written
+        self._add_recent(str(written))
+        self._update_title()
+        self.statusBar().showMessage(f"Saved {written}", 6000)
+        return written
+
+    def _confirm_overwrite(self, path: Path) -> bool:
+        box = QMessageBox(self)
+        box.setWindowTitle(APP_NAME)
+        box.setIcon(QMessageBox.Icon.Question)
+        box.setText(f"{path.name} already exists.")
+        box.setInformativeText("Do you want to replace it?")
+        box.setStandardButtons(QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No)
+        box.setDefaultButton(QMessageBox.StandardButton.No)
+        return errors.run_dialog(box) == QMessageBox.StandardButton.Yes
+
+    # -- screenshots ----------------------------------------------------------------------------
+    def _label_screenshot_actions(self) -> None:
+        w, h = self.viewport.plotter.width(), self.viewport.plotter.height()
+        ratio = self.viewport.plotter.devicePixelRatioF()
+        for scale, action in self.screenshot_actions.items():
+            width, height = round(w * ratio) * scale, round(h * ratio) * scale
+            action.setText(f"{scale}× ({width} × {height} px)…")
+
+    def save_screenshot_interactive(self, scale: int) -> None:
+        if self.data is None:
+            return
+        suggestion = Path(self._start_dir()) / f"{Path(self._data_name()).stem or 'view'}.png"
+        chosen, _ = QFileDialog.getSaveFileName(self, "Save screenshot", str(suggestion),
+                                                "PNG image (*.png)")
+        if not chosen:
+            return
+        target = Path(chosen)
+        if target.suffix.lower() != ".png":
+            target = target.with_name(target.name + ".png")
+            # The dialog confirmed the name without ".png"; confirm the real one ourselves.
+            if target.exists() and not self._confirm_overwrite(target):
+                return
+        self.save_screenshot(target, scale=scale)
+
+    def save_screenshot(self, path: str | os.PathLike[str], *, scale: int = 1) -> Path | None:
+        """Render the view ``scale`` times larger and write a PNG atomically (never a
+        half-written file). Returns the path, or None after showing why it failed."""
+        target = Path(path)
+        QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
+        try:
+            image = self.viewport.screenshot(scale)
+            write_png(image, target)
+        except (OSError, RuntimeError, ValueError) as exc:
+            errors.show_error(self, exc, action="Could not save the screenshot")
+            return None
+        finally:
+            QApplication.restoreOverrideCursor()
+        self.statusBar().showMessage(
+            f"Saved {target.name} ({image.shape[1]} × {image.shape[0]} px)", 6000)
+        return target
+
+    # -- recent files ---------------------------------------------------------------------------
+    def recent_files(self) -> list[str]:
+        value = self.settings.value(RECENT_KEY, [])
+        if isinstance(value, str):  # QSettings returns a lone entry as a plain string
+            value = [value]
+        return [str(v) for v in (value or [])]
+
+    def _add_recent(self, path: str) -> None:
+        absolute = str(Path(path).absolute())
+        entries = [absolute, *(p for p in self.recent_files() if p != absolute)][:MAX_RECENT]
+        self.settings.setValue(RECENT_KEY, entries)
+        self._refresh_recent()
+
+    def _refresh_recent(self) -> None:
+        """Rebuild Open recent; entries whose file vanished are removed, with a message."""
+        entries = self.recent_files()
+        present = [p for p in entries if Path(p).exists()]
+        vanished = [p for p in entries if p not in present]
+        if vanished:
+            self.settings.setValue(RECENT_KEY, present)
+            names = ", ".join(Path(p).name for p in vanished)
+            self.statusBar().showMessage(f"Removed from Open recent (no longer found): {names}",
+                                         8000)
+        menu = self.recent_menu
+        menu.clear()
+        for i, entry in enumerate(present):
+            action = menu.addAction(f"&{(i + 1) % 10} {Path(entry).name}")
+            action.setToolTip(entry)
+            action.setStatusTip(entry)
+            action.triggered.connect(lambda *_, p=entry: self.open_path(p))
+        if present:
+            menu.addSeparator()
+            menu.addAction("Clear list", self._clear_recent)
+        menu.setEnabled(bool(present))
+
+    def _clear_recent(self) -> None:
+        self.settings.setValue(RECENT_KEY, [])
+        self._refresh_recent()
+
+    # -- drag and drop --------------------------------------------------------------------------
+    @staticmethod
+    def _dropped_paths(event: QDragEnterEvent | QDropEvent) -> list[str]:
+        mime = event.mimeData()
+        if not mime.hasUrls():
+            return []
+        return [url.toLocalFile() for url in mime.urls()
+                if url.isLocalFile() and Path(url.toLocalFile()).exists()]
+
+    def dragEnterEvent(self, event: QDragEnterEvent) -> None:
+        if self._dropped_paths(event):
+            event.acceptProposedAction()
+        else:
+            event.ignore()
+
+    def dropEvent(self, event: QDropEvent) -> None:
+        paths = self._dropped_paths(event)
+        if not paths:
+            event.ignore()
+            return
+        event.acceptProposedAction()
+        if len(paths) > 1:
+            self.statusBar().showMessage(
+                f"Opening {Path(paths[0]).name}; one file at a time ({len(paths)} were dropped)",
+                6000)
+        # After the drop returns: the drag source must not wait for a whole read.
+        QTimer.singleShot(0, lambda: self.open_path(paths[0]))
+
+    # -- help -----------------------------------------------------------------------------------
+    def show_about(self) -> None:
+        from vtkvol import __version__
+
+        QMessageBox.about(self, f"About {APP_NAME}",
+                          f"<b>{APP_NAME} {__version__}</b><br>Volume rendering of microscopy "
+                          "data with real illumination, inside VTK's GPU ray caster.")
+
+    def show_controls(self) -> None:
+        QMessageBox.information(
+            self, "Mouse and keyboard",
+            "<b>3-D view</b><br>Left drag: rotate · Shift+left or middle drag: pan · "
+            "Right drag or wheel: zoom · Ctrl+left drag: spin<br>Drag the light's handle to "
+            "move the light selected in the Lights dock.<br><br><b>Function editors</b><br>"
+            "Points mode: click to add a node, drag to move, right-click or Delete to remove."
+            "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
+            "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
+            "camera · Ctrl+O: open · Ctrl+S: save session")
+
+    # -- closing --------------------------------------------------------------------------------
+    def closeEvent(self, event: QCloseEvent) -> None:
+        if self._task is not None:
+            # Readers check for cancellation at every slice or chunk, so this is short; a
+            # QThread destroyed while running would abort the process.
+            self._task.cancel()
+            self._task.thread.wait()
+        self._closing = True
+        for dock in self.docks:
+            dock.release()
+        self.recorder.close()
+        self.viewport.close()  # GL resources go while the context is still current
+        super().closeEvent(event)
+
+
+def _session_target(path: Path) -> Path:
+    """The file ``save_session`` will really write for ``path`` (it appends the suffix)."""
+    name = path.name
+    if name.lower().endswith(SESSION_SUFFIX):
+        return path
+    if name.lower().endswith(".vtkvol"):
+        return path.with_name(name + ".json")
+    return path.with_name(name + SESSION_SUFFIX)
+
+
+def _sample_kwargs(stored: dict[str, Any]) -> dict[str, Any]:
+    """Arguments of ``confocal_phantom`` from a session's ``window["sample"]`` (JSON lists)."""
+    allowed = {"shape_zyx", "voxel_size_um", "seed"}
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in allowed}
+
+
+def write_png(image: np.ndarray, path: Path) -> None:
+    """Write an (h, w, 3) uint8 image as PNG via a temporary file and a rename."""
+    rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
+    h, w, _ = rgb.shape
+    qimage = QImage(rgb.data, w, h, 3 * w, QImage.Format.Format_RGB888)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".png", dir=path.parent)
+    os.close(fd)
+    try:
+        if not qimage.save(tmp, "PNG"):
+            raise OSError(f"{path}: the PNG could not be written")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None) -> int:
+    """Start the desktop app (``vtkvol open``); returns the exit status.
+
+    ``file`` may be a volume, a folder of slices or a session (``*.vtkvol.json``); without
+    one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm.
+    """
+    app = QApplication.instance() or QApplication(sys.argv)
+    configure_gl_platform(app)
+    app.setOrganizationName(APP_NAME)
+    app.setApplicationName(APP_NAME)
+    window = MainWindow()
+    hook = errors.ExceptionDialogHook(window)
+    hook.install()
+    window.show()
+    voxel = tuple(float(v) for v in voxel_size) if voxel_size else None
+    if file:
+        QTimer.singleShot(0, lambda: window.open_path(file, voxel_size=voxel))  # type: ignore[arg-type]
+    elif sample:
+        QTimer.singleShot(0, window.open_sample)
+    try:
+        return int(app.exec())
+    finally:
+        hook.uninstall()

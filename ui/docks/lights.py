@@ -1,0 +1,519 @@
+"""Lights dock: the lights, and the illumination method with its parameters.
+
+* Lights (``model.lights``, up to four): add, remove, enable; kind (directional or point),
+  direction as azimuth/elevation in degrees or position in µm, colour, intensity. The light
+  selected here is the one the 3-D view's gizmo moves (``currentLightChanged``).
+* Illumination (``model.illumination``): the method chooser lists the installed techniques
+  (``vtkvol.engine.technique.installed_techniques``); each technique's parameters become
+  widgets generated from its ``PARAMETERS`` declaration, with the declared range, step,
+  unit, scale and doc (as the tooltip). Nothing about a parameter is written here.
+
+Direction convention: azimuth is measured in the x–y plane from +x towards +y, elevation
+from that plane towards +z; the direction points from the volume towards the light.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from typing import Any
+
+from PySide6.QtCore import Qt, Signal
+from PySide6.QtWidgets import (
+    QCheckBox,
+    QComboBox,
+    QFormLayout,
+    QGroupBox,
+    QHBoxLayout,
+    QLabel,
+    QListWidget,
+    QListWidgetItem,
+    QPushButton,
+    QScrollArea,
+    QSlider,
+    QSpinBox,
+    QVBoxLayout,
+    QWidget,
+)
+
+from vtkvol.engine.technique import Technique, installed_techniques
+from vtkvol.model.params import Param
+from vtkvol.model.scene import Light, SceneModel
+from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
+
+MAX_LIGHTS = 4
+SLIDER_STEPS = 1000  #: resolution of the sliders next to float parameters
+
+
+# -- direction <-> angles (pure) ----------------------------------------------------------------
+def direction_to_angles(direction: tuple[float, float, float]) -> tuple[float, float]:
+    """(azimuth, elevation) in degrees of a direction vector (need not be unit length)."""
+    x, y, z = direction
+    norm = math.sqrt(x * x + y * y + z * z) or 1.0
+    elevation = math.degrees(math.asin(max(-1.0, min(1.0, z / norm))))
+    azimuth = math.degrees(math.atan2(y, x)) if abs(x) + abs(y) > 1e-12 else 0.0
+    return azimuth, elevation
+
+
+def angles_to_direction(azimuth: float, elevation: float) -> tuple[float, float, float]:
+    """Unit direction for azimuth/elevation in degrees (see the module docstring)."""
+    az, el = math.radians(azimuth), math.radians(elevation)
+    return (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
+
+
+# -- parameter widgets generated from Param declarations ------------------------------------------
+def param_label(param: Param) -> str:
+    """``"Shadow cone angle (°)"``: the declared label with its unit."""
+    return f"{param.label} ({param.unit})" if param.unit else param.label
+
+
+def param_tooltip(param: Param) -> str:
+    """The declared doc, plus range, default and scale, for the widget's tooltip."""
+    parts = [param.doc]
+    unit = f" {param.unit}" if param.unit else ""
+    if param.range is not None:
+        parts.append(f"Range {param.range[0]:g}…{param.range[1]:g}{unit}; default "
+                     f"{param.default}{unit}.")
+    elif param.kind == "choice":
+        parts.append(f"One of {', '.join(param.choices)}; default {param.default}.")
+    else:
+        parts.append(f"Default {param.default}.")
+    if param.scale == "log":
+        parts.append("Logarithmic slider.")
+    return "\n".join(parts)
+
+
+class FloatParamWidget(QWidget):
+    """A slider (linear or logarithmic, as declared) with a spin box for a float parameter."""
+
+    valueChanged = Signal(float)
+
+    def __init__(self, param: Param, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.param = param
+        lo, hi = param.range if param.range is not None else (0.0, 1.0)
+        self._lo, self._hi = float(lo), float(hi)
+        self._log = param.scale == "log" and self._lo > 0
+        step = param.step or (self._hi - self._lo) / 100
+        decimals = max(0, min(6, -math.floor(math.log10(step)) if step < 1 else 0))
+        self.spin = number_box(minimum=self._lo, maximum=self._hi, decimals=decimals, step=step,
+                               suffix=param.unit)
+        self.spin.setMinimumWidth(84)
+        self.slider = QSlider(Qt.Orientation.Horizontal)
+        self.slider.setRange(0, SLIDER_STEPS)
+        layout = QHBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.addWidget(self.slider, 1)
+        layout.addWidget(self.spin)
+        self.slider.valueChanged.connect(self._from_slider)
+        self.spin.valueChanged.connect(self._from_spin)
+
+    def _to_slider(self, value: float) -> int:
+        if self._log:
+            t = math.log(max(value, self._lo) / self._lo) / math.log(self._hi / self._lo)
+        else:
+            t = (value - self._lo) / (self._hi - self._lo) if self._hi > self._lo else 0.0
+        return round(min(max(t, 0.0), 1.0) * SLIDER_STEPS)
+
+    def _from_t(self, t: float) -> float:
+        if self._log:
+            return self._lo * (self._hi / self._lo) ** t
+        return self._lo + t * (self._hi - self._lo)
+
+    def _snap(self, value: float) -> float:
+        step = self.param.step
+        if step:
+            value = self._lo + round((value - self._lo) / step) * step
+        return min(max(value, self._lo), self._hi)
+
+    def _from_slider(self, position: int) -> None:
+        value = self._snap(self._from_t(position / SLIDER_STEPS))
+        self.spin.blockSignals(True)
+        self.spin.setValue(value)
+        self.spin.blockSignals(False)
+        self.valueChanged.emit(self.spin.value())
+
+    def _from_spin(self, value: float) -> None:
+        self.slider.blockSignals(True)
+        self.slider.setValue(self._to_slider(value))
+        self.slider.blockSignals(False)
+        self.valueChanged.emit(float(value))
+
+    def setValue(self, value: float) -> None:  # Qt-style name: used like a spin box
+        for widget in (self.spin, self.slider):
+            widget.blockSignals(True)
+        self.spin.setValue(float(value))
+        self.slider.setValue(self._to_slider(float(value)))
+        for widget in (self.spin, self.slider):
+            widget.blockSignals(False)
+
+    def value(self) -> float:
+        return float(self.spin.value())
+
+
+def make_param_widget(param: Param) -> tuple[QWidget, Any, Callable[[Any], None]]:
+    """A widget for one declared parameter: ``(widget, changed_signal, setter)``.
+
+    float → slider + spin box (log slider for ``scale="log"``), int → spin box,
+    bool → check box, choice → combo box. Range, step, unit and doc come from ``param``.
+    """
+    tooltip = param_tooltip(param)
+    if param.kind == "bool":
+        box = QCheckBox()
+        box.setToolTip(tooltip)
+        return box, box.toggled, lambda v: box.setChecked(bool(v))
+    if param.kind == "choice":
+        combo = QComboBox()
+        combo.addItems(list(param.choices))
+        combo.setToolTip(tooltip)
+        signal = combo.currentTextChanged
+        return combo, signal, lambda v: combo.setCurrentIndex(max(0, combo.findText(str(v))))
+    if param.kind == "int":
+        spin = QSpinBox()
+        lo, hi = param.range if param.range is not None else (-(2**31), 2**31 - 1)
+        spin.setRange(int(lo), int(hi))
+        spin.setSingleStep(int(param.step or 1))
+        spin.setKeyboardTracking(False)
+        if param.unit:
+            spin.setSuffix(f" {param.unit}")
+        spin.setToolTip(tooltip)
+        return spin, spin.valueChanged, lambda v: spin.setValue(int(v))
+    widget = FloatParamWidget(param)
+    widget.setToolTip(tooltip)
+    widget.spin.setToolTip(tooltip)
+    widget.slider.setToolTip(tooltip)
+    return widget, widget.valueChanged, lambda v: widget.setValue(float(v))
+
+
+class LightsDock(ModelDock):
+    """The light list and editor, and the illumination method with generated parameters."""
+
+    TITLE = "Lights"
+    OBJECT_NAME = "dock_lights"
+
+    currentLightChanged = Signal(int)
+
+    def __init__(self, model: SceneModel, parent: QWidget | None = None,
+                 techniques: dict[str, type[Technique]] | None = None) -> None:
+        super().__init__(model, parent)
+        self.techniques = techniques if techniques is not None else installed_techniques()
+        self._current = 0
+        self._param_setters: dict[str, Callable[[Any], None]] = {}
+        self._param_widgets: dict[str, QWidget] = {}
+        self._shown_method: str | None = None
+        self._build()
+        self.bindings.connect_model(model, self._on_model_changed)
+        self.refresh()
+
+    # -- widgets --------------------------------------------------------------------------------
+    def _build(self) -> None:
+        body = QWidget()
+        layout = QVBoxLayout(body)
+        layout.setContentsMargins(8, 6, 8, 8)
+
+        lights_box = QGroupBox("Lights")
+        lights_layout = QVBoxLayout(lights_box)
+        self.light_list = QListWidget()
+        self.light_list.setObjectName("lights_list")
+        self.light_list.setToolTip("Tick to switch a light on; select one to edit it and to "
+                                   "move it with the handle in the 3-D view")
+        lights_layout.addWidget(self.light_list)
+        row = QHBoxLayout()
+        self.add_button = QPushButton("Add")
+        self.add_button.setObjectName("lights_add")
+        self.add_button.setToolTip(f"Add a light (at most {MAX_LIGHTS})")
+        self.remove_button = QPushButton("Remove")
+        self.remove_button.setObjectName("lights_remove")
+        self.remove_button.setToolTip("Remove the selected light (one light always remains)")
+        row.addWidget(self.add_button)
+        row.addWidget(self.remove_button)
+        row.addStretch(1)
+        lights_layout.addLayout(row)
+
+        form = QFormLayout()
+        form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+        self.kind = QComboBox()
+        self.kind.setObjectName("light_kind")
+        self.kind.addItem("Directional", "directional")
+        self.kind.addItem("Point", "point")
+        self.kind.setToolTip("Directional: parallel light from far away. Point: light from a "
+                             "position in the scene")
+        form.addRow("Kind", self.kind)
+        self.azimuth = number_box(minimum=-180, maximum=180, decimals=1, step=5, suffix="°",
+                                  object_name="light_azimuth",
+                                  tooltip="Direction towards the light in the x–y plane, "
+                                          "from +x towards +y")
+        self.elevation = number_box(minimum=-90, maximum=90, decimals=1, step=5, suffix="°",
+                                    object_name="light_elevation",
+                                    tooltip="Height of the light above the x–y plane (+z up)")
+        self.azimuth.setWrapping(True)
+        self.azimuth_label, self.elevation_label = QLabel("Azimuth"), QLabel("Elevation")
+        form.addRow(self.azimuth_label, self.azimuth)
+        form.addRow(self.elevation_label, self.elevation)
+        self.position_boxes = []
+        position_row = QHBoxLayout()
+        position_row.setContentsMargins(0, 0, 0, 0)
+        for axis in "xyz":
+            box = number_box(minimum=-1e6, maximum=1e6, decimals=1, step=1, suffix="µm",
+                             object_name=f"light_pos_{axis}",
+                             tooltip=f"{axis} position of the point light (µm)")
+            self.position_boxes.append(box)
+            position_row.addWidget(box)
+        self.position_label = QLabel("Position")
+        self.position_row = QWidget()
+        self.position_row.setLayout(position_row)
+        form.addRow(self.position_label, self.position_row)
+        self.color = ColorButton("Light colour")
+        self.color.setObjectName("light_color")
+        self.intensity = number_box(minimum=0, maximum=100, decimals=2, step=0.1,
+                                    object_name="light_intensity",
+                                    tooltip="Brightness multiplier of the light (1 = nominal)")
+        color_row = QHBoxLayout()
+        color_row.addWidget(self.color)
+        color_row.addWidget(QLabel("Intensity"))
+        color_row.addWidget(self.intensity, 1)
+        form.addRow("Colour", color_row)
+        lights_layout.addLayout(form)
+        layout.addWidget(lights_box)
+
+        method_box = QGroupBox("Illumination")
+        method_layout = QVBoxLayout(method_box)
+        self.method = QComboBox()
+        self.method.setObjectName("illum_method")
+        for name, cls in self.techniques.items():
+            self.method.addItem(cls.LABEL, name)
+            self.method.setItemData(self.method.count() - 1, cls.DESCRIPTION,
+                                    Qt.ItemDataRole.ToolTipRole)
+        method_layout.addWidget(self.method)
+        self.description = hint_label("")
+        method_layout.addWidget(self.description)
+        self.param_form_host = QWidget()
+        self.param_form = QFormLayout(self.param_form_host)
+        self.param_form.setContentsMargins(0, 0, 0, 0)
+        self.param_form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
+        scroll = QScrollArea()
+        scroll.setWidgetResizable(True)
+        scroll.setFrameShape(QScrollArea.Shape.NoFrame)
+        scroll.setWidget(self.param_form_host)
+        scroll.setMinimumHeight(150)  # at least five parameter rows before it scrolls
+        method_layout.addWidget(scroll, 1)
+        self.reset_params = QPushButton("Defaults")
+        self.reset_params.setObjectName("illum_defaults")
+        self.reset_params.setToolTip("Set this method's parameters to their declared defaults")
+        method_layout.addWidget(self.reset_params, 0, Qt.AlignmentFlag.AlignRight)
+        layout.addWidget(method_box, 1)
+        self.set_body(body)
+
+        b = self.bindings
+        b.connect_qt(self.light_list.currentRowChanged, self._on_row)
+        b.connect_qt(self.light_list.itemChanged, self._on_item_changed)
+        b.connect_qt(self.add_button.clicked, self.add_light)
+        b.connect_qt(self.remove_button.clicked, self.remove_light)
+        b.connect_qt(self.kind.currentIndexChanged,
+                     lambda i: self._edit(kind=self.kind.itemData(i)))
+        b.connect_qt(self.azimuth.valueChanged, self._on_angles)
+        b.connect_qt(self.elevation.valueChanged, self._on_angles)
+        for box in self.position_boxes:
+            b.connect_qt(box.valueChanged, self._on_position)
+        b.connect_qt(self.color.colorPicked, lambda rgb: self._edit(color=tuple(rgb)))
+        b.connect_qt(self.intensity.valueChanged, lambda v: self._edit(intensity=float(v)))
+        b.connect_qt(self.method.currentIndexChanged, self._on_method)
+        b.connect_qt(self.reset_params.clicked, self._on_defaults)
+
+    # -- lights ---------------------------------------------------------------------------------
+    @property
+    def current_light(self) -> int:
+        return self._current
+
+    def light(self) -> Light | None:
+        lights = self.model.lights
+        return lights[self._current] if 0 <= self._current < len(lights) else None
+
+    def _edit(self, **values: Any) -> None:
+        light = self.light()
+        if light is None:
+            return
+        try:
+            light.update(values)
+        except ValueError:
+            self._show_light()
+
+    def _on_angles(self, _value: float) -> None:
+        self._edit(direction=angles_to_direction(self.azimuth.value(), self.elevation.value()))
+
+    def _on_position(self, _value: float) -> None:
+        self._edit(position=tuple(float(b.value()) for b in self.position_boxes))
+
+    def _on_row(self, row: int) -> None:
+        if row < 0:
+            return
+        self._current = row
+        self._show_light()
+        self.currentLightChanged.emit(row)
+
+    def _on_item_changed(self, item: QListWidgetItem) -> None:
+        row = self.light_list.row(item)
+        if 0 <= row < len(self.model.lights):
+            self.model.lights[row].enabled = item.checkState() == Qt.CheckState.Checked
+
+    def add_light(self) -> None:
+        """Append a light (a copy of the selected one, turned 90° in azimuth)."""
+        lights = self.model.lights
+        if len(lights) >= MAX_LIGHTS:
+            return
+        base = self.light() or Light()
+        azimuth, elevation = direction_to_angles(base.direction)
+        new = base.model_copy(deep=True)
+        new.direction = angles_to_direction(azimuth + 90.0, elevation)
+        self._current = len(lights)
+        self.model.lights = [*lights, Light.model_validate(new.model_dump())]
+
+    def remove_light(self) -> None:
+        """Remove the selected light; the last one stays (a scene needs one to shade)."""
+        lights = self.model.lights
+        if len(lights) <= 1 or not 0 <= self._current < len(lights):
+            return
+        remaining = [Light.model_validate(x.model_dump())
+                     for i, x in enumerate(lights) if i != self._current]
+        self._current = min(self._current, len(remaining) - 1)
+        self.model.lights = remaining
+
+    # -- illumination ---------------------------------------------------------------------------
+    def technique(self) -> type[Technique] | None:
+        return self.techniques.get(self.model.illumination.method)
+
+    def _on_method(self, index: int) -> None:
+        name = self.method.itemData(index)
+        if name is not None:
+            self.model.illumination.method = name
+
+    def _on_param(self, param: Param, value: Any) -> None:
+        try:
+            checked = param.validate(value)
+        except ValueError:
+            self._show_params()
+            return
+        self.model.illumination.set_value(param.name, checked)
+
+    def _on_defaults(self) -> None:
+        cls = self.technique()
+        if cls is None:
+            return
+        illumination = self.model.illumination
+        parameters = {k: dict(v) for k, v in illumination.parameters.items()}
+        parameters[cls.NAME] = cls.defaults()
+        illumination.parameters = parameters
+
+    def param_widget(self, name: str) -> QWidget:
+        """The generated widget of parameter ``name`` of the current method (tests, docs)."""
+        return self._param_widgets[name]
+
+    def _rebuild_params(self) -> None:
+        while self.param_form.rowCount():
+            self.param_form.removeRow(0)
+        self._param_setters.clear()
+        self._param_widgets.clear()
+        cls = self.technique()
+        self._shown_method = self.model.illumination.method
+        if cls is None:
+            self.description.setText(
+                f"“{self.model.illumination.method}” is not installed here; its settings are "
+                "kept in the session.")
+            self.reset_params.setEnabled(False)
+            return
+        self.description.setText(cls.DESCRIPTION)
+        self.reset_params.setEnabled(bool(cls.PARAMETERS))
+        if not cls.PARAMETERS:
+            self.param_form.addRow(hint_label("This method has no parameters."))
+        for param in cls.PARAMETERS:
+            widget, signal, setter = make_param_widget(param)
+            widget.setObjectName(f"param_{param.name}")
+            label = QLabel(param_label(param))
+            label.setToolTip(param_tooltip(param))
+            self.param_form.addRow(label, widget)
+            self.bindings.connect_qt(signal, lambda v, p=param: self._on_param(p, v))
+            self._param_setters[param.name] = setter
+            self._param_widgets[param.name] = widget
+        self._show_params()
+
+    def _show_params(self) -> None:
+        cls = self.technique()
+        if cls is None:
+            return
+        values = {**cls.defaults(), **self.model.illumination.values_for()}
+        for name, setter in self._param_setters.items():
+            widget = self._param_widgets[name]
+            widget.blockSignals(True)
+            try:
+                setter(values[name])
+            finally:
+                widget.blockSignals(False)
+
+    # -- model → widgets ------------------------------------------------------------------------
+    def _on_model_changed(self, paths: frozenset[str]) -> None:
+        if any(p == "lights" or p.startswith("lights.") for p in paths):
+            self._show_lights()
+        if any(p.startswith("illumination") for p in paths):
+            self._show_illumination()
+
+    def refresh(self) -> None:
+        self._show_lights()
+        self._show_illumination()
+
+    def _show_lights(self) -> None:
+        lights = self.model.lights
+        self._current = min(max(self._current, 0), len(lights) - 1)
+        self.light_list.blockSignals(True)
+        self.light_list.clear()
+        for i, light in enumerate(lights):
+            item = QListWidgetItem(f"Light {i + 1} — {light.kind}, intensity {light.intensity:g}")
+            item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
+            item.setCheckState(Qt.CheckState.Checked if light.enabled else Qt.CheckState.Unchecked)
+            self.light_list.addItem(item)
+        self.light_list.setCurrentRow(self._current)
+        self.light_list.blockSignals(False)
+        # As tall as its rows: the parameters below need the room more than empty list space.
+        row = max(self.light_list.sizeHintForRow(0), self.fontMetrics().height() + 4)
+        frame = 2 * self.light_list.frameWidth() + 2
+        self.light_list.setFixedHeight(row * max(len(lights), 1) + frame)
+        self.add_button.setEnabled(len(lights) < MAX_LIGHTS)
+        self.remove_button.setEnabled(len(lights) > 1)
+        self._show_light()
+        self.currentLightChanged.emit(self._current)
+
+    def _show_light(self) -> None:
+        light = self.light()
+        if light is None:
+            return
+        widgets = [self.kind, self.azimuth, self.elevation, self.intensity, *self.position_boxes]
+        for w in widgets:
+            w.blockSignals(True)
+        self.kind.setCurrentIndex(self.kind.findData(light.kind))
+        azimuth, elevation = direction_to_angles(light.direction)
+        self.azimuth.setValue(azimuth)
+        self.elevation.setValue(elevation)
+        for box, value in zip(self.position_boxes, light.position, strict=True):
+            box.setValue(value)
+        self.intensity.setValue(light.intensity)
+        for w in widgets:
+            w.blockSignals(False)
+        self.color.set_rgb(light.color)
+        point = light.kind == "point"
+        for w in (self.azimuth, self.elevation, self.azimuth_label, self.elevation_label):
+            w.setVisible(not point)
+        self.position_row.setVisible(point)
+        self.position_label.setVisible(point)
+
+    def _show_illumination(self) -> None:
+        method = self.model.illumination.method
+        index = self.method.findData(method)
+        self.method.blockSignals(True)
+        if index < 0:  # a session's method that is not installed: show it, disabled
+            self.method.addItem(f"{method} (not installed)", method)
+            index = self.method.count() - 1
+        self.method.setCurrentIndex(index)
+        self.method.blockSignals(False)
+        if method != self._shown_method:
+            self._rebuild_params()
+        else:
+            self._show_params()

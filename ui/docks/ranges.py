@@ -1,0 +1,154 @@
+"""Per-axis ranges dock: crop the volume to a box, in µm, one range slider per axis.
+
+Edits ``model.crop`` (world µm, voxel centres from 0); the engine applies it as VTK's
+cropping region. Shadows and ambient occlusion are computed from the cropped volume, so
+what is cropped away neither shows nor casts shadow. An axis at its full extent is stored as
+``None`` ("no crop"), so a session saved uncropped stays uncropped on other data.
+"""
+
+from __future__ import annotations
+
+from PySide6.QtCore import Qt
+from PySide6.QtWidgets import (
+    QGridLayout,
+    QLabel,
+    QPushButton,
+    QSizePolicy,
+    QVBoxLayout,
+    QWidget,
+)
+from superqt import QDoubleRangeSlider
+
+from vtkvol.model.scene import SceneModel
+from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
+
+AXES = ("x", "y", "z")
+
+
+class RangesDock(ModelDock):
+    """Three range sliders with numeric entry driving ``model.crop.x/y/z`` (µm)."""
+
+    TITLE = "Ranges"
+    OBJECT_NAME = "dock_ranges"
+
+    def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
+        super().__init__(model, parent)
+        self._build()
+        self.bindings.connect_model(model, self._on_model_changed)
+        self.refresh()
+
+    def _build(self) -> None:
+        body = QWidget()
+        layout = QVBoxLayout(body)
+        layout.setContentsMargins(8, 6, 8, 8)
+        grid = QGridLayout()
+        grid.setHorizontalSpacing(6)
+        grid.setVerticalSpacing(4)
+        self.sliders: dict[str, QDoubleRangeSlider] = {}
+        self.lo_boxes = {}
+        self.hi_boxes = {}
+        for row, axis in enumerate(AXES):
+            name = QLabel(f"{axis.upper()} (µm)")
+            name.setToolTip(f"Keep the part of the volume between these {axis} positions")
+            slider = QDoubleRangeSlider(Qt.Orientation.Horizontal)
+            slider.setObjectName(f"crop_slider_{axis}")
+            slider.setToolTip(f"Drag the ends to crop along {axis.upper()}")
+            slider.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
+            lo = number_box(minimum=0, maximum=1, decimals=2, suffix="µm",
+                            object_name=f"crop_min_{axis}",
+                            tooltip=f"Lowest {axis} position kept (µm)")
+            hi = number_box(minimum=0, maximum=1, decimals=2, suffix="µm",
+                            object_name=f"crop_max_{axis}",
+                            tooltip=f"Highest {axis} position kept (µm)")
+            # Two rows per axis: name and numbers, then the slider at full width (a dock is
+            # narrow; a slider squeezed between two number boxes would be too short to use).
+            grid.addWidget(name, 2 * row, 0)
+            grid.addWidget(lo, 2 * row, 1)
+            grid.addWidget(QLabel("–"), 2 * row, 2)
+            grid.addWidget(hi, 2 * row, 3)
+            grid.addWidget(slider, 2 * row + 1, 0, 1, 4)
+            grid.setRowMinimumHeight(2 * row + 1, 26)
+            self.sliders[axis], self.lo_boxes[axis], self.hi_boxes[axis] = slider, lo, hi
+            b = self.bindings
+            b.connect_qt(slider.valueChanged, lambda v, a=axis: self._set_range(a, *v))
+            b.connect_qt(lo.valueChanged,
+                         lambda v, a=axis: self._set_range(a, v, self._current(a)[1]))
+            b.connect_qt(hi.valueChanged,
+                         lambda v, a=axis: self._set_range(a, self._current(a)[0], v))
+        grid.setColumnStretch(0, 1)
+        grid.setColumnStretch(1, 2)
+        grid.setColumnStretch(3, 2)
+        layout.addLayout(grid)
+        self.reset_button = QPushButton("Reset ranges")
+        self.reset_button.setObjectName("crop_reset")
+        self.reset_button.setToolTip("Show the whole volume again")
+        self.bindings.connect_qt(self.reset_button.clicked, self.reset)
+        layout.addWidget(self.reset_button, 0, Qt.AlignmentFlag.AlignRight)
+        layout.addWidget(hint_label(
+            "Cropped-away parts are not drawn and cast no shadow: shadows and ambient "
+            "occlusion are computed from the cropped volume."))
+        layout.addStretch(1)
+        self.set_body(body)
+
+    # -- geometry -------------------------------------------------------------------------------
+    def full_range(self, axis: str) -> tuple[float, float]:
+        """Voxel-centre extent along ``axis`` in µm (0 … (n−1)·s), from the data."""
+        if self.data is None:
+            return (0.0, 1.0)
+        n = self.data.shape_zyx[::-1]["xyz".index(axis)]
+        size = self.data.voxel_size_um["xyz".index(axis)]
+        return (0.0, float((n - 1) * size))
+
+    def _step(self, axis: str) -> float:
+        return float(self.data.voxel_size_um["xyz".index(axis)]) if self.data is not None else 0.01
+
+    def _current(self, axis: str) -> tuple[float, float]:
+        lo, hi = self.full_range(axis)
+        value = getattr(self.model.crop, axis)
+        return (max(lo, value[0]), min(hi, value[1])) if value is not None else (lo, hi)
+
+    # -- model → widgets ------------------------------------------------------------------------
+    def _on_model_changed(self, paths: frozenset[str]) -> None:
+        if any(p == "crop" or p.startswith("crop.") for p in paths):
+            self.refresh()
+
+    def refresh(self) -> None:
+        for axis in AXES:
+            lo, hi = self.full_range(axis)
+            usable = self.data is not None and hi > lo
+            current = self._current(axis)
+            step = self._step(axis)
+            slider, lo_box, hi_box = self.sliders[axis], self.lo_boxes[axis], self.hi_boxes[axis]
+            for widget in (slider, lo_box, hi_box):
+                widget.blockSignals(True)
+                widget.setEnabled(usable)
+            slider.setRange(lo, max(hi, lo + step))
+            slider.setSingleStep(step)
+            slider.setValue(current)
+            decimals = 2 if step >= 0.01 else 3
+            for box, value in ((lo_box, current[0]), (hi_box, current[1])):
+                box.setDecimals(decimals)
+                box.setRange(lo, max(hi, lo + step))
+                box.setSingleStep(step)
+                box.setValue(value)
+            for widget in (slider, lo_box, hi_box):
+                widget.blockSignals(False)
+
+    # -- widgets → model ------------------------------------------------------------------------
+    def _set_range(self, axis: str, lo: float, hi: float) -> None:
+        full_lo, full_hi = self.full_range(axis)
+        step = self._step(axis)
+        lo, hi = max(full_lo, float(lo)), min(full_hi, float(hi))
+        if hi - lo < step:  # keep at least one voxel: the crop box must not be empty
+            self.refresh()
+            return
+        tolerance = 1e-6 * max(step, 1.0)
+        value = None if lo <= full_lo + tolerance and hi >= full_hi - tolerance else (lo, hi)
+        try:
+            setattr(self.model.crop, axis, value)
+        except ValueError:
+            self.refresh()
+
+    def reset(self) -> None:
+        """Uncrop all three axes (one undo step)."""
+        self.model.crop.update({"x": None, "y": None, "z": None})

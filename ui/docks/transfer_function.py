@@ -1,0 +1,560 @@
+"""Transfer-function dock: colour and opacity of each channel over its data values.
+
+Seed 002 §2.9–2.10 and seed 000 §5, on :class:`~vtkvol.model.TransferFunction`:
+
+* the :class:`~vtkvol.ui.docks.function_editor.FunctionEditor` edits the opacity curve and
+  the red, green and blue curves (points or freehand), over a displayed value window that can
+  zoom into part of a 16-bit range, with the data's histogram (linear or log counts) behind;
+* opacity can be shown on seed 002's log axis;
+* presets (fluorescence, CT, matplotlib colormaps), load/save of one TF on its own, and a
+  colour-bar preview on a checkerboard (double-click it to set a colour at a value).
+
+Edits are written into the model (the engine re-renders from the model event); mouse drags
+are throttled by the editor and grouped into one undo step through ``gestureStarted`` /
+``gestureFinished``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from PySide6.QtCore import Qt
+from PySide6.QtGui import QColor
+from PySide6.QtWidgets import (
+    QButtonGroup,
+    QCheckBox,
+    QComboBox,
+    QFileDialog,
+    QGridLayout,
+    QHBoxLayout,
+    QInputDialog,
+    QLabel,
+    QMenu,
+    QPushButton,
+    QRadioButton,
+    QSizePolicy,
+    QToolButton,
+    QVBoxLayout,
+    QWidget,
+)
+from superqt import QDoubleRangeSlider
+
+from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
+from vtkvol.model.scene import SceneModel
+from vtkvol.model.transfer_function import TransferFunction
+from vtkvol.ui import errors
+from vtkvol.ui.docks import base as dock_base
+from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
+from vtkvol.ui.docks.function_editor import ColorBar, Curve, FunctionEditor, format_value
+
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+
+TF_FILE_FORMAT = "vtkvol-transfer-function"
+TF_FILE_VERSION = 1
+TF_FILE_FILTER = "Transfer function (*.tf.json);;JSON (*.json)"
+HISTOGRAM_BINS = 256
+HISTOGRAM_SAMPLE = 1_000_000  #: voxels per channel the histogram is computed from (strided)
+COLORMAPS = ("gray", "viridis", "magma", "inferno", "plasma", "cividis", "turbo", "hot",
+             "bone", "copper", "cubehelix")
+_ASK_COLORMAP = "\0ask"  #: menu data of "By name…" (not a valid preset or colormap name)
+_CURVES = (("opacity", "Opacity", (235, 235, 235)), ("red", "Red", (235, 80, 80)),
+           ("green", "Green", (80, 210, 90)), ("blue", "Blue", (90, 140, 255)))
+
+
+# -- pure helpers (unit-tested) ------------------------------------------------------------------
+def merge_color_curve(
+    colors: list[tuple[float, float, float, float]],
+    component: int,
+    points: list[tuple[float, float]],
+) -> list[tuple[float, float, float, float]]:
+    """Replace one colour component's curve (0 red, 1 green, 2 blue) and re-join the three
+    into ``(value, r, g, b)`` nodes.
+
+    Nodes are placed at every x any component has, each component interpolated there, so
+    the other two curves keep their exact shape; nodes where all three are straight lines
+    through their neighbours are then dropped.
+    """
+    curves = [[(float(c[0]), float(c[k + 1])) for c in colors] for k in range(3)]
+    curves[component] = [(float(x), min(max(float(y), 0.0), 1.0)) for x, y in points]
+    xs = np.array(sorted({x for curve in curves for x, _ in curve}), dtype=np.float64)
+    channels = []
+    for curve in curves:
+        cx, cy = (np.array(v, dtype=np.float64) for v in zip(*curve, strict=True))
+        channels.append(np.interp(xs, cx, cy))
+    merged = np.column_stack([xs, *channels])
+    keep = [0]
+    for i in range(1, len(merged) - 1):
+        a, b, c = merged[keep[-1]], merged[i], merged[i + 1]
+        t = (b[0] - a[0]) / (c[0] - a[0]) if c[0] != a[0] else 0.0
+        if np.any(np.abs(a[1:] + t * (c[1:] - a[1:]) - b[1:]) > 1e-6):
+            keep.append(i)
+    if len(merged) > 1:
+        keep.append(len(merged) - 1)
+    return [tuple(float(v) for v in merged[i]) for i in keep]  # type: ignore[misc]
+
+
+class HistogramCache:
+    """Histograms of a volume's channels over any value window, from a strided subsample
+    (so a 2 GB memory-mapped stack costs one strided read, once)."""
+
+    def __init__(self) -> None:
+        self._key: int | None = None
+        self._samples: dict[int, np.ndarray] = {}
+
+    def counts(self, data: VolumeData, channel: int, lo: float, hi: float,
+               bins: int = HISTOGRAM_BINS) -> np.ndarray:
+        if self._key != id(data):
+            self._key, self._samples = id(data), {}
+        if channel not in self._samples:
+            vol = data.array[channel]
+            step = max(1, math.ceil((vol.size / HISTOGRAM_SAMPLE) ** (1.0 / 3.0)))
+            sample = np.asarray(vol[::step, ::step, ::step], dtype=np.float32).ravel()
+            self._samples[channel] = sample[np.isfinite(sample)]
+        counts, _ = np.histogram(self._samples[channel], bins=bins, range=(lo, hi))
+        return counts
+
+
+def write_tf_file(path: str | os.PathLike[str], tf: TransferFunction) -> Path:
+    """Save one transfer function as JSON, atomically (a failed write leaves no file)."""
+    target = Path(path)
+    document = {"format": TF_FILE_FORMAT, "version": TF_FILE_VERSION, **tf.copy_state()}
+    text = json.dumps(document, indent=2) + "\n"
+    fd, tmp = tempfile.mkstemp(prefix=".tf-", suffix=".json.tmp", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
+
+
+def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:
+    """Read a file written by :func:`write_tf_file`; ``ValueError`` says what is wrong."""
+    name = Path(path).name
+    try:
+        document = json.loads(Path(path).read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        where = f"line {exc.lineno}, column {exc.colno}"
+        raise ValueError(f"{name}: not valid JSON ({where})") from None
+    if not isinstance(document, dict) or document.get("format") != TF_FILE_FORMAT:
+        raise ValueError(f"{name}: not a vtkvol transfer-function file")
+    if document.get("version") != TF_FILE_VERSION:
+        raise ValueError(f"{name}: unsupported version {document.get('version')!r}")
+    fields = {k: v for k, v in document.items() if k not in ("format", "version")}
+    try:
+        return TransferFunction.model_validate(fields)
+    except ValueError as exc:
+        raise ValueError(f"{name}: {exc}") from None
+
+
+class TransferFunctionDock(ModelDock):
+    """Edits ``model.channels[i].tf`` (the linked channel's TF when ``tf_linked_to`` is set)."""
+
+    TITLE = "Transfer function"
+    OBJECT_NAME = "dock_transfer_function"
+
+    def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
+        super().__init__(model, parent)
+        self._channel = 0
+        self._tf: TransferFunction | None = None
+        self._histograms = HistogramCache()
+        self._editing = False
+        self._histogram_key: tuple[Any, ...] | None = None
+        self._build()
+        self.bindings.connect_model(model, self._on_model_changed)
+        self.refresh()
+
+    # -- widgets --------------------------------------------------------------------------------
+    def _build(self) -> None:
+        body = QWidget()
+        outer = QHBoxLayout(body)
+        outer.setContentsMargins(6, 4, 6, 6)
+
+        left = QVBoxLayout()
+        left.setSpacing(2)
+        self.editor = FunctionEditor()
+        self.editor.setObjectName("tf_editor")
+        self.editor.set_curves([Curve(n, label, QColor(*c), log_axis=(n == "opacity"))
+                                for n, label, c in _CURVES])
+        self.editor.set_y_title("opacity / colour")
+        left.addWidget(self.editor, 1)
+        self.colorbar = ColorBar()
+        self.colorbar.setObjectName("tf_colorbar")
+        left.addWidget(self.colorbar)
+
+        window_row = QHBoxLayout()
+        window_row.addWidget(QLabel("Displayed values"))
+        self.window_min = number_box(minimum=0, maximum=1, decimals=0, object_name="tf_window_min",
+                                     tooltip="Lowest data value shown in the editor")
+        self.window_slider = QDoubleRangeSlider(Qt.Orientation.Horizontal)
+        self.window_slider.setObjectName("tf_window_slider")
+        self.window_slider.setToolTip(
+            "Zoom the editor into part of the data range: set a rough function over the whole "
+            "range, then refine it part by part.")
+        self.window_slider.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
+        self.window_max = number_box(minimum=0, maximum=1, decimals=0, object_name="tf_window_max",
+                                     tooltip="Highest data value shown in the editor")
+        for box in (self.window_min, self.window_max):
+            box.setMinimumWidth(80)
+            box.setSizePolicy(QSizePolicy.Policy.Fixed, QSizePolicy.Policy.Fixed)
+        self.window_full = QPushButton("Full range")
+        self.window_full.setObjectName("tf_window_full")
+        self.window_full.setToolTip("Show the data's whole value range")
+        window_row.addWidget(self.window_min)
+        window_row.addWidget(self.window_slider, 1)
+        window_row.addWidget(self.window_max)
+        window_row.addWidget(self.window_full)
+        left.addLayout(window_row)
+        outer.addLayout(left, 1)
+
+        side = QWidget()
+        side.setFixedWidth(228)
+        grid = QGridLayout(side)
+        grid.setContentsMargins(6, 0, 0, 0)
+        grid.setVerticalSpacing(4)
+        row = 0
+        grid.addWidget(QLabel("Channel"), row, 0)
+        self.channel_combo = QComboBox()
+        self.channel_combo.setObjectName("tf_channel")
+        self.channel_combo.setToolTip("The channel whose transfer function is edited")
+        grid.addWidget(self.channel_combo, row, 1, 1, 3)
+        row += 1
+        self.link_label = hint_label("")
+        self.link_label.setVisible(False)
+        grid.addWidget(self.link_label, row, 0, 1, 4)
+        row += 1
+        grid.addWidget(QLabel("Edit"), row, 0)
+        self.curve_group = QButtonGroup(self)
+        self.curve_buttons: dict[str, QToolButton] = {}
+        curve_row = QHBoxLayout()
+        curve_row.setSpacing(2)
+        for i, (name, label, color) in enumerate(_CURVES):
+            button = QToolButton()
+            button.setText(label if name == "opacity" else label[0])
+            button.setCheckable(True)
+            button.setObjectName(f"tf_curve_{name}")
+            button.setToolTip(f"Edit the {label.lower()} curve")
+            button.setStyleSheet(
+                f"QToolButton:checked {{ border-bottom: 3px solid rgb{color}; "
+                "font-weight: bold; }")
+            self.curve_group.addButton(button, i)
+            self.curve_buttons[name] = button
+            curve_row.addWidget(button)
+        self.curve_buttons["opacity"].setChecked(True)
+        grid.addLayout(curve_row, row, 1, 1, 3)
+        row += 1
+        grid.addWidget(QLabel("Mode"), row, 0)
+        self.mode_points = QRadioButton("Points")
+        self.mode_points.setObjectName("tf_mode_points")
+        self.mode_points.setToolTip("Add, drag and delete nodes (right-click deletes)")
+        self.mode_curve = QRadioButton("Curve")
+        self.mode_curve.setObjectName("tf_mode_curve")
+        self.mode_curve.setToolTip("Draw the curve freehand")
+        self.mode_points.setChecked(True)
+        grid.addWidget(self.mode_points, row, 1)
+        grid.addWidget(self.mode_curve, row, 2, 1, 2)
+        row += 1
+        self.log_opacity = QCheckBox("Log opacity axis")
+        self.log_opacity.setObjectName("tf_log_opacity")
+        self.log_opacity.setToolTip(
+            "Spread low opacities (0.001–0.05) over most of the editor's height "
+            "(Potts & Möller's logarithmic scale, seed 002 §5.1.3)")
+        grid.addWidget(self.log_opacity, row, 0, 1, 4)
+        row += 1
+        self.histogram_log = QCheckBox("Log histogram counts")
+        self.histogram_log.setObjectName("tf_histogram_log")
+        self.histogram_log.setChecked(True)
+        self.histogram_log.setToolTip("Show the histogram's counts on a log scale, so rare "
+                                      "bright values are visible next to the background peak")
+        grid.addWidget(self.histogram_log, row, 0, 1, 4)
+        row += 1
+        self.preset_button = QToolButton()
+        self.preset_button.setObjectName("tf_presets")
+        self.preset_button.setText("Preset")
+        self.preset_button.setToolTip("Replace this channel's transfer function by a preset, "
+                                      "stretched over its current value span")
+        self.preset_button.setPopupMode(QToolButton.ToolButtonPopupMode.InstantPopup)
+        self.preset_button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
+        self.preset_menu = self._preset_menu()
+        self.preset_button.setMenu(self.preset_menu)
+        self.load_button = QPushButton("Load…")
+        self.load_button.setObjectName("tf_load")
+        self.load_button.setToolTip("Load a transfer function saved with Save…")
+        self.save_button = QPushButton("Save…")
+        self.save_button.setObjectName("tf_save")
+        self.save_button.setToolTip("Save this channel's transfer function to a file")
+        buttons = QHBoxLayout()
+        buttons.setSpacing(4)
+        buttons.addWidget(self.preset_button)
+        buttons.addWidget(self.load_button)
+        buttons.addWidget(self.save_button)
+        grid.addLayout(buttons, row, 0, 1, 4)
+        row += 1
+        grid.setRowStretch(row, 1)
+        grid.setColumnStretch(3, 1)
+        outer.addWidget(side)
+        self.set_body(body)
+
+        b = self.bindings
+        b.connect_qt(self.channel_combo.currentIndexChanged, self._on_channel_chosen)
+        b.connect_qt(self.curve_group.idClicked, self._on_curve_chosen)
+        b.connect_qt(self.mode_points.toggled, self._on_mode)
+        b.connect_qt(self.log_opacity.toggled, self.editor.set_log_scale)
+        b.connect_qt(self.histogram_log.toggled, self.editor.set_histogram_log)
+        b.connect_qt(self.editor.pointsEdited, self._on_points_edited)
+        b.connect_qt(self.editor.editStarted, self._on_edit_started)
+        b.connect_qt(self.editor.editFinished, self._on_edit_finished)
+        b.connect_qt(self.colorbar.colorRequested, self._on_color_requested)
+        b.connect_qt(self.colorbar.stopRemoveRequested, self._on_stop_remove)
+        b.connect_qt(self.window_min.valueChanged, self._on_window_min)
+        b.connect_qt(self.window_max.valueChanged, self._on_window_max)
+        b.connect_qt(self.window_slider.valueChanged, self._on_window_slider)
+        b.connect_qt(self.window_full.clicked, self._on_window_full)
+        b.connect_qt(self.load_button.clicked, self._on_load)
+        b.connect_qt(self.save_button.clicked, self._on_save)
+
+    def _preset_menu(self) -> QMenu:
+        menu = QMenu(self)
+        for kind, title in (("fluorescence", "Fluorescence"), ("ct", "CT")):
+            menu.addSection(title)
+            for name in preset_names(kind):
+                action = menu.addAction(preset_label(name))
+                action.setData(name)
+        maps = [name for name in COLORMAPS if is_preset(name)]
+        if maps:
+            sub = menu.addMenu("Colormaps")
+            for name in maps:
+                action = sub.addAction(name)
+                action.setData(name)
+            sub.addSeparator()
+            other = sub.addAction("By name…")
+            other.setToolTip("Any matplotlib colormap, e.g. twilight, Blues, RdPu")
+            other.setData(_ASK_COLORMAP)
+        self.bindings.connect_qt(menu.triggered, self._on_preset_action)
+        return menu
+
+    def _on_preset_action(self, action) -> None:
+        name = action.data()
+        if name == _ASK_COLORMAP:
+            name, ok = QInputDialog.getText(self, "Colormap", "Matplotlib colormap name:")
+            if not ok or not name.strip():
+                return
+            name = name.strip()
+        if name:
+            self.apply_preset(name)
+
+    # -- model access ---------------------------------------------------------------------------
+    @property
+    def channel_index(self) -> int:
+        return self._channel
+
+    def set_channel(self, index: int) -> None:
+        """Edit channel ``index`` (what the channel combo does)."""
+        self.channel_combo.setCurrentIndex(index)
+
+    def _effective_index(self) -> int:
+        channels = self.model.channels
+        link = channels[self._channel].tf_linked_to
+        if link is not None and 0 <= link < len(channels) and link != self._channel:
+            return link
+        return self._channel
+
+    def current_tf(self) -> TransferFunction:
+        """The transfer function being edited (the linked one when the channel follows)."""
+        return self.model.channels[self._effective_index()].tf
+
+    def _on_model_changed(self, paths: frozenset[str]) -> None:
+        if any(p == "channels" or p.startswith("channels.") for p in paths):
+            structural = "channels" in paths or any(
+                p.endswith(("tf_linked_to", ".name", ".color")) for p in paths)
+            self.refresh(structural=structural)
+
+    def refresh(self, *, structural: bool = True) -> None:
+        channels = self.model.channels
+        self._channel = min(self._channel, len(channels) - 1)
+        if structural:
+            combo = self.channel_combo
+            combo.blockSignals(True)
+            combo.clear()
+            for c in channels:
+                combo.addItem(c.name)
+            combo.setCurrentIndex(self._channel)
+            combo.blockSignals(False)
+            combo.setEnabled(len(channels) > 1)
+            effective = self._effective_index()
+            self.link_label.setVisible(effective != self._channel)
+            if effective != self._channel:
+                self.link_label.setText(
+                    f"“{channels[self._channel].name}” follows the transfer function of "
+                    f"“{channels[effective].name}”: edits here change both.")
+        self._tf = self.current_tf()
+        self._show_tf()
+
+    def _show_tf(self) -> None:
+        tf = self._tf
+        if tf is None:
+            return
+        colors = tf.colors
+        self.editor.set_points("opacity", tf.opacity)
+        for k, name in enumerate(("red", "green", "blue")):
+            self.editor.set_points(name, [(c[0], c[k + 1]) for c in colors])
+        lo, hi = tf.window
+        self.editor.set_domain(lo, hi)
+        self.colorbar.set_function(colors, tf.opacity, (lo, hi))
+        integer = self.data is not None and self.data.array.dtype.kind in "ui"
+        decimals = 0 if integer else 3
+        rlo, rhi = tf.window_range
+        for box, value in ((self.window_min, lo), (self.window_max, hi)):
+            box.blockSignals(True)
+            box.setDecimals(decimals)
+            box.setRange(rlo, rhi)
+            box.setSingleStep(max(10.0 ** -decimals, (rhi - rlo) / 100))
+            box.setValue(value)
+            box.blockSignals(False)
+        self.window_slider.blockSignals(True)
+        self.window_slider.setRange(rlo, rhi)
+        self.window_slider.setValue((lo, hi))
+        self.window_slider.blockSignals(False)
+        self.editor.set_x_formatter(format_value)
+        self._update_histogram()
+
+    def _update_histogram(self) -> None:
+        if self.data is None or self._tf is None:
+            self._histogram_key = None
+            self.editor.set_histogram(None)
+            return
+        index = min(self._channel, self.data.n_channels - 1)
+        lo, hi = self._tf.window
+        key = (id(self.data), index, lo, hi)
+        if key != self._histogram_key:  # edits of the curves leave the histogram as it is
+            self._histogram_key = key
+            self.editor.set_histogram(self._histograms.counts(self.data, index, lo, hi))
+
+    # -- widget → model -------------------------------------------------------------------------
+    def _on_channel_chosen(self, index: int) -> None:
+        if 0 <= index < len(self.model.channels):
+            self._channel = index
+            self.refresh()
+
+    def _on_curve_chosen(self, button_id: int) -> None:
+        self.editor.set_active(_CURVES[button_id][0])
+
+    def _on_mode(self, points: bool) -> None:
+        self.editor.set_mode("points" if points else "curve")
+
+    def _on_edit_started(self) -> None:
+        self._editing = True
+        self.gestureStarted.emit()
+
+    def _on_edit_finished(self) -> None:
+        self._editing = False
+        self.gestureFinished.emit()
+        self._show_tf()  # the editor ignored echoes during the drag; show the final state
+
+    def _on_points_edited(self, name: str, points: list[tuple[float, float]]) -> None:
+        tf = self.current_tf()
+        try:
+            if name == "opacity":
+                tf.opacity = [(float(x), min(max(float(y), 0.0), 1.0)) for x, y in points]
+            else:
+                component = ("red", "green", "blue").index(name)
+                tf.colors = merge_color_curve(tf.colors, component, points)
+        except ValueError:
+            self._show_tf()
+
+    def _on_color_requested(self, value: float) -> None:
+        tf = self.current_tf()
+        current = tuple(float(c) for c in tf.color_at(np.array([value]))[0])
+        # Looked up on the module at call time so that tests can answer the dialog.
+        chosen = dock_base.pick_color(self, current, f"Colour at value {format_value(value)}")
+        if chosen is None:
+            return
+        self.set_color_at(value, chosen)
+
+    def set_color_at(self, value: float, rgb: tuple[float, float, float]) -> None:
+        """Set the colour at ``value``: replace a node within 0.5 % of the window, else add."""
+        tf = self.current_tf()
+        lo, hi = tf.window
+        tolerance = 0.005 * (hi - lo)
+        colors = list(tf.colors)
+        near = [i for i, c in enumerate(colors) if abs(c[0] - value) <= tolerance]
+        if near:
+            colors[near[0]] = (colors[near[0]][0], *rgb)
+        else:
+            colors.append((float(value), *rgb))
+        tf.colors = colors
+
+    def _on_stop_remove(self, index: int) -> None:
+        tf = self.current_tf()
+        if len(tf.colors) > 1:
+            tf.colors = [c for i, c in enumerate(tf.colors) if i != index]
+
+    def _on_window_min(self, value: float) -> None:
+        self._set_window(value, self.current_tf().window[1])
+
+    def _on_window_max(self, value: float) -> None:
+        self._set_window(self.current_tf().window[0], value)
+
+    def _on_window_slider(self, value: tuple[float, float]) -> None:
+        self._set_window(*value)
+
+    def _on_window_full(self) -> None:
+        self._set_window(*self.current_tf().window_range)
+
+    def _set_window(self, lo: float, hi: float) -> None:
+        tf = self.current_tf()
+        if not hi > lo:
+            self._show_tf()  # a window must be increasing: show the model's window again
+            return
+        tf.set_window(lo, hi)
+
+    def apply_preset(self, name: str) -> None:
+        """Replace the TF by preset ``name`` stretched over its current value span."""
+        tint = self.model.channels[self._effective_index()].color
+        try:
+            apply_preset(self.current_tf(), name, tint=tint)
+        except ValueError as exc:
+            errors.show_error(self, exc, action=f"Could not apply the preset “{name}”")
+
+    def _on_save(self) -> None:
+        path, _ = QFileDialog.getSaveFileName(self, "Save transfer function",
+                                              "transfer-function.tf.json", TF_FILE_FILTER)
+        if path:
+            self.save_tf(path)
+
+    def save_tf(self, path: str | os.PathLike[str]) -> None:
+        try:
+            write_tf_file(path, self.current_tf())
+        except OSError as exc:
+            errors.show_error(self, exc, action="Could not save the transfer function")
+
+    def _on_load(self) -> None:
+        path, _ = QFileDialog.getOpenFileName(self, "Load transfer function", "", TF_FILE_FILTER)
+        if path:
+            self.load_tf(path)
+
+    def load_tf(self, path: str | os.PathLike[str]) -> None:
+        """Replace the current TF's points by a saved one (one undoable step)."""
+        try:
+            loaded = read_tf_file(path)
+        except (OSError, ValueError) as exc:
+            errors.show_error(self, exc, action="Could not load the transfer function")
+            return
+        tf = self.current_tf()
+        values: dict[str, Any] = {"colors": loaded.colors, "opacity": loaded.opacity}
+        with tf.batch():
+            tf.update(values)
+            span_lo, span_hi = tf.value_span
+            lo, hi = tf.window
+            tf.set_window(min(lo, span_lo), max(hi, span_hi))
+
+

@@ -1,0 +1,408 @@
+"""The 3-D view: a widget that *contains* a pyvistaqt ``QtInteractor`` and owns the
+:class:`~vtkvol.engine.scene.VolumeScene`.
+
+This is the only module of the app that talks to VTK (style-anchors §4 items 11 and 12):
+
+* **Render on request, coalesced.** The scene calls :meth:`Viewport.request_render`; a
+  single-shot zero-interval ``QTimer`` turns any number of requests in one event-loop pass
+  into one repaint. pyvistaqt's widget renders inside every ``paintGL``, so renders asked for
+  by VTK itself (the camera style, the light gizmo) are redirected into a repaint too:
+  one frame per request instead of two (see :meth:`Viewport._install_render_redirect`).
+* **Reduced quality while moving.** Camera and gizmo interaction switch the scene to its
+  interactive sampling (seed 002's "Reduce"); a short settle timer after the last
+  interaction syncs the camera into the model and renders one full-quality frame.
+* **Nothing renders after close.** :meth:`Viewport.close` stops the timers, removes the
+  gizmo and releases the scene's GL resources while the context is current, then closes
+  the interactor.
+* **Light gizmo.** A draggable handle for the light selected in the lights dock; dragging it
+  writes ``model.lights[i].direction`` (or ``.position`` for a point light), and the engine
+  recomputes shadows from the model change.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from typing import TYPE_CHECKING, Any
+
+os.environ.setdefault("QT_API", "pyside6")  # pyvistaqt (through qtpy) must pick PySide6
+
+import numpy as np
+import vtk
+from PySide6.QtCore import QTimer, Signal
+from PySide6.QtWidgets import QVBoxLayout, QWidget
+from pyvistaqt import QtInteractor
+
+from vtkvol.engine.scene import VolumeScene
+from vtkvol.model.scene import SceneModel
+
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+
+#: After the last camera/gizmo interaction, wait this long before the full-quality frame, so
+#: a series of wheel steps does not pay for a full frame each (ms).
+SETTLE_MS = 180
+#: Distance of a directional light's handle from the volume's centre, in bounding-sphere radii.
+GIZMO_RADIUS = 1.05
+
+
+class LightGizmo:
+    """A draggable handle showing one light: at ``centre + R·direction`` for a directional
+    light, at ``position`` for a point light, with a line from the volume's centre.
+
+    The gizmo only reports where the user dragged the handle (``on_moved(world_xyz)``); the
+    viewport turns that into a model change.
+    """
+
+    def __init__(self, interactor: vtk.vtkRenderWindowInteractor, renderer: vtk.vtkRenderer,
+                 viewport: Viewport) -> None:
+        self._renderer = renderer
+        self._viewport = viewport
+        self.rep = vtk.vtkSphereHandleRepresentation()
+        self.rep.SetHandleSize(14.0)
+        self.rep.GetSelectedProperty().SetColor(1.0, 1.0, 1.0)
+        self.widget = vtk.vtkHandleWidget()
+        self.widget.SetInteractor(interactor)
+        self.widget.SetRepresentation(self.rep)
+        self.widget.SetDefaultRenderer(renderer)
+        self.widget.SetPriority(1.0)  # above the camera style: a press on the handle is ours
+        self._tags = [
+            self.widget.AddObserver(vtk.vtkCommand.StartInteractionEvent, self._on_start),
+            self.widget.AddObserver(vtk.vtkCommand.InteractionEvent, self._on_move),
+            self.widget.AddObserver(vtk.vtkCommand.EndInteractionEvent, self._on_end),
+        ]
+        self._line = vtk.vtkLineSource()
+        mapper = vtk.vtkPolyDataMapper()
+        mapper.SetInputConnection(self._line.GetOutputPort())
+        self.line_actor = vtk.vtkActor()
+        self.line_actor.SetMapper(mapper)
+        self.line_actor.GetProperty().SetLineWidth(1.5)
+        self.line_actor.GetProperty().SetOpacity(0.7)
+        self.line_actor.PickableOff()
+        self.line_actor.VisibilityOff()
+        renderer.AddActor(self.line_actor)
+        self.dragging = False
+        self._enabled = False
+
+    def place(self, centre: np.ndarray, handle: np.ndarray, color: tuple[float, float, float],
+              *, enabled: bool) -> None:
+        """Put the handle at ``handle`` (µm) with a line from ``centre``."""
+        self.rep.SetWorldPosition(tuple(float(v) for v in handle))
+        dim = tuple(0.35 + 0.65 * c for c in color) if enabled else (0.45, 0.45, 0.45)
+        self.rep.GetProperty().SetColor(*dim)
+        self._line.SetPoint1(*(float(v) for v in centre))
+        self._line.SetPoint2(*(float(v) for v in handle))
+        self.line_actor.GetProperty().SetColor(*dim)
+
+    def set_visible(self, visible: bool) -> None:
+        if visible == self._enabled:
+            return
+        self._enabled = visible
+        self.widget.SetEnabled(int(visible))
+        self.line_actor.SetVisibility(int(visible))
+
+    @property
+    def visible(self) -> bool:
+        return self._enabled
+
+    def handle_position(self) -> np.ndarray:
+        return np.array(self.rep.GetWorldPosition(), dtype=np.float64)
+
+    def _on_start(self, *_: Any) -> None:
+        self.dragging = True
+        self._viewport._interaction_started()
+
+    def _on_move(self, *_: Any) -> None:
+        self._viewport._gizmo_moved(self.handle_position())
+
+    def _on_end(self, *_: Any) -> None:
+        self.dragging = False
+        self._viewport._interaction_ended()
+
+    def close(self) -> None:
+        for tag in self._tags:
+            self.widget.RemoveObserver(tag)
+        self.widget.SetEnabled(0)
+        self.widget.SetInteractor(None)
+        self._renderer.RemoveActor(self.line_actor)
+
+
+class Viewport(QWidget):
+    """The 3-D view of one :class:`SceneModel` (see the module docstring).
+
+    Signals
+    -------
+    frameRendered(frame_ms, illumination_ms)
+        After every frame: its duration and the illumination technique's last
+        precomputation time (``scene.illuminator.last_prepare_ms``).
+    """
+
+    frameRendered = Signal(float, float)
+
+    def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.model = model
+        self.scene: VolumeScene | None = None
+        self.reduce_while_moving = True
+        self._closed = False
+        self._frame_start = 0.0
+        self.last_frame_ms = 0.0
+
+        layout = QVBoxLayout(self)
+        layout.setContentsMargins(0, 0, 0, 0)
+        # auto_update=False: no 5 Hz timer; this widget renders only when asked (§4 item 12).
+        self.plotter = QtInteractor(self, auto_update=False)
+        self.plotter.setAcceptDrops(False)  # dropped files go to the main window, not pyvista
+        layout.addWidget(self.plotter)
+        self.setMinimumSize(160, 120)
+
+        self.render_window: vtk.vtkRenderWindow = self.plotter.render_window
+        self.renderer: vtk.vtkRenderer = self.plotter.renderer
+        self.interactor: vtk.vtkRenderWindowInteractor = self.plotter.iren.interactor
+        self._vtk_tags: list[tuple[vtk.vtkObject, int]] = []
+        self._setup_interaction()
+        self._install_render_redirect()
+        self._observe(self.render_window, vtk.vtkCommand.StartEvent, self._on_frame_start)
+        self._observe(self.render_window, vtk.vtkCommand.EndEvent, self._on_frame_end)
+
+        self._render_timer = QTimer(self)
+        self._render_timer.setSingleShot(True)
+        self._render_timer.setInterval(0)
+        self._render_timer.timeout.connect(self._render_now)
+        self._settle_timer = QTimer(self)
+        self._settle_timer.setSingleShot(True)
+        self._settle_timer.setInterval(SETTLE_MS)
+        self._settle_timer.timeout.connect(self._settle)
+
+        self._gizmo = LightGizmo(self.interactor, self.renderer, self)
+        self._gizmo_light: int | None = 0
+        self._gizmo_wanted = True
+        self._gizmo_radius = 1.0
+        model.changed.connect(self._on_model_changed)
+
+    # -- setup ----------------------------------------------------------------------------------
+    def _observe(self, obj: vtk.vtkObject, event: Any, callback: Any,
+                 priority: float = 0.0) -> None:
+        self._vtk_tags.append((obj, obj.AddObserver(event, callback, priority)))
+
+    def _setup_interaction(self) -> None:
+        """Trackball camera; no VTK or pyvista keyboard shortcuts (their 'q' quits, 'w'
+        switches to wireframe, 'f' flies the camera outside the model; the app's own
+        actions replace the useful ones)."""
+        style = vtk.vtkInteractorStyleTrackballCamera()
+        self.interactor.SetInteractorStyle(style)
+        self.interactor.RemoveObservers(vtk.vtkCommand.CharEvent)
+        self.interactor.RemoveObservers(vtk.vtkCommand.KeyPressEvent)
+        self._style = style
+        self._observe(style, vtk.vtkCommand.StartInteractionEvent, self._on_style_start)
+        self._observe(style, vtk.vtkCommand.EndInteractionEvent, self._on_style_end)
+
+    def _install_render_redirect(self) -> None:
+        """Make every VTK-initiated render a widget repaint.
+
+        pyvistaqt's ``paintGL`` always renders, and a direct ``Render()`` schedules a
+        repaint that renders again: two frames per request. With the interactor's own
+        rendering disabled, VTK still announces ``RenderEvent``; outside a paint it becomes
+        ``update()`` (coalesced by Qt), inside the paint it is the one real render. Relies on
+        pyvistaqt's ``_in_paint`` flag; without it (another pyvistaqt) the default
+        behaviour is kept, which is correct, only slower.
+        """
+        if not hasattr(self.plotter, "_in_paint"):
+            return
+        self.interactor.EnableRenderOff()
+        self._observe(self.interactor, vtk.vtkCommand.RenderEvent, self._on_render_event)
+
+    def _on_render_event(self, *_: Any) -> None:
+        if self._closed:
+            return
+        if self.plotter._in_paint:
+            self.render_window.Render()
+        else:
+            self.plotter.update()
+
+    # -- data -----------------------------------------------------------------------------------
+    def show_data(self, data: VolumeData, *, reset_channels: bool | None = None) -> None:
+        """Show ``data`` with the current model (the scene is created on first use)."""
+        if self._closed:
+            return
+        if self.scene is None:
+            self.scene = VolumeScene(self.renderer, self.model, data,
+                                     request_render=self.request_render)
+        else:
+            self.scene.set_data(data, reset_channels=reset_channels)
+        self._update_gizmo()
+        self.request_render()
+
+    @property
+    def bounds(self) -> tuple[float, float, float, float, float, float]:
+        """World bounds (µm) of the data, voxel centres."""
+        return self.scene.bounds if self.scene is not None else (0.0, 1.0, 0.0, 1.0, 0.0, 1.0)
+
+    # -- rendering ------------------------------------------------------------------------------
+    def request_render(self) -> None:
+        """Ask for a frame; many requests in one event-loop pass give one frame."""
+        if not self._closed:
+            self._render_timer.start()
+
+    def _render_now(self) -> None:
+        if self._closed or self.scene is None:
+            return
+        self.plotter.update()  # the paint renders (see _install_render_redirect)
+
+    def render_now(self) -> None:
+        """Render synchronously (tests, screenshots); normal code calls request_render."""
+        if self._closed or self.scene is None:
+            return
+        self._render_timer.stop()
+        self.plotter.repaint()
+
+    def _on_frame_start(self, *_: Any) -> None:
+        self._frame_start = time.perf_counter()
+
+    def _on_frame_end(self, *_: Any) -> None:
+        self.last_frame_ms = (time.perf_counter() - self._frame_start) * 1e3
+        illum = self.scene.illuminator if self.scene is not None else None
+        self.frameRendered.emit(self.last_frame_ms, illum.last_prepare_ms if illum else 0.0)
+
+    def screenshot(self, scale: int = 1) -> np.ndarray:
+        """The view at full quality as an ``(h, w, 3)`` uint8 array, ``scale`` times the
+        widget's size (offscreen magnification: the image is rendered in tiles). The light
+        gizmo is left out."""
+        if self._closed or self.scene is None:
+            raise RuntimeError("the view is closed")
+        if scale not in (1, 2, 3, 4):
+            raise ValueError(f"screenshot scale must be 1, 2, 3 or 4, not {scale}")
+        gizmo = self._gizmo.visible
+        self._gizmo.set_visible(False)
+        self._settle_timer.stop()
+        self.scene.set_interactive(False)
+        try:
+            # A fresh full-quality frame first, synchronously: at scale 1 the image is read
+            # back from VTK's last frame, which may be a reduced one drawn while the camera
+            # moved, or none yet if the widget was resized since (its buffers are new).
+            self._render_timer.stop()
+            self.plotter.render()
+            image = self.plotter.screenshot(None, return_img=True, scale=scale)
+        finally:
+            self._gizmo.set_visible(gizmo)
+            self.request_render()
+        return np.ascontiguousarray(image[..., :3], dtype=np.uint8)
+
+    # -- camera ---------------------------------------------------------------------------------
+    def reset_camera(self) -> None:
+        """Frame the volume from the default direction (the model's camera follows)."""
+        if self.scene is not None:
+            self.scene.reset_camera()
+            self.request_render()
+
+    def _on_style_start(self, *_: Any) -> None:
+        self._interaction_started()
+
+    def _on_style_end(self, *_: Any) -> None:
+        self._interaction_ended()
+
+    def _interaction_started(self) -> None:
+        self._settle_timer.stop()
+        if self.scene is not None and self.reduce_while_moving:
+            self.scene.set_interactive(True)
+
+    def _interaction_ended(self) -> None:
+        self._settle_timer.start()
+
+    def _settle(self) -> None:
+        """The camera stopped: store it in the model, and render once at full quality."""
+        if self._closed or self.scene is None:
+            return
+        self.scene.sync_camera_to_model()
+        self.scene.set_interactive(False)
+        self._update_gizmo()
+        self.request_render()
+
+    # -- light gizmo ----------------------------------------------------------------------------
+    def set_gizmo_light(self, index: int | None) -> None:
+        """Show the gizmo for ``model.lights[index]`` (None: for no light)."""
+        self._gizmo_light = index
+        self._update_gizmo()
+
+    def set_gizmo_visible(self, visible: bool) -> None:
+        self._gizmo_wanted = bool(visible)
+        self._update_gizmo()
+
+    @property
+    def gizmo(self) -> LightGizmo:
+        return self._gizmo
+
+    def _centre(self) -> np.ndarray:
+        b = self.bounds
+        return np.array([(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2])
+
+    def _update_gizmo(self) -> None:
+        if self._closed or self._gizmo.dragging:
+            return
+        i = self._gizmo_light
+        lights = self.model.lights
+        show = self._gizmo_wanted and self.scene is not None and i is not None and i < len(lights)
+        if show:
+            light = lights[i]
+            b = self.bounds
+            centre = self._centre()
+            diagonal = float(np.linalg.norm([b[1] - b[0], b[3] - b[2], b[5] - b[4]]))
+            # Just outside the bounding sphere: clear of the volume, yet inside the view
+            # that reset_camera frames.
+            self._gizmo_radius = max(GIZMO_RADIUS * 0.5 * diagonal, 1e-6)
+            if light.kind == "point":
+                handle = np.array(light.position, dtype=np.float64)
+            else:
+                d = np.array(light.direction, dtype=np.float64)
+                handle = centre + self._gizmo_radius * d / max(np.linalg.norm(d), 1e-12)
+            self._gizmo.place(centre, handle, light.color, enabled=light.enabled)
+        self._gizmo.set_visible(bool(show))
+        self.request_render()
+
+    def _gizmo_moved(self, handle: np.ndarray) -> None:
+        """The user dragged the handle: write the light's direction or position."""
+        i = self._gizmo_light
+        if i is None or i >= len(self.model.lights):
+            return
+        light = self.model.lights[i]
+        centre = self._centre()
+        if light.kind == "point":
+            light.position = tuple(float(v) for v in handle)
+        else:
+            d = handle - centre
+            norm = float(np.linalg.norm(d))
+            if norm > 1e-9 * self._gizmo_radius:
+                light.direction = tuple(float(v) for v in d / norm)
+        self._gizmo.place(centre, handle, light.color, enabled=light.enabled)
+
+    def _on_model_changed(self, paths: frozenset[str]) -> None:
+        if any(p == "lights" or p.startswith("lights.") for p in paths):
+            self._update_gizmo()
+
+    # -- teardown -------------------------------------------------------------------------------
+    def close(self) -> bool:  # type: ignore[override]
+        """Stop timers, release GL resources with the context current, close the interactor.
+
+        Idempotent. Returns QWidget.close()'s answer."""
+        if self._closed:
+            return True
+        self._closed = True
+        self._render_timer.stop()
+        self._settle_timer.stop()
+        self.model.changed.disconnect(self._on_model_changed)
+        rw = self.render_window
+        if rw is not None:
+            rw.MakeCurrent()
+        self._gizmo.close()
+        if self.scene is not None:
+            self.scene.close()
+            self.scene = None
+        for obj, tag in self._vtk_tags:
+            obj.RemoveObserver(tag)
+        self._vtk_tags.clear()
+        self.plotter.close()
+        return super().close()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
