@@ -1,0 +1,348 @@
+"""Measurements of the precomputed shadow volume: recompute times, frame-time ratios, accuracy
+against the exact transmittance, memory.
+
+Functions return plain rows (lists of dicts) so the benchmark (``vtkvol bench``) can tabulate
+them; ``python -m vtkvol.bench.shadow_volume_timing`` prints every table as markdown.
+
+* :func:`recompute_times`: light-volume recompute after a light move and after a transfer-
+  function edit, GPU (compute shader) and numpy paths, per resolution.
+* :func:`frame_ratios`: frame time with shadows ÷ local shading only ÷ VTK's built-in volumetric
+  shadows (``SetVolumetricScatteringBlending(1)``, ``SetGlobalIlluminationReach(1)``), same
+  view, measured interleaved in the same run.
+* :func:`accuracy`: the CPU light volume (the same algorithm as the GPU path, which matches it
+  to 1e-6 in the tests) against :func:`vtkvol.reference.transmittance`, a dense ray march.
+
+Scenes are :func:`vtkvol.reference.phantom_sphere_over_slab` with 1 µm voxels (so voxels = µm),
+rendered from 8-bit data with the opacity transfer function α = value / 255; accuracy uses the
+float phantom directly.
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+import time
+from collections.abc import Iterable, Sequence
+from typing import Any
+
+import numpy as np
+
+from vtkvol.plugins.shadow_volume import LightGrid, ShadowVolume, light_volume_cpu
+
+Row = dict[str, Any]
+
+#: Light used for timing (world, towards the light).
+LIGHT = (0.35, 0.2, 1.0)
+#: Camera azimuth step between timed frames (degrees): the view changes, the lighting does not.
+AZIMUTH_STEP = 2.0
+
+
+def _tilted(deg: float) -> tuple[float, float, float]:
+    """Unit direction tilted ``deg`` degrees from +z towards +x."""
+    return (math.sin(math.radians(deg)), 0.0, math.cos(math.radians(deg)))
+
+
+def _scene(n: int, size: int, elevation: float = 30.0) -> tuple[Any, Any, Any]:
+    """The phantom as 8-bit data (like most microscopy data, so a TF edit takes the host's
+    lookup-table path) with the opacity TF α = value / 255."""
+    from vtkvol.engine.offscreen import simple_volume_scene
+    from vtkvol.reference import phantom_sphere_over_slab
+
+    data = np.round(phantom_sphere_over_slab(n) * 255.0).astype(np.uint8)
+    return simple_volume_scene(data, size=(size, size), elevation=elevation,
+                               opacity=[(0.0, 0.0), (255.0, 1.0)])
+
+
+def memory_per_light(data_dims: Sequence[int], resolution: str = "full") -> int:
+    """Bytes of light volume per light: 4 B (float32) per light-grid cell. With 2 lights the
+    RG32F texture holds 8 B/cell, with 3 or 4 lights RGBA32F 16 B/cell. Besides the light
+    volume the technique keeps the extinction grid (4 B/cell, shared by all lights) and two
+    slices of scratch per axis."""
+    return LightGrid.for_data(data_dims, (1.0, 1.0, 1.0), resolution).nbytes_per_light()
+
+
+def memory_total(data_dims: Sequence[int], resolution: str = "full", lights: int = 1) -> int:
+    """All GPU memory the technique holds for ``lights`` lights (bytes)."""
+    grid = LightGrid.for_data(data_dims, (1.0, 1.0, 1.0), resolution)
+    mx, my, mz = grid.dims
+    cells = mx * my * mz
+    channels = 1 if lights <= 1 else (2 if lights == 2 else 4)
+    scratch = 2 * 4 * (my * mz + mx * mz + mx * my)
+    return 4 * cells * channels + 4 * cells + scratch
+
+
+# ------------------------------------------------------------------------------------------------
+# Recompute times
+# ------------------------------------------------------------------------------------------------
+def recompute_times(
+    sizes: Sequence[int] = (128, 256),
+    *,
+    resolutions: Sequence[str] = ("full", "half", "quarter"),
+    models: Sequence[str] = ("transmittance",),
+    repeats: int = 5,
+    cpu_max_size: int = 128,
+) -> list[Row]:
+    """Light-volume recompute times (ms) per size, resolution, model and path.
+
+    ``light_ms``: median after a light move (propagation only); ``tf_ms``: median after a
+    transfer-function edit (the host's CPU opacity volume, upload, prefilter and propagation);
+    ``min`` columns are the fastest of the repeats (the least disturbed by other load). The
+    numpy path is measured up to ``cpu_max_size``.
+    """
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.model import Light
+
+    rows: list[Row] = []
+    for n in sizes:
+        rw, ren, volume = _scene(n, 32)
+        il = Illuminator(volume, ren, method="shadow_volume", lights=[Light(direction=LIGHT)])
+        otf = volume.GetProperty().GetScalarOpacity()
+        try:
+            backends = ["auto"] + (["cpu"] if n <= cpu_max_size else [])
+            for backend in backends:
+                for model in models:
+                    for res in resolutions:
+                        il.set_parameters(backend=backend, model=model, resolution=res)
+                        il.set_lights([Light(direction=LIGHT)])
+                        rw.Render()  # compile, allocate, first computation
+                        tech = il.technique
+                        assert isinstance(tech, ShadowVolume)
+                        reps = repeats if backend == "auto" else max(2, repeats // 2)
+                        light_ms = _light_moves(il, rw, tech, reps)
+                        tf_ms = []
+                        for i in range(max(2, reps // 2)):
+                            otf.AddPoint(128.0, 0.5 + 0.01 * (i % 2))  # a real TF edit
+                            count = tech.recompute_count
+                            rw.Render()
+                            if tech.recompute_count > count:
+                                tf_ms.append(tech.last_recompute_ms)
+                        grid = tech.grid
+                        assert grid is not None
+                        cells = grid.dims[0] * grid.dims[1] * grid.dims[2]
+                        med = statistics.median(light_ms)
+                        rows.append({
+                            "size": n, "model": model, "resolution": res,
+                            "backend": tech.last_backend,
+                            "grid": "×".join(str(d) for d in grid.dims),
+                            "light_ms": med, "light_min_ms": min(light_ms),
+                            "tf_ms": statistics.median(tf_ms) if tf_ms else math.nan,
+                            "tf_min_ms": min(tf_ms) if tf_ms else math.nan,
+                            "mcells_per_s": cells / min(light_ms) / 1e3,
+                            "light_volume_mib": grid.nbytes_per_light() / 2**20,
+                        })
+        finally:
+            il.release()
+            rw.Finalize()
+    return rows
+
+
+def _light_moves(il: Any, rw: Any, tech: ShadowVolume, repeats: int) -> list[float]:
+    from vtkvol.model import Light
+
+    out: list[float] = []
+    for i in range(repeats):
+        angle = math.radians(3.0 * (i + 1) * (-1) ** i)  # small moves about z
+        c, s = math.cos(angle), math.sin(angle)
+        x, y, z = LIGHT
+        il.set_lights([Light(direction=(c * x - s * y, s * x + c * y, z))])
+        count = tech.recompute_count
+        rw.Render()
+        if tech.recompute_count > count:
+            out.append(tech.last_recompute_ms)
+    return out
+
+
+def recompute_timings(size: int) -> list[Row]:
+    """Rows for the benchmark's large-volume table (``method``-less; the runner adds it)."""
+    rows = []
+    for r in recompute_times((size,), cpu_max_size=0 if size > 128 else 128):
+        rows.append({
+            "setting": f"{r['model']}/{r['resolution']} ({r['backend']})",
+            "recompute_ms": r["light_ms"],
+            "notes": (f"light move, grid {r['grid']}; fastest {r['light_min_ms']:.0f} ms; "
+                      f"TF edit {r['tf_ms']:.0f} ms incl. CPU opacity"),
+        })
+    return rows
+
+
+# ------------------------------------------------------------------------------------------------
+# Frame-time ratios
+# ------------------------------------------------------------------------------------------------
+def frame_ratios(
+    size: int = 128,
+    *,
+    image: int = 256,
+    frames: int = 6,
+    rounds: int = 3,
+    lights: int = 1,
+    parameters: dict[str, Any] | None = None,
+) -> list[Row]:
+    """Median frame times (ms) of local shading, the shadow volume and VTK's built-in
+    volumetric shadows at the same view, and their ratios.
+
+    Three windows hold the three configurations; their frames are timed interleaved, one frame
+    of each in turn (``rounds`` × ``frames`` frames each, 2° camera azimuth per frame,
+    ``glFinish`` inside the interval), so slow phases of a shared machine hit all three alike.
+    ``lights`` directional lights (the first is :data:`LIGHT`); VTK's built-in gets the same
+    ones as scene lights.
+    Wall-clock and process CPU time are both reported (``frame_ms``, ``frame_cpu_ms``).
+    """
+    import vtk
+
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.model import Light
+
+    dirs = [LIGHT, (-0.6, 0.3, 0.8), (0.2, -0.7, 0.7), (0.8, 0.5, 0.3)][:lights]
+    model_lights = [Light(direction=d, intensity=1.0 / lights) for d in dirs]
+    configs: dict[str, tuple[Any, Any, Any, Any]] = {}
+    for name in ("local", "shadow_volume", "vtk_volumetric"):
+        rw, ren, volume = _scene(size, image)
+        il = None
+        if name == "vtk_volumetric":
+            ren.AutomaticLightCreationOff()
+            ren.RemoveAllLights()
+            centre = np.array(volume.GetCenter())
+            for d in dirs:
+                u = np.asarray(d, float) / np.linalg.norm(d)
+                light = vtk.vtkLight()
+                light.SetLightTypeToSceneLight()
+                light.SetPositional(False)
+                light.SetFocalPoint(*centre)
+                light.SetPosition(*(centre + 10.0 * size * u))
+                light.SetIntensity(1.0 / lights)
+                ren.AddLight(light)
+            mapper = volume.GetMapper()
+            mapper.SetVolumetricScatteringBlending(1.0)
+            mapper.SetGlobalIlluminationReach(1.0)
+        else:
+            il = Illuminator(volume, ren, method=name, lights=model_lights,
+                             parameters=parameters if name == "shadow_volume" else None)
+        for _ in range(2):  # warm up: shader build, uploads, light volume
+            rw.Render()
+        configs[name] = (rw, ren, volume, il)
+    samples: dict[str, list[float]] = {name: [] for name in configs}
+    cpu: dict[str, list[float]] = {name: [] for name in configs}
+    recomputes = 0
+    try:
+        sv = configs["shadow_volume"][3].technique
+        before = sv.recompute_count
+        for _ in range(rounds * frames):
+            for name, (rw, ren, _volume, _il) in configs.items():
+                ren.GetActiveCamera().Azimuth(AZIMUTH_STEP)
+                c0, t0 = time.process_time(), time.perf_counter()
+                rw.Render()
+                rw.WaitForCompletion()
+                samples[name].append((time.perf_counter() - t0) * 1e3)
+                cpu[name].append((time.process_time() - c0) * 1e3)
+        recomputes = sv.recompute_count - before
+    finally:
+        for rw, _ren, _volume, il in configs.values():
+            if il is not None:
+                il.release()
+            rw.Finalize()
+    med = {name: statistics.median(v) for name, v in samples.items()}
+    med_cpu = {name: statistics.median(v) for name, v in cpu.items()}
+    rows = []
+    for name, v in samples.items():
+        q = statistics.quantiles(v, n=4) if len(v) > 1 else [v[0], v[0], v[0]]
+        rows.append({
+            "method": name, "size": size, "image": image, "lights": lights,
+            "frame_ms": med[name], "frame_iqr_ms": q[2] - q[0], "frame_min_ms": min(v),
+            "ratio_vs_local": med[name] / med["local"],
+            "ratio_vs_vtk": med[name] / med["vtk_volumetric"],
+            # llvmpipe renders on this process's threads: CPU time is the work done, less
+            # disturbed than wall time when other processes share the cores.
+            "frame_cpu_ms": med_cpu[name],
+            "cpu_ratio_vs_local": med_cpu[name] / med_cpu["local"],
+            "cpu_ratio_vs_vtk": med_cpu[name] / med_cpu["vtk_volumetric"],
+            "recomputes_during_timing": recomputes if name == "shadow_volume" else 0,
+        })
+    return rows
+
+
+# ------------------------------------------------------------------------------------------------
+# Accuracy
+# ------------------------------------------------------------------------------------------------
+def accuracy(
+    n: int = 64,
+    *,
+    degrees: Iterable[float] = (0.0, 22.5, 45.0),
+    models: Iterable[str] = ("transmittance", "seed000"),
+    softness: Iterable[float] = (0.0, 0.5),
+    resolutions: Iterable[str] = ("full",),
+) -> list[Row]:
+    """RMSE and max error of the light volume against the exact transmittance, per light
+    angle (tilted from +z towards +x; 45° puts the ray between cell centres, the case slice
+    propagation finds hardest), model, softness and resolution.
+
+    ``rmse``/``max_abs`` over all voxels; ``*_shaded`` only where α > 0.05 (where the renderer
+    applies shading). seed000 has a fixed blur; it is measured once per angle.
+    """
+    from vtkvol.engine.illuminator import LightSpec
+    from vtkvol.reference import (
+        DirectionalLight,
+        phantom_sphere_over_slab,
+        transmittance,
+        volume_metrics,
+    )
+
+    opacity = phantom_sphere_over_slab(n)
+    mask = opacity > 0.05
+    spacing = (1.0, 1.0, 1.0)
+    rows: list[Row] = []
+    for deg in degrees:
+        d = _tilted(deg)
+        ref = transmittance(opacity, spacing, DirectionalLight(d), step=0.25)
+        spec = LightSpec("directional", d, (1.0, 1.0, 1.0))
+        for model in models:
+            for soft in softness if model == "transmittance" else (1.0,):
+                for res in resolutions:
+                    t0 = time.perf_counter()
+                    vis = light_volume_cpu(opacity, spacing, spec, model=model, resolution=res,
+                                           softness=soft)
+                    ms = (time.perf_counter() - t0) * 1e3
+                    vis = LightGrid.for_data(opacity.shape[::-1], spacing, res).to_data(vis)
+                    m_all = volume_metrics(vis, ref)
+                    m_sh = volume_metrics(vis, ref, mask)
+                    rows.append({
+                        "n": n, "degrees": deg, "model": model, "softness": soft,
+                        "resolution": res, "rmse": m_all["rmse"], "max_abs": m_all["max_abs"],
+                        "bias": m_all["bias"], "rmse_shaded": m_sh["rmse"],
+                        "max_abs_shaded": m_sh["max_abs"], "cpu_ms": ms,
+                    })
+    return rows
+
+
+# ------------------------------------------------------------------------------------------------
+# Command line
+# ------------------------------------------------------------------------------------------------
+def _markdown(rows: Sequence[Row], columns: Sequence[str]) -> str:
+    def fmt(v: Any) -> str:
+        if isinstance(v, float):
+            return f"{v:.4f}" if abs(v) < 1 else f"{v:.1f}"
+        return str(v)
+
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(fmt(r.get(c, "")) for c in columns) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    print("## Accuracy (phantom_sphere_over_slab(64), CPU path)\n")
+    print(_markdown(accuracy(64), ["degrees", "model", "softness", "rmse", "max_abs",
+                                   "rmse_shaded", "max_abs_shaded", "bias"]))
+    print("\n## Recompute times (ms)\n")
+    print(_markdown(recompute_times(), ["size", "model", "resolution", "backend", "grid",
+                                        "light_ms", "light_min_ms", "tf_ms", "mcells_per_s",
+                                        "light_volume_mib"]))
+    print("\n## Frame times (128³, 256² image)\n")
+    for lights in (1, 4):
+        print(_markdown(frame_ratios(128, lights=lights),
+                        ["method", "lights", "frame_ms", "frame_iqr_ms", "ratio_vs_local",
+                         "ratio_vs_vtk", "frame_cpu_ms", "cpu_ratio_vs_local",
+                         "cpu_ratio_vs_vtk", "recomputes_during_timing"]))
+        print()
+
+
+if __name__ == "__main__":
+    main()
