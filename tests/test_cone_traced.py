@@ -1,5 +1,5 @@
-"""Cone-traced AO and soft shadows: filtered pyramid (CPU/GPU), pixels, recompute rules,
-stability and per-voxel accuracy against the Monte-Carlo references."""
+"""Cone-traced AO and soft shadows: filtered pyramid (CPU/GPU), baked AO (CPU/GPU), pixels,
+recompute rules, stability and per-voxel accuracy against the Monte-Carlo references."""
 
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ import numpy as np
 import pytest
 import vtk
 from scipy.ndimage import gaussian_filter
-from vtkvol.plugins import cone_traced as ct
 
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.engine.technique import available_techniques, get_technique
 from vtkvol.model import Light
+from vtkvol.model.params import Invalidates
+from vtkvol.plugins import cone_traced as ct
 from vtkvol.reference import (
     DirectionalLight,
     ambient_occlusion_mc,
@@ -39,17 +40,23 @@ def test_registered_with_documented_parameters():
     names = {p.name for p in cls.PARAMETERS}
     assert {"sigma", "span", "shadow_angle", "ao_mode", "ao_cones", "ao_angle", "h", "h0",
             "max_distance", "shadow_strength", "ao_strength", "shadows",
-            "opacity_threshold", "lod_width"} <= names
+            "opacity_threshold", "lod_width", "ao_resolution"} <= names
+    params = {p.name: p for p in cls.PARAMETERS}
+    assert params["ao_mode"].default == "baked_hemisphere"
+    assert params["ao_mode"].invalidates & Invalidates.SHADER
+    assert params["ao_resolution"].choices == ("full", "half")
+    assert params["ao_resolution"].invalidates & Invalidates.ILLUMINATION
     for p in cls.PARAMETERS:
         assert p.doc and p.label
         assert p.validate(p.default) == p.default
         if p.kind in ("float", "int"):
             assert p.range is not None and p.range[0] <= p.default <= p.range[1]
-    for mode in ("off", "view_cone", "hemisphere"):
+    for mode in ("off", "view_cone", "hemisphere", "baked_hemisphere"):
         for cones in ("1", "3", "6", "12"):
             defines = cls(None).shader_defines({**cls.defaults(), "ao_mode": mode,
                                                  "ao_cones": cones})
             assert defines["VV_CT_AO_CONES"] == cones
+        assert defines["VV_CT_AO"] == str(ct.AO_MODES.index(mode))
 
 
 @pytest.mark.parametrize("cones", [1, 3, 6, 12])
@@ -168,6 +175,64 @@ def test_cpu_trace_is_finite_and_bounded(case, angle):
 
 
 # ------------------------------------------------------------------------------------------------
+# Baked AO on the CPU: grid, gate, limits
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("resolution", ["full", "half"])
+def test_bake_gate_keeps_every_point_a_shaded_sample_interpolates(resolution):
+    # Brute force: for random off-grid positions with some opacity (trilinear α > 0), every grid
+    # point with a non-zero interpolation weight must pass the emptiness gate.
+    from scipy.ndimage import map_coordinates
+
+    rng = np.random.default_rng(1)
+    for _ in range(12):
+        shape = tuple(int(x) for x in rng.integers(3, 36, 3))
+        alpha = ((rng.random(shape) > 0.996) * rng.random(shape)).astype(np.float32)
+        alpha[tuple(s // 2 for s in shape)] = 0.3
+        src = ct.source_pyramid(alpha, ct.mip_level_count(shape))
+        dims = shape[::-1]
+        grid = ct.ao_grid_dims(dims, resolution)
+        gate = ct.ao_gate_open(src, ct.ao_grid_points(dims, grid), resolution)
+        gate = gate.reshape(grid[::-1])
+        step = np.array(ct.ao_grid_step(dims, grid))
+        x = rng.random((5000, 3)) * (np.array(dims) - 1)
+        x = x[map_coordinates(alpha, x[:, ::-1].T, order=1) > 0]
+        g = x / np.where(step > 0, step, 1.0)
+        g0 = np.floor(g).astype(int)
+        for corner in range(8):
+            off = np.array([(corner >> k) & 1 for k in range(3)])
+            w = np.prod(np.where(off, g - g0, 1 - (g - g0)), axis=1)
+            idx = np.minimum(g0 + off, np.array(grid) - 1)[w > 0]
+            assert gate[idx[:, 2], idx[:, 1], idx[:, 0]].all(), (shape, corner)
+    # ... and it closes away from the material: one voxel in 32³ opens a few grid points only.
+    alpha = np.zeros((32, 32, 32), np.float32)
+    alpha[16, 16, 16] = 0.5
+    src = ct.source_pyramid(alpha, ct.mip_level_count(alpha.shape))
+    grid = ct.ao_grid_dims(alpha.shape, resolution)
+    gate = ct.ao_gate_open(src, ct.ao_grid_points(alpha.shape, grid), resolution)
+    assert 0 < gate.sum() <= {"full": 64, "half": 64}[resolution]
+
+
+@pytest.mark.parametrize("case", ["tiny", "opaque", "thin", "anisotropic"])
+def test_baked_ao_cpu_is_finite_bounded_and_shaped(case):
+    if case == "tiny":
+        alpha, spacing = np.random.default_rng(0).random((3, 4, 5)).astype(np.float32), (1, 1, 1)
+    elif case == "opaque":
+        alpha, spacing = np.ones((12, 12, 12), np.float32), (1, 1, 1)
+    elif case == "thin":
+        alpha, spacing = phantom_slab(16, 1, "z", opacity=1.0), (1, 1, 1)
+    else:
+        alpha, spacing = phantom_sphere_over_slab(16), (0.5, 1.0, 3.0)
+    for resolution in ("full", "half"):
+        ao = ct.baked_ao_cpu(alpha, spacing, resolution=resolution, max_distance_um=8.0)
+        assert ao.shape == ct.ao_grid_dims(alpha.shape[::-1], resolution)[::-1]
+        assert ao.dtype == np.float32
+        assert np.isfinite(ao).all() and ao.min() >= 0 and ao.max() <= 1
+    if case == "opaque":
+        # Inside opaque material (no normal: the full sphere) every cone is ≥ 95 % occluded.
+        assert ct.baked_ao_cpu(alpha, spacing, max_distance_um=8.0)[4:8, 4:8, 4:8].min() > 0.9
+
+
+# ------------------------------------------------------------------------------------------------
 # Per-voxel accuracy against the Monte-Carlo references (loose bounds; numbers in the docs)
 # ------------------------------------------------------------------------------------------------
 def _surface_points(alpha, spacing, count, seed=0):
@@ -194,6 +259,27 @@ def test_ao_accuracy_against_monte_carlo():
     assert rmse["hollow", "hemisphere"] < 0.15
     # The hemisphere is closer to the reference than the thesis' single view cone.
     assert rmse["hollow", "hemisphere"] < rmse["hollow", "view_cone"]
+
+
+def test_baked_ao_accuracy_at_off_grid_samples():
+    # Where ray samples land (between voxel centres), baked AO is interpolated: it must stay
+    # about as close to the reference as the per-sample hemisphere (docs: within ~0.02).
+    from vtkvol.bench.cone_traced_timing import shaded_sample_points
+
+    spacing = (1.0, 1.0, 1.0)
+    for name, alpha in (("groove", phantom_groove(32)), ("hollow", phantom_hollow_sphere(32, 3))):
+        pts, nrm = shaded_sample_points(alpha, spacing, 300, 0.05, seed=0)
+        ref = ambient_occlusion_mc(alpha, spacing, max_distance=12.0, n_rays=128, points=pts,
+                                   normals=nrm, min_distance=3.0)
+        pyramid = ct.filtered_pyramid_cpu(alpha)
+        per_sample = ct.ambient_occlusion_cpu(pyramid, spacing, pts, nrm, (0, 0, 1),
+                                              max_distance_um=12.0)
+        baked = ct.baked_ao_cpu(alpha, spacing, max_distance_um=12.0, pyramid=pyramid)
+        at_samples = ct.sample_grid(baked, alpha.shape[::-1], pts)
+        rmse_sample = volume_metrics(per_sample, ref)["rmse"]
+        rmse_baked = volume_metrics(at_samples, ref)["rmse"]
+        assert rmse_baked < 0.12, name
+        assert rmse_baked < rmse_sample + 0.04, (name, rmse_baked, rmse_sample)
 
 
 def test_shadow_accuracy_against_monte_carlo_cone():
@@ -273,9 +359,10 @@ def _render_pair(scene: Scene, params: dict) -> tuple[np.ndarray, np.ndarray]:
 
 
 @pytest.mark.gl
-def test_ao_darkens_groove_more_than_flat_top(scene_factory):
+@pytest.mark.parametrize("mode", ["hemisphere", "baked_hemisphere"])
+def test_ao_darkens_groove_more_than_flat_top(scene_factory, mode):
     s = scene_factory(phantom_groove(40), elevation=60.0)
-    local, ao = _render_pair(s, {"shadows": False, "ao_mode": "hemisphere"})
+    local, ao = _render_pair(s, {"shadows": False, "ao_mode": mode})
     ratio = _ratio(ao, local)
     rows = slice(30, 60)
     groove_floor = np.nanmean(ratio[rows, 44:52])
@@ -287,13 +374,14 @@ def test_ao_darkens_groove_more_than_flat_top(scene_factory):
 
 
 @pytest.mark.gl
-def test_ao_darkens_inside_of_hollow_sphere_more_than_outer_face(scene_factory):
+@pytest.mark.parametrize("mode", ["hemisphere", "baked_hemisphere"])
+def test_ao_darkens_inside_of_hollow_sphere_more_than_outer_face(scene_factory, mode):
     # (The thesis' view-cone AO cannot pass this: its cone leaves through the opening.)
     shell = phantom_hollow_sphere(40, 3)
     cut = shell.copy()
     cut[:, :20, :] = 0.0  # open towards the camera (which looks along +y)
     centre = (slice(38, 58), slice(38, 58))
-    params = {"shadows": False, "ao_mode": "hemisphere"}
+    params = {"shadows": False, "ao_mode": mode}
     inside = _ratio(*reversed(_render_pair(scene_factory(cut), params)))[centre]
     outside = _ratio(*reversed(_render_pair(scene_factory(shell), params)))[centre]
     assert np.nanmean(outside) > 0.9
@@ -350,7 +438,34 @@ def test_cpu_backend_renders_like_gpu(scene_factory, monkeypatch):
     cpu.image()
     cpu_image = cpu.image()
     assert cpu.tech.backend == "cpu" and gpu.tech.backend == "gpu"
+    assert cpu.tech.bake_backend == "cpu" and gpu.tech.bake_backend == "gpu"  # baked AO
     assert np.abs(cpu_image - gpu_image).max() <= 2.0
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize(
+    "shape,spacing,resolution",
+    [((20, 33, 9), (0.5, 1.0, 2.0), "full"), ((20, 33, 9), (0.5, 1.0, 2.0), "half"),
+     ((24, 24, 24), (1.0, 1.0, 1.0), "half")],
+)
+def test_gpu_bake_matches_cpu(scene_factory, shape, spacing, resolution):
+    vol = np.ascontiguousarray(phantom_sphere_over_slab(36)[: shape[0], : shape[1], : shape[2]])
+    params = {"ao_mode": "baked_hemisphere", "ao_resolution": resolution, "ao_cones": "6",
+              "max_distance": 10.0, "sigma": 1.5}
+    s = scene_factory(vol, spacing=spacing, parameters=params)
+    s.image()
+    tech = s.tech
+    assert tech.bake_backend == "gpu" and tech.bake_count == 1 and tech.ao is not None
+    s.rw.MakeCurrent()
+    gpu = tech.ao.download()
+    cpu = ct.baked_ao_cpu(s.il.opacity_volume(), spacing, resolution=resolution, cones=6,
+                          max_distance_um=10.0 * min(spacing), sigma=1.5,
+                          unit_distance=s.il.unit_distance)
+    assert gpu.shape == cpu.shape == ct.ao_grid_dims(vol.shape[::-1], resolution)[::-1]
+    assert cpu.max() > 0.3, "something is occluded"
+    # float32 GPU vs float64 CPU: a point whose normal is borderline may differ a little.
+    diff = np.abs(gpu - cpu)
+    assert np.percentile(diff, 99.5) < 1e-4 and diff.max() < 0.02, diff.max()
 
 
 @pytest.mark.gl
@@ -378,10 +493,45 @@ def test_recompute_only_for_opacity_and_filter_changes(scene_factory):
 
 
 @pytest.mark.gl
+def test_bake_only_for_opacity_filter_and_ao_changes(scene_factory):
+    s = scene_factory(phantom_sphere_over_slab(24), parameters={"ao_mode": "baked_hemisphere"})
+    s.image()
+    s.image()
+    tech = s.tech
+    assert tech.bake_count == 1 and tech.recompute_count == 1 and tech.last_bake_ms > 0
+    s.il.set_lights([Light(direction=(1.0, 0.0, 0.2))])  # light move
+    s.ren.GetActiveCamera().Azimuth(30)  # camera move
+    s.ren.GetActiveCamera().Elevation(20)
+    s.il.set_parameters(shadow_angle=12.0, ao_strength=0.5, shadow_strength=0.7,
+                        opacity_threshold=0.1, ao_angle=20.0, shadows=False)
+    s.image()
+    s.image()
+    assert tech.bake_count == 1, "light, camera and per-frame parameters never re-bake"
+    s.volume.GetProperty().GetScalarOpacity().AddPoint(0.5, 0.2)  # TF edit
+    s.image()
+    assert tech.bake_count == 2 and tech.recompute_count == 2
+    s.il.set_parameters(sigma=2.0)  # filter change: new pyramid, new bake
+    s.image()
+    assert tech.bake_count == 3 and tech.recompute_count == 3
+    for change in ({"ao_resolution": "half"}, {"max_distance": 12.0}, {"ao_cones": "3"},
+                   {"h0": 2.5}):  # what the bake reads: re-bake, same pyramid
+        s.il.set_parameters(**change)
+        s.image()
+    assert tech.bake_count == 7 and tech.recompute_count == 3
+    assert tech.ao is not None and tech.ao.shape == (12, 12, 12)
+    s.il.set_parameters(ao_mode="hemisphere")  # per-sample: the baked volume is released
+    s.image()
+    assert tech.ao is None and tech.bake_count == 7
+    s.il.set_parameters(max_distance=16.0)  # a per-frame uniform in this mode
+    s.image()
+    assert tech.bake_count == 7 and tech.recompute_count == 3
+
+
+@pytest.mark.gl
 @pytest.mark.parametrize(
     "case",
     ["tiny", "opaque", "thin", "npot_anisotropic", "angle0", "angle90", "point_light",
-     "cones12", "cones1"],
+     "cones12", "cones1", "half_npot_anisotropic", "per_sample"],
 )
 def test_stability(scene_factory, case):
     vol = phantom_sphere_over_slab(24)
@@ -405,6 +555,12 @@ def test_stability(scene_factory, case):
         params = {"ao_cones": "12"}
     elif case == "cones1":
         params = {"ao_cones": "1"}
+    elif case == "half_npot_anisotropic":
+        vol = np.ascontiguousarray(phantom_sphere_over_slab(30)[:, 3:28, 1:18])
+        spacing = (0.4, 1.0, 2.5)
+        params = {"ao_resolution": "half"}
+    elif case == "per_sample":
+        params = {"ao_mode": "hemisphere"}
     s = scene_factory(vol, spacing=spacing, parameters=params, elevation=30.0)
     if case == "point_light":
         s.il.set_lights([Light(kind="point", position=(12.0, 12.0, 20.0))])

@@ -11,6 +11,8 @@
 //   vv_cone_traced_filtered  D_L = -ln(1 - F_L): optical depth per opacity unit distance of the
 //                            Gaussian-filtered mean opacity F_L of mip level L (border 0)
 //   vv_cone_traced_opacity   TF opacity per unit distance (level 0 = the host's opacity volume)
+//   vv_cone_traced_ao        baked AO (VV_CT_AO 3 only): occlusion 0..1 on the AO grid, which
+//                            spans the data's point bounds (cone_traced_bake_ao.comp.glsl)
 // Uniforms (custom, set by the host every frame):
 //   vec3  vv_cone_traced_dims           data dimensions (x, y, z) voxels
 //   float vv_cone_traced_maxLod         coarsest level
@@ -21,14 +23,17 @@
 //   float vv_cone_traced_shadowSin      sin(shadow cone half-angle)
 //   float vv_cone_traced_aoSin          sin(view-cone AO half-angle)
 //   float vv_cone_traced_maxDistanceUm  AO maximum distance, µm
+//   vec3  vv_cone_traced_aoDims         baked-AO grid points (x, y, z)
 //   float vv_cone_traced_shadow_strength, _ao_strength, _opacity_threshold
 // Compile-time variants (llvmpipe: a branch on a uniform costs as much as all its branches):
-//   VV_CT_SHADOWS 0|1, VV_CT_AO 0 off | 1 view cone | 2 hemisphere, VV_CT_AO_CONES,
+//   VV_CT_SHADOWS 0|1, VV_CT_AO 0 off | 1 view cone | 2 hemisphere | 3 baked hemisphere,
+//   VV_CT_AO_CONES,
 //   VV_CT_AO_DIRS (cone axes in the normal's frame), VV_CT_AO_SIN, VV_CT_MAX_STEPS, VV_CT_TAU_EXIT.
 //
 // Shading (host_lighting.glsl): ambient × A, diffuse and specular of light i × V_i, with
 //   V_i = 1 - shadow_strength * (1 - T_cone(light i)),   A = 1 - ao_strength * AO,
-// both 1 for samples whose TF opacity is at or below the threshold.
+// both 1 for samples whose TF opacity is at or below the threshold (baked AO: A applies to
+// every sample; it is one trilinear fetch, cheaper than the gate).
 
 //@inject //VTK::ComputeLighting::Dec pre before
 const vec3 vv_ct_aoDirs[VV_CT_AO_CONES] = VV_CT_AO_DIRS;
@@ -105,6 +110,10 @@ float vv_ambient_visibility(vec3 texPos, vec3 normalDS)
 {
 #if VV_CT_AO == 0
   return 1.0;
+#elif VV_CT_AO == 3
+  // Baked: the hemisphere about the opacity's outward normal, precomputed on the AO grid.
+  vec3 tc = vv_unitToGrid(vv_texToUnit(texPos), vv_cone_traced_aoDims);
+  return 1.0 - vv_cone_traced_ao_strength * textureLod(vv_cone_traced_ao, tc, 0.0).r;
 #else
   if (!vv_ct_active(texPos)) return 1.0;
   vec3 toEye = normalize(in_eyePosObjs[0].xyz - vv_texToDataset(texPos));

@@ -4,10 +4,13 @@ opacity-vs-intensity averaging question, precompute times and frame-time ratios.
 Functions return plain rows (lists of dicts) so the benchmark (``vtkvol bench``) can tabulate
 them; ``python -m vtkvol.bench.cone_traced_timing`` prints every table as markdown.
 
-Accuracy is per voxel: the CPU cone tracer (:func:`vtkvol.plugins.cone_traced.cone_trace_cpu`,
-the shader's algorithm evaluated at voxel centres) against independent Monte-Carlo references
-(:mod:`vtkvol.reference`) at the voxels the renderer shades (TF opacity above the threshold;
-for AO also a defined normal). Phantoms are 1 µm voxels, so voxels = µm.
+Accuracy is per point: the CPU cone tracer (:func:`vtkvol.plugins.cone_traced.cone_trace_cpu`,
+the shader's algorithm) against independent Monte-Carlo references (:mod:`vtkvol.reference`) at
+the points the renderer shades (TF opacity above the threshold; for AO also a defined normal):
+voxel centres, and for AO also random off-grid positions ("samples", where a ray sample lands),
+which is where baked AO (:func:`vtkvol.plugins.cone_traced.baked_ao_cpu`, the bake's algorithm,
+then one trilinear fetch: :func:`~vtkvol.plugins.cone_traced.sample_grid`) pays for its
+interpolation. Phantoms are 1 µm voxels, so voxels = µm.
 """
 
 from __future__ import annotations
@@ -23,11 +26,15 @@ import numpy as np
 from vtkvol.plugins.cone_traced import (
     ConeTraced,
     ambient_occlusion_cpu,
+    baked_ao_cpu,
     blur_level,
     cone_trace_cpu,
     filtered_pyramid_cpu,
     gaussian_weights,
+    gradient_normals,
     mip_level_count,
+    optical_depth,
+    sample_grid,
     source_pyramid,
     voxel_normals,
 )
@@ -49,6 +56,32 @@ def _select_points(mask: np.ndarray, n_points: int, seed: int) -> np.ndarray:
     if len(zyx) > n_points:
         zyx = zyx[np.random.default_rng(seed).choice(len(zyx), n_points, replace=False)]
     return zyx[:, ::-1].astype(np.float64)
+
+
+def shaded_sample_points(
+    alpha: np.ndarray, spacing: Sequence[float], n_points: int, threshold: float, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Up to ``n_points`` random off-grid positions (voxel coordinates x, y, z; seeded) where the
+    trilinear opacity exceeds ``threshold`` and its gradient is defined, with the outward normals
+    −∇α there (central differences of the trilinear α): where the ray caster's samples land."""
+    from scipy.ndimage import map_coordinates
+
+    rng = np.random.default_rng(seed)
+    hi = np.array(alpha.shape[::-1], dtype=np.float64) - 1.0
+    pts_out: list[np.ndarray] = []
+    nrm_out: list[np.ndarray] = []
+    found = 0
+    for _ in range(64):
+        cand = rng.random((20 * n_points, 3)) * hi
+        a = map_coordinates(alpha, cand[:, ::-1].T, order=1)
+        nrm, defined = gradient_normals(optical_depth(alpha), spacing, cand)  # −∇α
+        keep = np.nonzero((a > threshold) & defined)[0][: n_points - found]
+        pts_out.append(cand[keep])
+        nrm_out.append(nrm[keep])
+        found += keep.size
+        if found >= n_points:
+            break
+    return np.concatenate(pts_out), np.concatenate(nrm_out)
 
 
 def _at(volume: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -100,18 +133,24 @@ def ao_accuracy(
     max_distance: float = 16.0,
     settings: Sequence[tuple[str, int]] = (
         ("view_cone", 1), ("hemisphere", 1), ("hemisphere", 3), ("hemisphere", 6),
-        ("hemisphere", 12),
+        ("hemisphere", 12), ("baked_hemisphere", 6),
     ),
+    ao_resolutions: Sequence[str] = ("full", "half"),
+    where: Sequence[str] = ("voxels", "samples"),
     h0_values: Sequence[float] = (3.0,),
     lod_widths: Sequence[float] = (2.0, 4.0),
     threshold: float = 0.05,
     seed: int = 0,
 ) -> list[Row]:
-    """Per-voxel AO RMSE against :func:`vtkvol.reference.ambient_occlusion_mc` (cosine-weighted
+    """Per-point AO RMSE against :func:`vtkvol.reference.ambient_occlusion_mc` (cosine-weighted
     hemisphere about the same normals, same maximum distance, ``min_distance`` = 0 and = h0).
 
-    Scenes: V-groove, hollow sphere (3-voxel shell), sphere over slab; points: shaded voxels
-    with a defined normal. One row per (scene, AO setting, h0, LOD switch width, reference).
+    Scenes: V-groove, hollow sphere (3-voxel shell), sphere over slab. Points (``where``):
+    ``"voxels"``, shaded voxel centres with a defined normal (np.gradient); ``"samples"``,
+    random off-grid shaded positions (:func:`shaded_sample_points`). Per-sample modes trace their
+    cones at the point; ``baked_hemisphere`` bakes the grid once per ``ao_resolutions`` entry
+    (:func:`baked_ao_cpu`) and interpolates it at the point (the fragment shader's fetch).
+    One row per (scene, where, AO setting, resolution, h0, LOD switch width, reference).
     """
     from vtkvol.reference import (
         ambient_occlusion_mc,
@@ -128,34 +167,59 @@ def ao_accuracy(
     spacing = (1.0, 1.0, 1.0)
     rows: list[Row] = []
     for name, alpha in scenes.items():
-        normals = voxel_normals(alpha, spacing)
-        has_normal = np.linalg.norm(normals, axis=-1) > 0
-        pts = _select_points((alpha > threshold) & has_normal, n_points, seed)
-        nrm = normals[pts[:, 2].astype(int), pts[:, 1].astype(int), pts[:, 0].astype(int)]
-        refs = {
-            d_min: ambient_occlusion_mc(
-                alpha, spacing, max_distance=max_distance, n_rays=n_rays, seed=seed,
-                points=pts, normals=nrm, min_distance=d_min,
-            )
-            for d_min in {0.0, *h0_values}
-        }
         pyramid = filtered_pyramid_cpu(alpha)
-        for h0 in h0_values:
-            for lod_width in lod_widths:
-                for mode, cones in settings:
-                    occ = ambient_occlusion_cpu(
-                        pyramid, spacing, pts, nrm, VIEW_DIRECTION, mode=mode, cones=cones,
-                        max_distance_um=max_distance, h0=h0, lod_width=lod_width,
-                    )
-                    for d_min, ref in sorted(refs.items()):
-                        if d_min not in (0.0, h0):
-                            continue
-                        rows.append({
-                            "scene": name, "mode": mode, "cones": cones, "h0": h0,
-                            "lod_width": lod_width, "ref_min_distance": d_min,
-                            "points": len(pts), "mean_ref": float(np.mean(ref)),
-                            "mean": float(np.mean(occ)), **_metrics(occ, ref),
-                        })
+        baked: dict[tuple[float, float, str, int], np.ndarray] = {}
+        for place in where:
+            if place == "voxels":
+                normals = voxel_normals(alpha, spacing)
+                has_normal = np.linalg.norm(normals, axis=-1) > 0
+                pts = _select_points((alpha > threshold) & has_normal, n_points, seed)
+                idx = pts.astype(int)
+                nrm = normals[idx[:, 2], idx[:, 1], idx[:, 0]]
+            elif place == "samples":
+                pts, nrm = shaded_sample_points(alpha, spacing, n_points, threshold, seed)
+            else:
+                raise ValueError(f"unknown evaluation points {place!r}")
+            refs = {
+                d_min: ambient_occlusion_mc(
+                    alpha, spacing, max_distance=max_distance, n_rays=n_rays, seed=seed,
+                    points=pts, normals=nrm, min_distance=d_min,
+                )
+                for d_min in {0.0, *h0_values}
+            }
+            for h0 in h0_values:
+                for lod_width in lod_widths:
+                    for mode, cones in settings:
+                        variants: list[tuple[str, np.ndarray]] = []
+                        if mode == "baked_hemisphere":
+                            for res in ao_resolutions:
+                                key = (h0, lod_width, res, cones)
+                                if key not in baked:
+                                    baked[key] = baked_ao_cpu(
+                                        alpha, spacing, resolution=res, cones=cones,
+                                        max_distance_um=max_distance, h0=h0,
+                                        lod_width=lod_width, pyramid=pyramid,
+                                    )
+                                variants.append(
+                                    (res, sample_grid(baked[key], alpha.shape[::-1], pts))
+                                )
+                        else:
+                            variants.append(("", ambient_occlusion_cpu(
+                                pyramid, spacing, pts, nrm, VIEW_DIRECTION, mode=mode,
+                                cones=cones, max_distance_um=max_distance, h0=h0,
+                                lod_width=lod_width,
+                            )))
+                        for res, occ in variants:
+                            for d_min, ref in sorted(refs.items()):
+                                if d_min not in (0.0, h0):
+                                    continue
+                                rows.append({
+                                    "scene": name, "where": place, "mode": mode,
+                                    "cones": cones, "resolution": res, "h0": h0,
+                                    "lod_width": lod_width, "ref_min_distance": d_min,
+                                    "points": len(pts), "mean_ref": float(np.mean(ref)),
+                                    "mean": float(np.mean(occ)), **_metrics(occ, ref),
+                                })
     return rows
 
 
@@ -167,12 +231,14 @@ def shadow_accuracy(
     angles: Sequence[float] = (1.0, 2.5, 5.0, 10.0, 20.0, 45.0),
     h0: float = 3.0,
     lod_widths: Sequence[float] = (2.0, 4.0),
+    h_values: Sequence[float] = (2.5,),
     threshold: float = 0.05,
     seed: int = 0,
 ) -> list[Row]:
     """Per-voxel shadow (transmittance) RMSE on the sphere-over-slab phantom against the exact
     hard-shadow transmittance and the Monte-Carlo cone transmittance of the same half-angle,
-    both with ``min_distance`` = h0 (the cone's self-occlusion offset) and 0."""
+    both with ``min_distance`` = h0 (the cone's self-occlusion offset) and 0. One row per
+    (reference offset, angle, level-0 step h, LOD switch width, reference)."""
     from vtkvol.reference import (
         DirectionalLight,
         cone_transmittance_mc,
@@ -194,17 +260,19 @@ def shadow_accuracy(
                 alpha, spacing, light, half_angle_deg=angle, n_rays=n_rays, seed=seed,
                 points=pts, min_distance=d_min,
             )
-            for lod_width in lod_widths:
-                t = cone_trace_cpu(pyramid, spacing, pts, dirs, h0=h0, lod_width=lod_width,
-                                   sin_angle=math.sin(math.radians(angle)))
-                for ref_name, ref in (("cone_mc", soft), ("hard", hard)):
-                    rows.append({
-                        "scene": "sphere_over_slab", "angle": angle, "h0": h0,
-                        "lod_width": lod_width, "reference": ref_name,
-                        "ref_min_distance": d_min, "points": len(pts),
-                        "mean_ref": float(np.mean(ref)), "mean": float(np.mean(t)),
-                        **_metrics(t, ref),
-                    })
+            for h in h_values:
+                for lod_width in lod_widths:
+                    t = cone_trace_cpu(pyramid, spacing, pts, dirs, h0=h0, h=h,
+                                       lod_width=lod_width,
+                                       sin_angle=math.sin(math.radians(angle)))
+                    for ref_name, ref in (("cone_mc", soft), ("hard", hard)):
+                        rows.append({
+                            "scene": "sphere_over_slab", "angle": angle, "h0": h0, "h": h,
+                            "lod_width": lod_width, "reference": ref_name,
+                            "ref_min_distance": d_min, "points": len(pts),
+                            "mean_ref": float(np.mean(ref)), "mean": float(np.mean(t)),
+                            **_metrics(t, ref),
+                        })
     return rows
 
 
@@ -295,12 +363,19 @@ def _timing_volume(n: int) -> np.ndarray:
     return np.maximum(base, 0.6 * (blob > 0.75)).astype(np.float32)
 
 
-def precompute_times(sizes: Iterable[int] = (128, 256), repeats: int = 3) -> list[Row]:
-    """Filtered-pyramid precompute time per volume size (ms, median of ``repeats``).
+def precompute_times(
+    sizes: Iterable[int] = (128, 256), repeats: int = 3, *,
+    ao_resolutions: Sequence[str] = ("full", "half"), cpu_bake_max: int = 128,
+) -> list[Row]:
+    """Filtered-pyramid and AO-bake precompute times per volume size (ms, median of
+    ``repeats``).
 
     ``gpu_ms``: upload of the opacity volume + compute-shader pyramid (+ glFinish), the part
     that repeats on every TF edit; ``tf_edit_ms``: a whole TF edit as the app sees it (the
-    host's CPU opacity volume + the above); ``cpu_ms``: the numpy/scipy path.
+    host's CPU opacity volume + the above), without AO baking; ``cpu_ms``: the numpy/scipy
+    pyramid; ``bake_<res>_ms``: the GPU AO bake (baked_hemisphere, 6 cones, defaults) on the
+    ``res`` grid, which a TF edit adds in that mode; ``bake_<res>_cpu_ms``: :func:`baked_ao_cpu`
+    (sizes ≤ ``cpu_bake_max`` only, once).
     """
     import vtk
 
@@ -332,13 +407,33 @@ def precompute_times(sizes: Iterable[int] = (128, 256), repeats: int = 3) -> lis
                 t0 = time.perf_counter()
                 filtered_pyramid_cpu(opacity)
                 cpu.append((time.perf_counter() - t0) * 1e3)
-            rows.append({
+            row: Row = {
                 "size": n, "voxels": n**3, "backend": tech.backend,
                 "levels": tech.filtered.mip_levels if tech.filtered else 0,
                 "gpu_ms": statistics.median(gpu), "tf_edit_ms": statistics.median(edit),
                 "cpu_ms": statistics.median(cpu),
                 "mvox_per_s": n**3 / statistics.median(gpu) / 1e3,
-            })
+            }
+            values = il.parameters
+            for res in ao_resolutions:
+                il.set_parameters(ao_mode="baked_hemisphere", ao_resolution=res)
+                rw.Render()  # compiles the bake program on the first pass
+                bake = []
+                for _ in range(repeats):
+                    il.set_parameters(h0=3.25)  # a bake parameter: re-bake, keep the pyramid
+                    rw.Render()
+                    il.set_parameters(h0=3.0)
+                    rw.Render()
+                    bake.append(tech.last_bake_ms)
+                row[f"bake_{res}_ms"] = statistics.median(bake)
+                row["bake_backend"] = tech.bake_backend
+                if n <= cpu_bake_max:
+                    t0 = time.perf_counter()
+                    baked_ao_cpu(opacity, il.spacing, resolution=res, cones=6,
+                                 max_distance_um=values["max_distance"] * min(il.spacing),
+                                 unit_distance=il.unit_distance)
+                    row[f"bake_{res}_cpu_ms"] = (time.perf_counter() - t0) * 1e3
+            rows.append(row)
         finally:
             il.release()
             rw.Finalize()
@@ -360,9 +455,10 @@ def frame_ratios(
     ``size``³ volume at ``image``² pixels with one directional light; frames are rendered
     round-robin (one frame of each window per round, the camera orbiting 2° per round), so
     drifting machine load affects every configuration alike. The first two rounds (shader
-    build, precompute) are not timed. Default configs: shadows only, AO only (hemisphere
-    6 cones / view cone), shadows + AO, and shadows + AO with the opacity gate closed (the
-    cost of the shader code when no cone is traced).
+    build, precompute) are not timed. Default configs: shadows only, AO only (per-sample
+    hemisphere 6 cones, baked hemisphere at full and half resolution, view cone), shadows + AO
+    (the same four), and shadows + per-sample AO with the opacity gate closed (the cost of the
+    shader code when no cone is traced).
     """
     from vtkvol.engine.illuminator import Illuminator
     from vtkvol.engine.offscreen import simple_volume_scene
@@ -371,8 +467,14 @@ def frame_ratios(
     configs = dict(configs or {
         "shadows": {"shadows": True, "ao_mode": "off"},
         "ao_hemisphere6": {"shadows": False, "ao_mode": "hemisphere", "ao_cones": "6"},
+        "ao_baked6": {"shadows": False, "ao_mode": "baked_hemisphere", "ao_cones": "6"},
+        "ao_baked6_half": {"shadows": False, "ao_mode": "baked_hemisphere", "ao_cones": "6",
+                           "ao_resolution": "half"},
         "ao_view_cone": {"shadows": False, "ao_mode": "view_cone"},
         "shadows+ao6": {"shadows": True, "ao_mode": "hemisphere", "ao_cones": "6"},
+        "shadows+ao_baked6": {"shadows": True, "ao_mode": "baked_hemisphere", "ao_cones": "6"},
+        "shadows+ao_baked6_half": {"shadows": True, "ao_mode": "baked_hemisphere",
+                                   "ao_cones": "6", "ao_resolution": "half"},
         "shadows+ao_view": {"shadows": True, "ao_mode": "view_cone"},
         # Same shader as shadows+ao6 but no sample passes the gate: the cost of the code alone.
         "shadows+ao6, no cone traced": {"shadows": True, "ao_mode": "hemisphere",
@@ -433,16 +535,20 @@ def markdown(rows: Sequence[Row], columns: Sequence[str]) -> str:
 
 def main() -> None:
     print("## AO accuracy\n")
-    print(markdown(ao_accuracy(), ["scene", "mode", "cones", "lod_width", "ref_min_distance",
-                                   "rmse", "bias", "mean_ref", "mean"]))
+    print(markdown(ao_accuracy(), ["scene", "where", "mode", "cones", "resolution",
+                                   "lod_width", "ref_min_distance", "rmse", "bias", "mean_ref",
+                                   "mean"]))
     print("## Shadow accuracy\n")
-    print(markdown(shadow_accuracy(), ["angle", "lod_width", "reference", "ref_min_distance",
-                                       "rmse", "bias", "mean_ref", "mean"]))
+    print(markdown(shadow_accuracy(), ["angle", "h", "lod_width", "reference",
+                                       "ref_min_distance", "rmse", "bias", "mean_ref",
+                                       "mean"]))
     print("## Averaging\n")
     print(markdown(averaging_study(), ["average", "quantity", "rmse", "bias", "max_abs"]))
     print("## Precompute\n")
     print(markdown(precompute_times(), ["size", "backend", "levels", "gpu_ms", "tf_edit_ms",
-                                        "cpu_ms", "mvox_per_s"]))
+                                        "cpu_ms", "mvox_per_s", "bake_full_ms",
+                                        "bake_half_ms", "bake_full_cpu_ms",
+                                        "bake_half_cpu_ms"]))
     print("## Frame ratios\n")
     for size in (128, 256):
         print(markdown(frame_ratios(size), ["config", "size", "image", "ms", "ratio", "frames"]))
