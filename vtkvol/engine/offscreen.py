@@ -34,6 +34,7 @@ def grab(render_window: vtk.vtkRenderWindow, *, render: bool = True) -> np.ndarr
         render_window.Render()
     w2i = vtk.vtkWindowToImageFilter()
     w2i.SetInput(render_window)
+    w2i.ShouldRerenderOff()  # read the frame just rendered; do not render a second one
     w2i.SetInputBufferTypeToRGB()
     w2i.ReadFrontBufferOff()
     w2i.Update()
