@@ -1,0 +1,335 @@
+"""`vtkvol bench`: settings, references, report files, the runner on a tiny matrix, auto quality."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from vtkvol.bench import report, runner
+from vtkvol.bench.references import ReferenceSpec, reference_spec
+from vtkvol.bench.scenes import (
+    bench_scenes,
+    cell_phantom,
+    phantom_scenes,
+    stability_cases,
+    thin_occluder,
+)
+from vtkvol.engine.technique import installed_techniques
+
+DOCUMENTED = (Path(__file__).resolve().parents[1] / "docs" / "benchmark-fields.md")
+
+
+# ------------------------------------------------------------------------------------------
+# Pure parts (no GL)
+# ------------------------------------------------------------------------------------------
+def test_pareto_flags_mark_the_non_dominated_points():
+    pts = [(1.0, 5.0), (2.0, 3.0), (2.0, 4.0), (3.0, 3.0), (4.0, 1.0), (math.nan, 0.0)]
+    assert report.pareto_flags(pts) == [True, True, False, False, True, False]
+
+
+def test_settings_cover_every_installed_technique_with_valid_values():
+    techniques = installed_techniques()
+    for quick in (True, False):
+        for name, cls in techniques.items():
+            settings = runner.technique_settings(name, cls, quick=quick)
+            assert settings, name
+            labels = [s.label for s in settings]
+            assert len(set(labels)) == len(labels), f"{name}: duplicate labels {labels}"
+            declared = {p.name for p in cls.PARAMETERS}
+            for s in settings:
+                assert set(s.values) == declared
+    if "shadow_volume" in techniques:
+        sv = runner.technique_settings("shadow_volume", techniques["shadow_volume"], quick=True)
+        combos = {(s.values["model"], s.values["resolution"]) for s in sv}
+        assert combos == {(m, r) for m in ("transmittance", "seed000")
+                          for r in ("full", "half", "quarter")}
+    if "cone_traced" in techniques:
+        for quick, expected in ((True, {"1", "6", "12"}), (False, {"1", "3", "6", "12"})):
+            ct = runner.technique_settings("cone_traced", techniques["cone_traced"], quick=quick)
+            cones = {s.values["ao_cones"] for s in ct if s.values["ao_mode"] == "hemisphere"}
+            assert cones == expected
+
+
+def test_generic_settings_for_an_unknown_technique():
+    from vtkvol.engine.technique import Technique
+    from vtkvol.model.params import Param
+
+    class Fake(Technique):
+        NAME = "fake"
+        LABEL = "Fake"
+        SHADER = "local_shading.glsl"
+        PARAMETERS = (
+            Param("mode", "a", "Mode", "", kind="choice", choices=("a", "b", "c")),
+            Param("on", True, "On", "", kind="bool"),
+            Param("x", 1.0, "X", "", range=(0.0, 2.0)),
+        )
+
+    settings = runner.technique_settings("fake", Fake, quick=True)
+    assert [s.label for s in settings] == ["default", "mode=b", "mode=c", "on=False"]
+
+
+def test_reference_spec_follows_what_the_setting_models():
+    assert reference_spec("local", {}, (1, 1, 1)) == ReferenceSpec()
+    techniques = installed_techniques()
+    if "cone_traced" in techniques:
+        cls = techniques["cone_traced"]
+        values = {**cls.defaults(), "ao_mode": "hemisphere", "max_distance": 8.0, "h0": 2.0}
+        spec = reference_spec("cone_traced", values, (0.5, 0.5, 2.0), (8, 8, 8))
+        assert spec.ao_distance_um == pytest.approx(4.0)
+        assert spec.ao_offset_um == pytest.approx(1.0)
+        assert spec.cone_angle_deg == values["shadow_angle"]
+        assert spec.volume_has_offset  # the cone starts at h0: its CPU volume skips it
+        assert spec.light_min_distance((0, 0, 1)) == pytest.approx(4.0)  # 2 voxels of 2 µm
+        off = reference_spec("cone_traced", {**values, "ao_mode": "off"}, (1, 1, 1))
+        assert off.ao_distance_um is None
+    if "shadow_volume" in techniques:
+        cls = techniques["shadow_volume"]
+        values = {**cls.defaults(), "offset": 1.0, "resolution": "half"}
+        spec = reference_spec("shadow_volume", values, (1.0, 1.0, 1.0), (33, 33, 33))
+        assert not spec.volume_has_offset  # a lookup shift in the shader
+        assert spec.light_min_distance((1, 0, 0)) == pytest.approx(2.0)  # one 2-voxel cell
+        zero = reference_spec("shadow_volume", {**values, "offset": 0.0}, (1, 1, 1), (9, 9, 9))
+        assert zero.light_min_distance((0, 0, 1)) == 0.0
+    assert ReferenceSpec(5.0, 24.0).label == "T(cone 5°) + AO(24 µm)"
+    assert ReferenceSpec(0.0, None, 1.25).label == "T(offset 1.25 µm)"
+
+
+def test_scenes_are_deterministic_and_in_range():
+    a, spacing = cell_phantom(32)
+    b, _ = cell_phantom(32)
+    assert np.array_equal(a, b) and a.dtype == np.uint8 and spacing == (1.0, 1.0, 2.0)
+    for scene in phantom_scenes(24):
+        alpha = scene.opacity()
+        assert alpha.shape == scene.shape and alpha.dtype == np.float32
+        assert alpha.min() >= 0.0 and alpha.max() <= 1.0 and alpha.max() > 0.3
+    plate = thin_occluder(24, 1)
+    assert np.count_nonzero(plate[:, 0, 0] == 0.8) == 1
+    sweeps = {c.sweep for c in stability_cases(24)}
+    assert sweeps == {"light_angle", "thickness", "opacity_scale", "anisotropy", "resolution",
+                      "noise", "outliers"}
+
+
+def test_real_stacks_are_used_when_present_and_skipped_when_not(tmp_path):
+    names = {s.name for s in bench_scenes(24, quick=False, data_dir=tmp_path)}
+    assert names == {"sphere_over_slab", "hollow_sphere", "cells"}
+    shared = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+    if (shared / "platynereis_nuclei_labels_256x256x103.tif").is_file():
+        real = {s.name: s for s in bench_scenes(24, quick=True) if s.kind == "real"}
+        assert set(real) == {"platynereis"}
+        assert max(real["platynereis"].shape) <= 24
+
+
+def _fake_doc() -> dict:
+    rec = {f: None for f in report.RECORD_FIELDS}
+    rows = []
+    for method, ms, rmse in (("local", 100.0, 9.0), ("shadow_volume", 110.0, 2.0),
+                             ("vtk_scattering", 300.0, 5.0)):
+        rows.append({**rec, "scene": "s", "method": method, "setting": "default",
+                     "renderer": "llvmpipe (LLVM 15)", "mode": "quick", "frame_ms": ms,
+                     "recompute_ms": 0.0 if method != "shadow_volume" else 20.0, "rmse": rmse,
+                     "ssim": 0.9, "psnr": 30.0, "ok": True, "date": "2026-01-01T00:00:00",
+                     "size": "8x8x8", "spacing": [1, 1, 1]})
+    report.add_derived(rows)
+    run = {"mode": "quick", "renderer": "llvmpipe (LLVM 15)", "date": "2026-01-01T00:00:00",
+           "duration_s": 61.0, "gpu": False}
+    return report.merge(report.load(Path("/nonexistent")), run, rows, [])
+
+
+def test_derived_fields_ratios_and_pareto():
+    doc = _fake_doc()
+    by = {r["method"]: r for r in doc["records"]}
+    assert by["local"]["frame_ratio_vs_local"] == 1.0
+    assert by["shadow_volume"]["frame_ratio_vs_local"] == pytest.approx(1.1)
+    assert by["vtk_scattering"]["frame_ratio_vs_vtk"] == 1.0
+    assert by["local"]["pareto_frame"] and by["shadow_volume"]["pareto_frame"]
+    assert not by["vtk_scattering"]["pareto_frame"]  # slower and less accurate than shadows
+    assert by["vtk_scattering"]["pareto_recompute"] and by["shadow_volume"]["pareto_recompute"]
+
+
+def test_merge_keeps_other_renderers_and_modes():
+    doc = _fake_doc()
+    gpu_run = {"mode": "quick", "renderer": "NVIDIA H100", "date": "2026-01-02", "gpu": True}
+    gpu_rec = {**doc["records"][0], "renderer": "NVIDIA H100"}
+    doc2 = report.merge(doc, gpu_run, [gpu_rec], [])
+    assert len(doc2["runs"]) == 2 and len(doc2["records"]) == 4
+    again = report.merge(doc2, gpu_run, [gpu_rec], [])  # re-running replaces its own entries
+    assert len(again["records"]) == 4
+    assert {r["renderer"] for r in again["records"]} == {"llvmpipe (LLVM 15)", "NVIDIA H100"}
+
+
+def test_source_changes_that_can_affect_a_run_are_told_apart():
+    start = {"vtkvol/engine/offscreen.py": "a", "plugins/shadow_volume.py": "b",
+             "resources/shaders/shadow_volume.glsl": "c", "vtkvol/bench/x_timing.py": "d"}
+    end = {**{k: v + "!" for k, v in start.items()}, "plugins/new.py": "e"}
+    loaded = {"vtkvol.engine.offscreen", "vtkvol.plugins.shadow_volume"}
+    changed, affecting = runner.affecting_changes(start, end, loaded)
+    assert changed == sorted(end)
+    assert affecting == ["plugins/new.py", "resources/shaders/shadow_volume.glsl",
+                         "vtkvol/bench/x_timing.py"]
+    assert runner.affecting_changes(start, dict(start), loaded) == ([], [])
+
+
+def test_every_record_field_is_documented():
+    text = DOCUMENTED.read_text(encoding="utf-8")
+    for name in (*report.RECORD_FIELDS, *report.STABILITY_FIELDS):
+        assert f"`{name}`" in text, f"{name} missing from docs/benchmark-fields.md"
+
+
+def test_progress_bar_prints_counts():
+    buf = io.StringIO()
+    bar = runner.Progress(4, stream=buf)
+    for k in range(4):
+        bar.step(f"item {k}")
+        bar.advance()
+    bar.finish()
+    lines = buf.getvalue().splitlines()
+    assert lines[0].startswith("[") and "0/4" in lines[0] and "item 0" in lines[0]
+    assert "4/4" in lines[-1]
+
+
+# ------------------------------------------------------------------------------------------
+# Auto quality
+# ------------------------------------------------------------------------------------------
+def _soft_blob(n: int = 40) -> np.ndarray:
+    c = np.arange(n, dtype=np.float64)
+    z, y, x = np.meshgrid(c, c, c, indexing="ij")
+    r = np.sqrt((x - n / 2) ** 2 + (y - n / 2) ** 2 + (z - n / 2) ** 2)
+    return (0.25 * np.exp(-((r / (0.25 * n)) ** 2))).astype(np.float32)
+
+
+needs_shadow_volume = pytest.mark.skipif(
+    "shadow_volume" not in installed_techniques(), reason="shadow_volume not installed")
+
+
+@needs_shadow_volume
+def test_auto_picks_a_coarse_light_volume_for_a_smooth_scene():
+    from vtkvol.bench import choose
+
+    choice = choose(_soft_blob(), (1.0, 1.0, 1.0), [(0.35, -0.25, 0.866)], timings=None)
+    assert choice.method == "shadow_volume"
+    assert choice.parameters["resolution"] in ("quarter", "half")
+    assert choice.predicted_ssim >= 0.98
+    assert "picked shadow_volume" in choice.reason
+    assert choice.considered[0]["label"] == "local"  # cheaper candidate tried first, rejected
+    assert choice.considered[0]["predicted_ssim"] < 0.98
+
+
+@needs_shadow_volume
+def test_auto_picks_a_full_light_volume_for_thin_structures():
+    from vtkvol.bench import choose
+
+    plate = thin_occluder(40, 1)
+    light = [(0.17, 0.17, 0.97)]
+    strict = choose(plate, (1.0, 1.0, 1.0), light, timings=None)
+    assert strict.method == "shadow_volume" and strict.parameters["resolution"] == "full"
+    relaxed = choose(plate, (1.0, 1.0, 1.0), light, budget_ssim=0.9, timings=None)
+    coarse = choose(_soft_blob(), (1.0, 1.0, 1.0), light, budget_ssim=0.9, timings=None)
+    order = {"quarter": 0, "half": 1, "full": 2}
+    assert order[relaxed.parameters["resolution"]] > order[coarse.parameters["resolution"]]
+
+
+def test_auto_uses_measured_costs_for_the_order():
+    from vtkvol.bench.auto_quality import Candidate, measured_costs
+
+    recs = [
+        {"method": "local", "parameters": {}, "frame_ms": 100.0, "recompute_ms": 0.0,
+         "size": "10x10x10", "renderer": "r", "ok": True},
+        {"method": "shadow_volume", "parameters": {"resolution": "full"}, "frame_ms": 105.0,
+         "recompute_ms": 10.0, "size": "10x10x10", "renderer": "r", "ok": True},
+    ]
+    costs = measured_costs([Candidate("local"), Candidate("shadow_volume",
+                                                          {"resolution": "full"})], recs, 8000)
+    assert costs[Candidate("local")] == 100.0
+    assert costs[Candidate("shadow_volume", {"resolution": "full"})] == pytest.approx(185.0)
+
+
+# ------------------------------------------------------------------------------------------
+# GL: the reference renderer and the runner on a tiny configuration
+# ------------------------------------------------------------------------------------------
+@pytest.mark.gl
+def test_reference_renderer_with_unit_visibility_equals_local_shading():
+    """Same shader, V = A = 1 everywhere: the reference image must be local shading's."""
+    from vtkvol.bench.measure import Rig
+    from vtkvol.bench.reference_technique import NAME, ReferenceVolume, ReferenceVolumes, registered
+
+    scene = phantom_scenes(24)[0]
+    with registered():
+        rig = Rig(64)
+        try:
+            rig.load(scene)
+            rig.set_method("local", {})
+            local = rig.image()
+            ones = np.ones(scene.shape, np.float32)
+            ReferenceVolume.use(ReferenceVolumes((ones,), ones))
+            rig.set_method(NAME, {})
+            rig.image()
+            same = rig.image()
+            ReferenceVolume.use(ReferenceVolumes((np.zeros_like(ones),), None))
+            rig.image()
+            dark = rig.image()
+        finally:
+            rig.close()
+    assert local.max() > 50
+    assert np.abs(local.astype(int) - same.astype(int)).max() <= 1
+    assert dark.mean() < 0.6 * local.mean()  # no direct light: ambient only
+
+
+@pytest.mark.gl
+def test_runner_writes_json_csv_markdown_and_charts(tmp_path):
+    scene = phantom_scenes(20)[0]
+    cfg = replace(runner.QUICK, size=20, image_size=64, warmup=1, frames=2,
+                  recompute_repeats=1, stability_image_size=48)
+    methods = ["local", "vtk_scattering"] + [m for m in ("shadow_volume",)
+                                             if m in installed_techniques()]
+    cases = [c for c in stability_cases(20) if c.sweep in ("thickness",)][:2]
+    result = runner.run(cfg, tmp_path, scenes=[scene], cases=cases, methods=methods,
+                        progress=False)
+
+    doc = json.loads((tmp_path / "benchmarks.json").read_text())
+    assert doc["format"] == "vtkvol-bench" and len(doc["runs"]) == 1
+    run = doc["runs"][0]
+    for key in ("renderer", "vtk_version", "cpu", "date", "command", "duration_s"):
+        assert run[key], key
+    records = doc["records"]
+    assert len(records) == len(result["records"]) >= 3
+    for r in records:
+        for f in report.RECORD_FIELDS:
+            assert f in r, f
+        assert r["ok"], r["error"]
+        assert r["frame_ms"] > 0 and 0 < r["ssim"] <= 1 and r["rmse"] >= 0
+        assert isinstance(r["pareto_frame"], bool) and isinstance(r["pareto_recompute"], bool)
+        assert r["renderer"] == run["renderer"] and r["date"] == run["date"]
+    local = next(r for r in records if r["method"] == "local")
+    assert local["frame_ratio_vs_local"] == 1.0 and local["recompute_ms"] == 0.0
+    assert any(r["pareto_frame"] for r in records)
+    vtk_rec = next(r for r in records if r["method"] == "vtk_scattering")
+    assert vtk_rec["frame_ratio_vs_vtk"] == 1.0
+    if "shadow_volume" in methods:
+        sv = [r for r in records if r["method"] == "shadow_volume"]
+        assert {(r["parameters"]["model"], r["parameters"]["resolution"]) for r in sv} == {
+            (m, res) for m in ("transmittance", "seed000") for res in ("full", "half", "quarter")}
+        assert all(r["recompute_ms"] > 0 for r in sv)
+        assert all(r["vol_rmse"] is not None for r in sv)
+        full = next(r for r in sv if r["parameters"]["model"] == "transmittance"
+                    and r["parameters"]["resolution"] == "full")
+        assert full["ssim"] > local["ssim"]  # shadows beat no shadows against the reference
+    assert doc["stability"] and all("sweep" in c for c in doc["stability"])
+
+    rows = list(csv.DictReader((tmp_path / "benchmarks.csv").open()))
+    assert len(rows) == len(records) + len(doc["stability"])
+    assert set(report.RECORD_FIELDS) <= set(rows[0])
+    md = (tmp_path / "benchmarks.md").read_text()
+    assert "GENERATED by `vtkvol bench`" in md and "| local | default |" in md
+    assert "llvmpipe" in md.lower() or run["gpu"]
+    charts = report.chart_paths(run)
+    for rel in charts.values():
+        data = (tmp_path / rel).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
+        assert rel in md

@@ -1,0 +1,29 @@
+"""``vtkvol bench``: speed against accuracy for every illumination method.
+
+* :mod:`~vtkvol.bench.runner`: the command (scenes × methods × settings, stability sweeps);
+* :mod:`~vtkvol.bench.scenes`: phantoms, the real stacks of ``../shared/data``, sweep cases;
+* :mod:`~vtkvol.bench.references`: which CPU reference each setting is measured against;
+* :mod:`~vtkvol.bench.reference_technique`: the renderer of reference images (same shader,
+  reference volumes);
+* :mod:`~vtkvol.bench.measure`: offscreen rigs, timing, checks;
+* :mod:`~vtkvol.bench.report`: ``docs/benchmarks.json`` / ``.csv`` / ``.md`` and charts;
+* :mod:`~vtkvol.bench.auto_quality`: :func:`choose`, the cheapest method that meets an error
+  budget for a given scene.
+
+Importing this package loads neither VTK nor the GL code; the submodules that need them import
+them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+__all__ = ["Choice", "choose"]
+
+
+def __getattr__(name: str) -> Any:
+    if name in __all__:
+        from vtkvol.bench import auto_quality
+
+        return getattr(auto_quality, name)
+    raise AttributeError(f"module 'vtkvol.bench' has no attribute {name!r}")

@@ -1,0 +1,338 @@
+"""``auto`` quality: the cheapest illumination setting that meets an error budget for a scene.
+
+"Model no more than a scene needs." :func:`choose` takes the scene's opacity volume, voxel size
+and lights, walks a list of candidate settings from cheapest to most expensive and returns the
+first whose *predicted* image error meets the budget (default SSIM ≥ 0.98 against the
+reference), saying what it picked and why::
+
+    from vtkvol.bench import choose
+    choice = choose(illuminator.opacity_volume(), illuminator.spacing,
+                    [light.direction for light in lights])
+    illuminator.set_method(choice.method, choice.parameters)
+    print(choice.reason)
+
+Cost comes from the measured chart: for each candidate, the median over the benchmark's scenes
+(``docs/benchmarks.json``, this machine's renderer preferred) of frame time + recompute time,
+i.e. the time to the first correct frame after a light or transfer-function change, with the
+recompute part scaled by the scene's voxel count. Candidates are tried in order of cost; costs
+within about 15 % of each other count as equal and keep the listed order (cheapest first by
+construction), as do all candidates when there are no measurements (``cost_ms`` is then NaN).
+
+Predicted error comes from cheap CPU measurements on the scene itself, no GPU needed:
+
+1. the reference transmittance towards each light (:func:`vtkvol.reference.transmittance`;
+   skipping the candidate's near-field offset where its CPU volume skips it too);
+2. each candidate's own per-voxel light visibility, from its technique's CPU path
+   (``Technique.light_visibility_cpu``: the same algorithm, resolution and filtering as its
+   GPU path; 1 everywhere for techniques without shadows, such as local shading);
+3. a proxy rendering of both on the CPU: front-to-back emission–absorption compositing of
+   ``ka + kd · V · |n·l|`` (the host's shading formula, white albedo, ambient 0.3, diffuse 0.7,
+   normals from the opacity gradient) along each of the three axes, in both directions;
+4. predicted SSIM = the worst SSIM of the six candidate/reference proxy image pairs.
+
+Only the candidates up to the first that passes are evaluated, so a smooth scene that a
+quarter-resolution light volume serves costs one or two cheap CPU passes.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import statistics
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: Shading constants of the proxy rendering (the benchmark scenes' vtkVolumeProperty).
+AMBIENT = 0.3
+DIFFUSE = 0.7
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A setting ``choose`` may pick: technique ``method`` with parameter overrides."""
+
+    method: str
+    parameters: Mapping[str, Any] = field(default_factory=dict, hash=False)
+
+    @property
+    def label(self) -> str:
+        if not self.parameters:
+            return self.method
+        inner = ", ".join(f"{k}={v}" for k, v in self.parameters.items())
+        return f"{self.method} ({inner})"
+
+
+#: Default candidates, cheapest first: no shadows, then light volumes from coarse to fine,
+#: then cone-traced soft shadows. Techniques that are not installed are skipped.
+DEFAULT_CANDIDATES: tuple[Candidate, ...] = (
+    Candidate("local"),
+    Candidate("shadow_volume", {"model": "transmittance", "resolution": "quarter"}),
+    Candidate("shadow_volume", {"model": "transmittance", "resolution": "half"}),
+    Candidate("shadow_volume", {"model": "transmittance", "resolution": "full"}),
+    Candidate("cone_traced", {"ao_mode": "off"}),
+)
+
+
+@dataclass(frozen=True)
+class Choice:
+    """What :func:`choose` picked.
+
+    Attributes
+    ----------
+    method, parameters
+        Technique name and full parameter values (declared defaults + the candidate's).
+    predicted_ssim
+        Predicted SSIM of the chosen setting against the reference (proxy rendering, 0…1).
+    cost_ms
+        Measured cost (ms: frame + scaled recompute on the benchmark machine), NaN if unknown.
+    reason
+        One or two sentences saying what was picked and why.
+    considered
+        Every evaluated candidate: ``label``, ``predicted_ssim``, ``cost_ms``.
+    """
+
+    method: str
+    parameters: dict[str, Any]
+    predicted_ssim: float
+    cost_ms: float
+    reason: str
+    considered: tuple[dict[str, Any], ...] = ()
+
+
+class _CpuHost:
+    """The few host attributes the techniques' CPU light paths read, without any GL."""
+
+    def __init__(self, opacity: np.ndarray, spacing: Sequence[float], unit_distance: float):
+        from vtkvol.engine.offscreen import image_from_array
+
+        self.image = image_from_array(opacity, tuple(spacing))  # type: ignore[arg-type]
+        self.spacing = tuple(float(s) for s in spacing)
+        nz, ny, nx = opacity.shape
+        self.dims = (nx, ny, nz)
+        self.unit_distance = float(unit_distance)
+        self.render_window = None
+        self._opacity = opacity
+
+    def opacity_volume(self) -> np.ndarray:
+        return self._opacity
+
+
+def _light_direction(light: Any) -> tuple[float, float, float]:
+    """World direction towards a directional light from a ``Light`` model, a ``LightSpec`` or
+    an (x, y, z) tuple."""
+    if hasattr(light, "kind") and getattr(light, "kind", "directional") == "point":
+        raise ValueError("auto quality supports directional lights only")
+    vec = getattr(light, "direction", None) or getattr(light, "vector", None) or light
+    d = np.asarray(vec, dtype=np.float64)
+    if d.shape != (3,) or not np.isfinite(d).all() or np.linalg.norm(d) == 0:
+        raise ValueError(f"light direction {vec!r} must be three finite numbers, not all 0")
+    d = d / np.linalg.norm(d)
+    return (float(d[0]), float(d[1]), float(d[2]))
+
+
+def proxy_images(opacity: np.ndarray, visibility: Sequence[np.ndarray],
+                 lights: Sequence[Sequence[float]], spacing: Sequence[float],
+                 unit_distance: float) -> list[np.ndarray]:
+    """Six orthographic CPU renderings (±x, ±y, ±z views) of the host's shading with the given
+    per-light visibility volumes; float images in [0, 1].
+
+    Per voxel: colour ``AMBIENT + DIFFUSE · Σ_i V_i · |n·l_i|`` (white albedo, two-sided,
+    n·l := 1 where the opacity gradient vanishes), opacity corrected for the voxel's length
+    along the view axis (α' = 1 − (1 − α)^(s/u)), composited front to back.
+    """
+    alpha = np.clip(np.asarray(opacity, dtype=np.float64), 0.0, 1.0 - 1e-6)
+    gz, gy, gx = np.gradient(alpha)
+    g = np.stack([gx / spacing[0], gy / spacing[1], gz / spacing[2]], axis=-1)
+    glen = np.linalg.norm(g, axis=-1)
+    colour = np.full(alpha.shape, AMBIENT)
+    for vis, light in zip(visibility, lights, strict=True):
+        ndl = np.abs(g @ np.asarray(light, dtype=np.float64)) / np.where(glen > 1e-12, glen, 1)
+        ndl = np.where(glen > 1e-12, ndl, 1.0)
+        colour += DIFFUSE * np.asarray(vis, dtype=np.float64) * ndl
+    colour = np.clip(colour, 0.0, 1.0)
+    images = []
+    for axis, step in ((2, spacing[0]), (1, spacing[1]), (0, spacing[2])):
+        a = 1.0 - np.power(1.0 - alpha, step / unit_distance)
+        for flip in (False, True):
+            aa = np.flip(a, axis) if flip else a
+            cc = np.flip(colour, axis) if flip else colour
+            trans = np.cumprod(1.0 - aa, axis=axis)
+            before = np.concatenate([np.ones_like(np.take(trans, [0], axis)),
+                                     np.take(trans, range(trans.shape[axis] - 1), axis)],
+                                    axis=axis)
+            images.append(np.sum(cc * aa * before, axis=axis))
+    return images
+
+
+def _ssim(a: np.ndarray, b: np.ndarray) -> float:
+    from vtkvol.reference import image_metrics
+
+    if min(a.shape) < 3:
+        return 1.0 if np.allclose(a, b, atol=1e-3) else 0.0
+    return image_metrics(np.clip(a, 0, 1).astype(np.float64),
+                         np.clip(b, 0, 1).astype(np.float64))["ssim"]
+
+
+def default_timings() -> Path | None:
+    """``docs/benchmarks.json`` of a source checkout (editable install), if present."""
+    path = Path(__file__).resolve().parents[2] / "docs" / "benchmarks.json"
+    return path if path.is_file() else None
+
+
+def measured_costs(candidates: Sequence[Candidate], timings: Any, voxels: int,
+                   renderer: str | None = None,
+                   defaults: Mapping[str, Mapping[str, Any]] | None = None,
+                   ) -> dict[Candidate, float]:
+    """Cost (ms) per candidate from benchmark records: the median over matching records of
+    ``frame_ms + recompute_ms · voxels / record voxels``. A record matches when its method is
+    the candidate's and its parameters equal the candidate's, taking the technique's
+    ``defaults`` (per method) for the parameters the candidate leaves out. ``timings`` is a
+    path, a results document (``{"records": [...]}``) or a list of records; ``renderer``
+    prefers records of that renderer (else the most common one)."""
+    if timings is None:
+        return {}
+    if isinstance(timings, str | Path):
+        try:
+            timings = json.loads(Path(timings).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return {}
+    records = timings.get("records", []) if isinstance(timings, Mapping) else list(timings)
+    records = [r for r in records if r.get("ok") and r.get("frame_ms") is not None]
+    if not records:
+        return {}
+    renderers = [r.get("renderer") for r in records]
+    chosen = renderer if renderer in renderers else max(set(renderers), key=renderers.count)
+    records = [r for r in records if r.get("renderer") == chosen]
+    out: dict[Candidate, float] = {}
+    for cand in candidates:
+        wanted = {**(defaults or {}).get(cand.method, {}), **cand.parameters}
+        costs = []
+        for r in records:
+            params = r.get("parameters") or {}
+            if r["method"] != cand.method or any(params.get(k) != v for k, v in wanted.items()):
+                continue
+            nx, ny, nz = (int(v) for v in str(r.get("size", "1x1x1")).split("x"))
+            recompute = float(r.get("recompute_ms") or 0.0) * voxels / max(1, nx * ny * nz)
+            costs.append(float(r["frame_ms"]) + recompute)
+        if costs:
+            out[cand] = statistics.median(costs)
+    return out
+
+
+def choose(
+    scene_opacity: np.ndarray,
+    spacing: Sequence[float],
+    lights: Sequence[Any],
+    *,
+    budget_ssim: float = 0.98,
+    candidates: Sequence[Candidate] | None = None,
+    timings: Any = "default",
+    unit_distance: float | None = None,
+    renderer: str | None = None,
+) -> Choice:
+    """The cheapest candidate whose predicted SSIM against the reference is ≥ ``budget_ssim``.
+
+    Parameters
+    ----------
+    scene_opacity
+        Transfer-function opacity α ∈ [0, 1] per voxel, ``[z, y, x]`` (e.g.
+        ``Illuminator.opacity_volume()``).
+    spacing
+        Voxel edge (x, y, z) in µm.
+    lights
+        Directional lights: ``vtkvol.Light`` objects, ``LightSpec`` or (x, y, z) directions
+        towards the light (dataset space).
+    budget_ssim
+        Required predicted SSIM (0…1) of the image against the reference.
+    candidates
+        Settings to consider, cheapest first when no timings are available; default
+        :data:`DEFAULT_CANDIDATES` (those whose technique is installed).
+    timings
+        Benchmark results for the cost ranking: a path, a document or a list of records;
+        ``"default"`` uses ``docs/benchmarks.json`` of a source checkout; None keeps the order.
+    unit_distance
+        Opacity unit distance (µm); default the smallest voxel edge.
+    renderer
+        Prefer timings measured on this renderer string.
+    """
+    from vtkvol.bench.references import reference_spec
+    from vtkvol.engine.illuminator import LightSpec
+    from vtkvol.engine.technique import installed_techniques
+    from vtkvol.reference import DirectionalLight, transmittance
+
+    opacity = np.ascontiguousarray(np.clip(scene_opacity, 0.0, 1.0), dtype=np.float32)
+    if opacity.ndim != 3:
+        raise ValueError(f"scene_opacity must be a [z, y, x] volume, got shape {opacity.shape}")
+    if not 0.0 < budget_ssim <= 1.0:
+        raise ValueError(f"budget_ssim {budget_ssim} must be in (0, 1]")
+    spacing = tuple(float(s) for s in spacing)
+    u = float(min(spacing) if unit_distance is None else unit_distance)
+    directions = [_light_direction(light) for light in lights]
+    if not directions:
+        raise ValueError("choose needs at least one light")
+    installed = installed_techniques()
+    cands = [c for c in (candidates or DEFAULT_CANDIDATES) if c.method in installed]
+    if not cands:
+        raise ValueError("none of the candidate techniques is installed")
+    source = default_timings() if timings == "default" else timings
+    costs = measured_costs(cands, source, int(opacity.size), renderer,
+                           {c.method: installed[c.method].defaults() for c in cands})
+    if costs and len(costs) == len(cands):
+        # Costs within ~15 % of each other count as equal (frame times on a shared machine are
+        # that noisy): a stable sort on 15 %-wide log buckets keeps the listed order there.
+        cands.sort(key=lambda c: round(math.log(max(costs[c], 1e-3)) / math.log(1.15)))
+
+    references: dict[tuple[float, ...], list[np.ndarray]] = {}
+
+    def reference_images(skips: tuple[float, ...]) -> list[np.ndarray]:
+        """Proxy images of the reference transmittance skipping ``skips`` µm per light."""
+        if skips not in references:
+            vis = [transmittance(opacity, spacing, DirectionalLight(d), unit_distance=u,
+                                 step=0.5, min_distance=skip)
+                   for d, skip in zip(directions, skips, strict=True)]
+            references[skips] = proxy_images(opacity, vis, directions, spacing, u)
+        return references[skips]
+
+    host = _CpuHost(opacity, spacing, u)
+    considered: list[dict[str, Any]] = []
+    best: tuple[float, Candidate, dict[str, Any]] | None = None
+    for cand in cands:
+        cls = installed[cand.method]
+        values = {**cls.defaults(), **cand.parameters}
+        tech = cls(host)  # type: ignore[arg-type]
+        vis = []
+        for d in directions:
+            v = tech.light_visibility_cpu(opacity, spacing, LightSpec("directional", d,
+                                                                      (1.0, 1.0, 1.0)), values)
+            vis.append(np.ones_like(opacity) if v is None else np.clip(v, 0.0, 1.0))
+        images = proxy_images(opacity, vis, directions, spacing, u)
+        # The candidate's volume is compared with the reference of the same quantity: where
+        # its CPU volume already skips a near-field offset (cone tracing), so does the
+        # reference (a lookup shift in the shader, as in the shadow volume, is not in it).
+        spec = reference_spec(cand.method, values, spacing, opacity.shape)
+        skips = tuple(spec.light_min_distance(d) if spec.volume_has_offset else 0.0
+                      for d in directions)
+        ref_images = reference_images(skips)
+        ssim = min(_ssim(a, b) for a, b in zip(images, ref_images, strict=True))
+        cost = costs.get(cand, math.nan)
+        considered.append({"label": cand.label, "predicted_ssim": ssim, "cost_ms": cost})
+        if best is None or ssim > best[0]:
+            best = (ssim, cand, values)
+        if ssim >= budget_ssim:
+            cheaper = ", ".join(f"{c['label']} {c['predicted_ssim']:.3f}"
+                                for c in considered[:-1])
+            why = f"; cheaper candidates predicted {cheaper}" if cheaper else ""
+            cost_text = f", cost {cost:.0f} ms" if math.isfinite(cost) else ""
+            return Choice(cand.method, values, ssim, cost,
+                          f"picked {cand.label}: predicted SSIM {ssim:.3f} ≥ {budget_ssim:g}"
+                          f"{cost_text}{why}.", tuple(considered))
+    assert best is not None
+    ssim, cand, values = best
+    cost = costs.get(cand, math.nan)
+    return Choice(cand.method, values, ssim, cost,
+                  f"no candidate meets SSIM ≥ {budget_ssim:g}; picked the most accurate, "
+                  f"{cand.label} (predicted SSIM {ssim:.3f}).", tuple(considered))

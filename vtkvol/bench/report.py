@@ -1,0 +1,590 @@
+"""Benchmark output: ``benchmarks.json`` (the source of truth), CSV, Markdown and PNG charts.
+
+``benchmarks.json`` keeps the results of every (renderer, mode) pair ever run into the same
+folder: a new run replaces only the entries of its own renderer and mode, so llvmpipe and GPU
+results (and quick and full runs) stay side by side. ``benchmarks.csv``, ``benchmarks.md`` and
+the charts in ``benchmarks/`` are regenerated from the JSON on every run; never edit them by
+hand. The fields are documented in ``docs/benchmark-fields.md``.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+import os
+import re
+import tempfile
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+FORMAT = "vtkvol-bench"
+VERSION = 1
+
+#: Record fields, in CSV column order (``docs/benchmark-fields.md`` documents each).
+RECORD_FIELDS: tuple[str, ...] = (
+    "scene", "method", "setting", "renderer", "frame_ms", "recompute_ms",
+    "frame_ratio_vs_local", "rmse", "psnr", "ssim", "date",
+    "mode", "scene_kind", "size", "spacing", "image_size", "method_label", "short",
+    "parameters", "reference", "frame_iqr_ms", "frame_min_ms", "frame_max_ms", "n_frames",
+    "recompute_light_ms", "recompute_tf_ms", "frame_ratio_vs_vtk", "frame_cpu_ms",
+    "frame_cpu_ratio_vs_local", "max_abs",
+    "vol_rmse", "vol_max_abs", "vol_bias", "pareto_frame", "pareto_recompute", "ok", "error",
+)
+
+#: Stability fields, in CSV column order.
+STABILITY_FIELDS: tuple[str, ...] = (
+    "sweep", "value", "value_label", "unit", "scene", "method", "setting", "renderer",
+    "rmse", "psnr", "ssim", "max_abs", "vol_rmse", "vol_max_abs", "image_ok", "volumes_ok",
+    "shader_ok", "ok", "error", "reference", "mode", "date",
+)
+
+METHOD_COLORS = {
+    "local": "#444444",
+    "shadow_volume": "#1f77b4",
+    "cone_traced": "#d62728",
+    "vtk_scattering": "#2ca02c",
+}
+_EXTRA_COLORS = ("#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22", "#ff7f0e")
+
+
+def slug(text: str) -> str:
+    """A file-name-safe lower-case slug (``"llvmpipe (LLVM 15.0.6, 256 bits)"`` → ``llvmpipe``
+    for software renderers, the GPU's name otherwise)."""
+    low = text.lower()
+    if "llvmpipe" in low:
+        return "llvmpipe"
+    return re.sub(r"[^a-z0-9]+", "-", low).strip("-")[:40] or "unknown"
+
+
+def method_color(method: str) -> str:
+    if method in METHOD_COLORS:
+        return METHOD_COLORS[method]
+    return _EXTRA_COLORS[sum(map(ord, method)) % len(_EXTRA_COLORS)]
+
+
+# ------------------------------------------------------------------------------------------
+# Derived fields
+# ------------------------------------------------------------------------------------------
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and math.isfinite(value)
+
+
+def pareto_flags(points: Sequence[tuple[float, float]]) -> list[bool]:
+    """For (cost, error) points: True where no other point is at least as cheap *and* at least
+    as accurate with one of the two strictly better. Non-finite points are never on the front."""
+    flags = []
+    for i, (c, e) in enumerate(points):
+        if not (_finite(c) and _finite(e)):
+            flags.append(False)
+            continue
+        dominated = any(
+            j != i and _finite(c2) and _finite(e2) and c2 <= c and e2 <= e and (c2 < c or e2 < e)
+            for j, (c2, e2) in enumerate(points)
+        )
+        flags.append(not dominated)
+    return flags
+
+
+def add_derived(records: list[dict[str, Any]]) -> None:
+    """Fill ``frame_ratio_vs_local``, ``frame_ratio_vs_vtk``, ``pareto_frame`` and
+    ``pareto_recompute`` per (scene, renderer, mode) group, in place. The VTK ratio uses the
+    first ``vtk_scattering`` setting (the default one); the Pareto fronts use RMSE as error."""
+    groups: dict[tuple, list[dict[str, Any]]] = {}
+    for r in records:
+        groups.setdefault((r["scene"], r["renderer"], r["mode"]), []).append(r)
+    for group in groups.values():
+        ok = [r for r in group if r.get("ok")]
+        local = next((r["frame_ms"] for r in ok if r["method"] == "local"), None)
+        local_cpu = next((r.get("frame_cpu_ms") for r in ok if r["method"] == "local"), None)
+        vtk_ms = next((r["frame_ms"] for r in ok if r["method"] == "vtk_scattering"), None)
+        for r in group:
+            fm = r.get("frame_ms")
+            cm = r.get("frame_cpu_ms")
+            r["frame_ratio_vs_local"] = fm / local if _finite(fm) and local else None
+            r["frame_ratio_vs_vtk"] = fm / vtk_ms if _finite(fm) and vtk_ms else None
+            r["frame_cpu_ratio_vs_local"] = (cm / local_cpu if _finite(cm) and local_cpu
+                                             else None)
+        for key, flag in (("frame_ms", "pareto_frame"), ("recompute_ms", "pareto_recompute")):
+            pts = [(r.get(key) if r.get("ok") else math.nan, r.get("rmse")) for r in group]
+            pts = [(c if c is not None else math.nan, e if e is not None else math.nan)
+                   for c, e in pts]
+            for r, f in zip(group, pareto_flags(pts), strict=True):
+                r[flag] = f
+
+
+# ------------------------------------------------------------------------------------------
+# JSON
+# ------------------------------------------------------------------------------------------
+def _clean(value: Any) -> Any:
+    """JSON-safe: NaN/inf → None, numpy scalars → Python numbers, tuples → lists."""
+    if isinstance(value, Mapping):
+        return {str(k): _clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_clean(v) for v in value]
+    if hasattr(value, "item") and not isinstance(value, str | bytes):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, suffix=path.suffix)
+    with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
+        fh.write(text)
+    os.chmod(tmp, 0o644)  # mkstemp makes it private; these are shared documentation files
+    os.replace(tmp, path)
+
+
+def load(path: Path) -> dict[str, Any]:
+    """The results file, or an empty one when absent or not ours."""
+    try:
+        doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {"format": FORMAT, "version": VERSION, "runs": [], "records": [], "stability": []}
+    if doc.get("format") != FORMAT:
+        return {"format": FORMAT, "version": VERSION, "runs": [], "records": [], "stability": []}
+    for key in ("runs", "records", "stability"):
+        doc.setdefault(key, [])
+    return doc
+
+
+def merge(doc: dict[str, Any], run: Mapping[str, Any], records: Iterable[Mapping[str, Any]],
+          stability: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
+    """``doc`` with the entries of ``run``'s (renderer, mode) replaced by the new ones."""
+    key = (run["renderer"], run["mode"])
+
+    def other(entry: Mapping[str, Any]) -> bool:
+        return (entry.get("renderer"), entry.get("mode")) != key
+
+    return {
+        "format": FORMAT,
+        "version": VERSION,
+        "runs": [r for r in doc["runs"] if other(r)] + [_clean(dict(run))],
+        "records": [r for r in doc["records"] if other(r)] + [_clean(dict(r)) for r in records],
+        "stability": [s for s in doc["stability"] if other(s)]
+        + [_clean(dict(s)) for s in stability],
+    }
+
+
+# ------------------------------------------------------------------------------------------
+# CSV
+# ------------------------------------------------------------------------------------------
+def write_csv(path: Path, doc: Mapping[str, Any]) -> None:
+    """One row per record (``kind`` = matrix) and per stability case (``kind`` = stability);
+    the union of both field lists as columns, dicts as JSON text."""
+    columns = ["kind", *RECORD_FIELDS]
+    columns += [f for f in STABILITY_FIELDS if f not in columns]
+    rows = [{"kind": "matrix", **r} for r in doc["records"]]
+    rows += [{"kind": "stability", **s} for s in doc["stability"]]
+    import io
+
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, extrasaction="ignore", lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({k: json.dumps(v, ensure_ascii=False) if isinstance(v, dict | list)
+                         else ("" if v is None else v) for k, v in row.items()})
+    _atomic_write(path, buf.getvalue())
+
+
+# ------------------------------------------------------------------------------------------
+# Charts
+# ------------------------------------------------------------------------------------------
+def _pyplot() -> Any:
+    import matplotlib
+
+    matplotlib.use("Agg")  # no display: charts are files only
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def chart_paths(run: Mapping[str, Any]) -> dict[str, str]:
+    """Chart file names (relative to the output folder) of one run."""
+    base = f"benchmarks/{run['mode']}-{slug(run['renderer'])}"
+    return {"pareto": f"{base}-pareto.png", "stability": f"{base}-stability.png"}
+
+
+def _label_points(ax: Any, xs: Sequence[float], ys: Sequence[float], labels: Sequence[str],
+                  color: str) -> None:
+    """Every point gets its setting label; offsets alternate so neighbours overlap less."""
+    offsets = ((4, 3), (4, -8), (-4, 6), (-4, -9))
+    for k, (x, y, text) in enumerate(zip(xs, ys, labels, strict=True)):
+        dx, dy = offsets[k % len(offsets)]
+        ax.annotate(text, (x, y), xytext=(dx, dy), textcoords="offset points", fontsize=6,
+                    color=color, ha="left" if dx > 0 else "right")
+
+
+def pareto_chart(path: Path, run: Mapping[str, Any], records: Sequence[Mapping[str, Any]]) -> None:
+    """Error (RMSE against the reference image) against frame time and against recompute time,
+    one row per scene, every setting labelled, the Pareto front drawn and its points filled."""
+    plt = _pyplot()
+    from matplotlib.lines import Line2D
+
+    scenes = list(dict.fromkeys(r["scene"] for r in records))
+    methods = list(dict.fromkeys(r["method"] for r in records))
+    fig, axes = plt.subplots(len(scenes), 2, figsize=(14, 3.9 * max(1, len(scenes))),
+                             squeeze=False)
+    floor = 0.1  # recompute 0 (no precomputation) is drawn here so a log axis can show it
+    for row, scene in enumerate(scenes):
+        group = [r for r in records if r["scene"] == scene and r.get("ok")]
+        for col, (key, flag, title) in enumerate((
+            ("frame_ms", "pareto_frame", "frame time (ms, median)"),
+            ("recompute_ms", "pareto_recompute", "recompute time (ms, median)"),
+        )):
+            ax = axes[row][col]
+            for method in methods:
+                pts = [r for r in group if r["method"] == method and _finite(r.get(key))
+                       and _finite(r.get("rmse"))]
+                if not pts:
+                    continue
+                xs = [max(float(r[key]), floor) for r in pts]
+                ys = [float(r["rmse"]) for r in pts]
+                color = method_color(method)
+                for x, y, r in zip(xs, ys, pts, strict=True):
+                    on = bool(r.get(flag))
+                    ax.scatter([x], [y], s=36, zorder=3, color=color if on else "none",
+                               edgecolors=color)
+                _label_points(ax, xs, ys, [str(r.get("short") or r["setting"]) for r in pts],
+                              color)
+            front_pts = sorted((max(float(r[key]), floor), float(r["rmse"])) for r in group
+                               if r.get(flag) and _finite(r.get(key)) and _finite(r.get("rmse")))
+            if front_pts:
+                fx, fy = zip(*front_pts, strict=True)
+                ax.step(fx, fy, where="post", color="#999999", lw=1, ls="--", zorder=1)
+            ax.set_xscale("log")
+            errs = [float(r["rmse"]) for r in group if _finite(r.get("rmse")) and r["rmse"] > 0]
+            if errs and max(errs) / min(errs) > 8:  # spread the accurate cluster near 0
+                from matplotlib.ticker import FormatStrFormatter, LogLocator, NullFormatter
+
+                ax.set_yscale("log")
+                ax.yaxis.set_major_locator(LogLocator(subs=(1.0, 2.0, 5.0)))
+                ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+                ax.yaxis.set_minor_formatter(NullFormatter())
+            if key == "recompute_ms":
+                ax.axvline(floor, color="#cccccc", lw=0.8, zorder=0)
+                ax.annotate("no precomputation", (floor, 1.0), xycoords=("data", "axes fraction"),
+                            xytext=(3, -10), textcoords="offset points", fontsize=6,
+                            color="#777777")
+            ax.set_xlabel(title)
+            ax.set_ylabel("RMSE vs reference (8-bit levels)")
+            ax.set_title(f"{scene}", fontsize=10, loc="left")
+            ax.grid(True, which="both", alpha=0.25)
+    handles = [Line2D([], [], marker="o", ls="", color=method_color(m), label=m)
+               for m in methods]
+    handles += [
+        Line2D([], [], marker="o", ls="", color="#555555", label="on the Pareto front"),
+        Line2D([], [], marker="o", ls="", color="#555555", markerfacecolor="none",
+               label="dominated"),
+        Line2D([], [], ls="--", color="#999999", label="Pareto front"),
+    ]
+    height = 3.9 * max(1, len(scenes))
+    fig.suptitle(f"vtkvol bench ({run['mode']}): error against time on {run['renderer']}, "
+                 f"{run['date'][:10]}", fontsize=11, y=1.0 - 0.12 / height)
+    fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8,
+               bbox_to_anchor=(0.5, 1.0 - 0.42 / height), frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 1.0 - 0.75 / height))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+def stability_chart(path: Path, run: Mapping[str, Any],
+                    cases: Sequence[Mapping[str, Any]]) -> None:
+    """Error (RMSE against the reference) against each swept variable, one line per
+    method/setting; failed cases (shader or bounds) are marked with a red cross."""
+    plt = _pyplot()
+    sweeps = list(dict.fromkeys(c["sweep"] for c in cases))
+    cols = 3
+    rows = max(1, math.ceil(len(sweeps) / cols))
+    fig, axes = plt.subplots(rows, cols, figsize=(15, 3.8 * rows), squeeze=False)
+    for k, sweep in enumerate(sweeps):
+        ax = axes[k // cols][k % cols]
+        group = [c for c in cases if c["sweep"] == sweep]
+        unit = group[0].get("unit", "")
+        per_method: dict[str, int] = {}
+        for key in dict.fromkeys((c["method"], c["setting"]) for c in group):
+            pts = sorted((c for c in group if (c["method"], c["setting"]) == key),
+                         key=lambda c: c["value"])
+            xs = [c["value"] for c in pts]
+            ys = [c["rmse"] if _finite(c.get("rmse")) else math.nan for c in pts]
+            label = key[0] if key[1] in ("default", "") else f"{key[0]} {key[1]}"
+            k = per_method[key[0]] = per_method.get(key[0], -1) + 1  # settings of one method
+            ax.plot(xs, ys, marker="osD^v"[k % 5], ms=4, color=method_color(key[0]),
+                    label=label, alpha=0.9, ls=("-", "--", ":", "-.")[k % 4])
+            bad = [(x, y if _finite(y) else 0.0) for x, y, c in zip(xs, ys, pts, strict=True)
+                   if not c.get("ok")]
+            if bad:
+                ax.scatter(*zip(*bad, strict=True), marker="x", color="red", s=60, zorder=4)
+        values = [c["value"] for c in group]
+        positive = [v for v in values if v > 0]
+        if sweep == "opacity_scale" or (min(values) > 0 and max(values) / min(values) > 20):
+            ax.set_xscale("log")
+        elif positive and min(values) == 0 and max(positive) / min(positive) > 20:
+            ax.set_xscale("symlog", linthresh=min(positive))  # 0 and decades of small values
+        labels = {c["value"]: c["value_label"] for c in group}
+        ax.set_xticks(sorted(labels))
+        ax.set_xticklabels([labels[v] for v in sorted(labels)], fontsize=7, rotation=30)
+        ax.minorticks_off()
+        ax.set_xlabel(f"{sweep} ({unit})" if unit else sweep)
+        ax.set_ylabel("RMSE vs reference (8-bit)")
+        ax.grid(True, alpha=0.25)
+        ax.legend(fontsize=6)
+    for k in range(len(sweeps), rows * cols):
+        axes[k // cols][k % cols].axis("off")
+    fig.suptitle(f"vtkvol bench ({run['mode']}): stability sweeps on {run['renderer']}, "
+                 f"{run['date'][:10]}; red × = failed check", fontsize=11)
+    fig.tight_layout(rect=(0, 0, 1, 0.97))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
+# ------------------------------------------------------------------------------------------
+# Markdown
+# ------------------------------------------------------------------------------------------
+def _fmt(value: Any, digits: int = 1) -> str:
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "–"
+    if isinstance(value, bool):
+        return "yes" if value else ""
+    if isinstance(value, float):
+        return f"{value:.{digits}f}"
+    return str(value)
+
+
+def _duration(seconds: float | None) -> str:
+    if not _finite(seconds):
+        return "–"
+    m, s = divmod(round(seconds or 0), 60)
+    return f"{m} min {s:02d} s" if m else f"{s} s"
+
+
+def degradation_summary(cases: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Plain sentences: per sweep and method/setting, where the error is largest and how much
+    larger than at the sweep's easiest value (by RMSE against the reference)."""
+    lines = []
+    for sweep in dict.fromkeys(c["sweep"] for c in cases):
+        group = [c for c in cases if c["sweep"] == sweep]
+        parts = []
+        for key in dict.fromkeys((c["method"], c["setting"]) for c in group):
+            pts = [c for c in group if (c["method"], c["setting"]) == key
+                   and _finite(c.get("rmse"))]
+            if not pts:
+                continue
+            best = min(pts, key=lambda c: c["rmse"])
+            worst = max(pts, key=lambda c: c["rmse"])
+            name = key[0] if key[1] in ("default", "") else f"{key[0]} ({key[1]})"
+            failed = [c["value_label"] for c in group
+                      if (c["method"], c["setting"]) == key and not c.get("ok")]
+            text = (f"{name}: RMSE {best['rmse']:.1f} at {best['value_label']} → "
+                    f"{worst['rmse']:.1f} at {worst['value_label']} (SSIM "
+                    f"{best['ssim']:.3f} → {worst['ssim']:.3f})")
+            if failed:
+                text += f"; **failed checks at {', '.join(failed)}**"
+            parts.append(text)
+        if parts:
+            lines.append(f"- **{sweep}**: " + "; ".join(parts) + ".")
+    return lines
+
+
+def markdown(doc: Mapping[str, Any]) -> str:
+    """The whole ``benchmarks.md``, generated from the results document."""
+    out = [
+        "# vtkvol benchmarks: speed against accuracy",
+        "",
+        "<!-- GENERATED by `vtkvol bench` from docs/benchmarks.json. Do not edit by hand: "
+        "re-run the benchmark. -->",
+        "",
+        "Generated by `vtkvol bench` from [`benchmarks.json`](benchmarks.json) (fields: "
+        "[benchmark-fields.md](benchmark-fields.md); stability suite: "
+        "[stability.md](stability.md)). Every technique setting is rendered twice in the same "
+        "shader, once with its own illumination and once with an independent CPU reference "
+        "volume (`vtkvol.reference`), and the two images are compared (RMSE in 8-bit levels, "
+        "PSNR in dB, SSIM). Frame times are medians of timed frames after warm-up, each with a "
+        "2° camera orbit; ratios are measured side by side in the same run.",
+        "",
+    ]
+    runs = sorted(doc["runs"], key=lambda r: (r["mode"] != "full", r["renderer"]))
+    if not runs:
+        out.append("No results yet: run `vtkvol bench --quick`.")
+        return "\n".join(out) + "\n"
+    out += ["## Runs", "",
+            "| mode | renderer | GPU | VTK | CPU (cores) | date | scenes | image | frames "
+            "| duration (CPU time; load) | command |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in runs:
+        out.append(
+            f"| {r['mode']} | {r['renderer']} | {'yes' if r.get('gpu') else 'no'} | "
+            f"{r.get('vtk_version', '')} | {r.get('cpu', '')} ({r.get('cores', '')}) | "
+            f"{r['date'][:16].replace('T', ' ')} | {r.get('size', '')}³ | "
+            f"{r.get('image_size', '')}² | {r.get('warmup', '')}+{r.get('frames', '')} | "
+            f"{_duration(r.get('duration_s'))} ({_duration(r.get('cpu_seconds'))}; "
+            f"{_fmt(r.get('load_average_start'), 1)}–{_fmt(r.get('load_average_end'), 1)}) | "
+            f"`{r.get('command', '')}` |")
+    out.append("")
+    if not any(r.get("gpu") for r in runs):
+        out += ["No GPU machine was available for these runs: every number above and below is "
+                "from Mesa's llvmpipe software rasteriser on the CPU. Absolute times are far "
+                "slower than on a GPU and ratios may differ there; run `vtkvol bench` on a GPU "
+                "machine to add its results beside these (they are kept per renderer).", ""]
+    loads = [r for r in runs if r.get("load_seconds")]
+    if loads:
+        out += ["Load time of a generated 512×512×128×2-channel uint16 ImageJ TIFF "
+                "(`read_volume`, median of 3; goal ≤ 1 s): "
+                + "; ".join(f"{r['mode']} run {r['load_seconds']['median_s']:.2f} s "
+                            f"(runs {', '.join(f'{t:.2f}' for t in r['load_seconds']['runs_s'])} s)"
+                            for r in loads) + ".", ""]
+    for r in runs:
+        if r.get("notes"):
+            out += [f"Notes ({r['mode']}, {slug(r['renderer'])}): {r['notes']}", ""]
+    for run in runs:
+        records = [x for x in doc["records"]
+                   if x["renderer"] == run["renderer"] and x["mode"] == run["mode"]]
+        cases = [x for x in doc["stability"]
+                 if x["renderer"] == run["renderer"] and x["mode"] == run["mode"]]
+        charts = chart_paths(run)
+        out += [f"## {run['mode'].capitalize()} run on {run['renderer']}", "",
+                f"![error against time]({charts['pareto']})", ""]
+        out += _headline(records)
+        for scene in dict.fromkeys(x["scene"] for x in records):
+            rows = [x for x in records if x["scene"] == scene]
+            first = rows[0]
+            out += [f"### {scene} ({first.get('size', '')} voxels, spacing "
+                    f"{_spacing(first.get('spacing'))} µm)", ""]
+            out += ["| method | setting | reference | frame ms (IQR) | × local | × local "
+                    "(CPU) | × VTK | recompute ms (light / TF) | RMSE | PSNR | SSIM | voxel "
+                    "RMSE | Pareto (frame / recompute) |",
+                    "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+            for x in rows:
+                if not x.get("ok"):
+                    out.append(f"| {x['method']} | {x['setting']} | {x.get('reference', '')} "
+                               f"| **failed**: {x.get('error', '')} ||||||||||")
+                    continue
+                pareto = " / ".join(("★" if x.get(f) else "·")
+                                    for f in ("pareto_frame", "pareto_recompute"))
+                out.append(
+                    f"| {x['method']} | {x['setting']} | {x.get('reference', '')} | "
+                    f"{_fmt(x['frame_ms'], 0)} ({_fmt(x.get('frame_iqr_ms'), 0)}) | "
+                    f"{_fmt(x.get('frame_ratio_vs_local'), 2)} | "
+                    f"{_fmt(x.get('frame_cpu_ratio_vs_local'), 2)} | "
+                    f"{_fmt(x.get('frame_ratio_vs_vtk'), 2)} | "
+                    f"{_fmt(x.get('recompute_ms'), 0)} ({_fmt(x.get('recompute_light_ms'), 0)}"
+                    f" / {_fmt(x.get('recompute_tf_ms'), 0)}) | {_fmt(x.get('rmse'), 2)} | "
+                    f"{_fmt(x.get('psnr'), 1)} | {_fmt(x.get('ssim'), 4)} | "
+                    f"{_fmt(x.get('vol_rmse'), 4)} | {pareto} |")
+            out.append("")
+        if cases:
+            out += [f"### Stability ({run['mode']}, {slug(run['renderer'])})", "",
+                    f"![stability sweeps]({charts['stability']})", "",
+                    "Where each method degrades (RMSE against the reference at the easiest → "
+                    "hardest value of each sweep):", ""]
+            out += degradation_summary(cases)
+            out += ["", "| sweep | value | method | setting | RMSE | SSIM | voxel RMSE | "
+                    "checks |", "|---|---|---|---|---|---|---|---|"]
+            for c in cases:
+                checks = "ok" if c.get("ok") else f"**FAILED** {c.get('error', '')}"
+                out.append(f"| {c['sweep']} | {c['value_label']} | {c['method']} | "
+                           f"{c['setting']} | {_fmt(c.get('rmse'), 2)} | "
+                           f"{_fmt(c.get('ssim'), 4)} | {_fmt(c.get('vol_rmse'), 4)} | "
+                           f"{checks} |")
+            out.append("")
+        extra = run.get("recompute_large")
+        if extra:
+            out += [f"### Recompute at larger sizes ({run['mode']}, {slug(run['renderer'])})",
+                    "", "Measured by the techniques' own timing helpers "
+                    "(`vtkvol/bench/<technique>_timing.py`).", "",
+                    "| method | setting | size | recompute ms | notes |", "|---|---|---|---|---|"]
+            for e in extra:
+                out.append(f"| {e.get('method', '')} | {e.get('setting', '')} | "
+                           f"{e.get('size', '')} | {_fmt(e.get('recompute_ms'), 0)} | "
+                           f"{e.get('notes', '')} |")
+            out.append("")
+    return "\n".join(out) + "\n"
+
+
+def _spacing(spacing: Any) -> str:
+    if not isinstance(spacing, list | tuple):
+        return "–"
+    return " × ".join(f"{float(s):.3g}" for s in spacing)
+
+
+def _headline(records: Sequence[Mapping[str, Any]]) -> list[str]:
+    """Per method/setting across scenes: median frame ratio vs local and mean SSIM."""
+    ok = [r for r in records if r.get("ok")]
+    if not ok:
+        return []
+    import statistics
+
+    lines = ["Across all scenes (medians of the frame-time ratios to local shading, by wall "
+             "clock and by process CPU time, and to VTK's scattering; median recompute; mean "
+             "SSIM and RMSE against the reference):", "",
+             "| method | setting | × local | × local (CPU) | × VTK | recompute ms | mean SSIM | "
+             "mean RMSE | scenes |", "|---|---|---|---|---|---|---|---|---|"]
+    for key in dict.fromkeys((r["method"], r["setting"]) for r in ok):
+        rows = [r for r in ok if (r["method"], r["setting"]) == key]
+
+        def med(field: str, rows: list[Mapping[str, Any]] = rows) -> float | None:
+            vals = [r[field] for r in rows if _finite(r.get(field))]
+            return statistics.median(vals) if vals else None
+
+        def mean(field: str, rows: list[Mapping[str, Any]] = rows) -> float | None:
+            vals = [r[field] for r in rows if _finite(r.get(field))]
+            return statistics.fmean(vals) if vals else None
+
+        lines.append(f"| {key[0]} | {key[1]} | {_fmt(med('frame_ratio_vs_local'), 2)} | "
+                     f"{_fmt(med('frame_cpu_ratio_vs_local'), 2)} | "
+                     f"{_fmt(med('frame_ratio_vs_vtk'), 2)} | {_fmt(med('recompute_ms'), 0)} | "
+                     f"{_fmt(mean('ssim'), 4)} | {_fmt(mean('rmse'), 2)} | {len(rows)} |")
+    return [*lines, ""]
+
+
+def write_all(out_dir: Path, run: Mapping[str, Any], records: Sequence[Mapping[str, Any]],
+              stability: Sequence[Mapping[str, Any]]) -> dict[str, Path]:
+    """Merge into ``out_dir/benchmarks.json`` and regenerate CSV, Markdown and every chart.
+
+    Returns the paths written, by kind.
+    """
+    out_dir = Path(out_dir)
+    doc = merge(load(out_dir / "benchmarks.json"), run, records, stability)
+    _atomic_write(out_dir / "benchmarks.json", json.dumps(doc, indent=1, ensure_ascii=False)
+                  + "\n")
+    return regenerate(out_dir, doc)
+
+
+def regenerate(out_dir: Path, doc: Mapping[str, Any] | None = None) -> dict[str, Path]:
+    """Rewrite ``benchmarks.csv``, ``benchmarks.md`` and the charts from ``benchmarks.json``
+    (or ``doc``) without measuring anything (``python -m vtkvol.bench.report DIR``)."""
+    out_dir = Path(out_dir)
+    if doc is None:
+        doc = load(out_dir / "benchmarks.json")
+    paths = {"json": out_dir / "benchmarks.json", "csv": out_dir / "benchmarks.csv",
+             "md": out_dir / "benchmarks.md"}
+    write_csv(paths["csv"], doc)
+    for r in doc["runs"]:
+        recs = [x for x in doc["records"]
+                if x["renderer"] == r["renderer"] and x["mode"] == r["mode"]]
+        cases = [x for x in doc["stability"]
+                 if x["renderer"] == r["renderer"] and x["mode"] == r["mode"]]
+        charts = chart_paths(r)
+        if recs:
+            pareto_chart(out_dir / charts["pareto"], r, recs)
+            if r is doc["runs"][-1]:
+                paths["pareto"] = out_dir / charts["pareto"]
+        if cases:
+            stability_chart(out_dir / charts["stability"], r, cases)
+            if r is doc["runs"][-1]:
+                paths["stability"] = out_dir / charts["stability"]
+    _atomic_write(paths["md"], markdown(doc))
+    return paths
+
+
+if __name__ == "__main__":
+    import sys
+
+    for kind, path in regenerate(Path(sys.argv[1] if len(sys.argv) > 1 else "docs")).items():
+        print(f"{kind}: {path}")
