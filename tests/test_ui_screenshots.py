@@ -7,6 +7,7 @@ the dock images cost nothing. Deselect with ``-m "not screenshots"``.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,18 @@ from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 
-pytestmark = [pytest.mark.gui, pytest.mark.screenshots]
+pytestmark = [
+    pytest.mark.gui,
+    pytest.mark.screenshots,
+    # Opt-in: it rewrites the PNGs under docs/, and on this VTK 9.7 / PySide6 / Mesa stack the
+    # process can crash in garbage collection after the many-dock window closes (a native
+    # fault outside vtkvol's code), which must not take the whole suite down. Run it on its own:
+    #   VTKVOL_WRITE_SCREENSHOTS=1 python -m pytest tests/test_ui_screenshots.py
+    pytest.mark.skipif(
+        os.environ.get("VTKVOL_WRITE_SCREENSHOTS") != "1",
+        reason="writes docs/screenshots; set VTKVOL_WRITE_SCREENSHOTS=1 to run",
+    ),
+]
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "screenshots"
 
