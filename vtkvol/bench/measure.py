@@ -29,7 +29,7 @@ import vtk
 
 from vtkvol.bench.scenes import Scene
 from vtkvol.engine.illuminator import Illuminator
-from vtkvol.engine.offscreen import image_from_array, simple_volume_scene
+from vtkvol.engine.offscreen import front_view, grab, image_from_array, simple_volume_scene
 from vtkvol.model import Light
 
 #: Camera azimuth step between timed frames (degrees): the view changes, the lighting does not.
@@ -83,42 +83,6 @@ def _frame_ms(rw: vtk.vtkRenderWindow) -> tuple[float, float]:
     rw.Render()
     rw.WaitForCompletion()
     return (time.perf_counter() - t0) * 1e3, (time.process_time() - c0) * 1e3
-
-
-def _grab(rw: vtk.vtkRenderWindow) -> np.ndarray:
-    """Render one frame and read it back, ``(h, w, 3)`` uint8, top row first.
-
-    Unlike :func:`vtkvol.engine.offscreen.grab`, the read-back does not render the frame a
-    second time (``ShouldRerenderOff``): one frame per comparison image.
-    """
-    from vtk.util.numpy_support import vtk_to_numpy
-
-    rw.Render()
-    w2i = vtk.vtkWindowToImageFilter()
-    w2i.SetInput(rw)
-    w2i.ShouldRerenderOff()
-    w2i.SetInputBufferTypeToRGB()
-    w2i.ReadFrontBufferOff()
-    w2i.Update()
-    image = w2i.GetOutput()
-    w, h, _ = image.GetDimensions()
-    pixels = vtk_to_numpy(image.GetPointData().GetScalars()).reshape(h, w, -1)
-    return np.ascontiguousarray(pixels[::-1, :, :3])
-
-
-def _set_view(renderer: vtk.vtkRenderer, azimuth: float, elevation: float) -> None:
-    """The view of :func:`~vtkvol.engine.offscreen.simple_volume_scene`: looking along +y with
-    z up, orbited by ``azimuth``/``elevation`` degrees, zoomed to fit the volume."""
-    cam = renderer.GetActiveCamera()
-    renderer.ResetCamera()
-    fp = np.array(cam.GetFocalPoint())
-    dist = cam.GetDistance()
-    cam.SetPosition(*(fp + np.array([0.0, -dist, 0.0])))
-    cam.SetViewUp(0.0, 0.0, 1.0)
-    cam.Azimuth(azimuth)
-    cam.Elevation(elevation)
-    cam.OrthogonalizeViewUp()
-    renderer.ResetCamera()
 
 
 def _load_volume(volume: vtk.vtkVolume, scene: Scene) -> None:
@@ -187,7 +151,7 @@ class Rig:
 
     def reset_view(self) -> None:
         assert self.scene is not None
-        _set_view(self.renderer, self.scene.azimuth, self.scene.elevation)
+        front_view(self.renderer, self.scene.azimuth, self.scene.elevation)
 
     def set_method(self, method: str, values: Mapping[str, Any]) -> None:
         """Switch to technique ``method`` with exactly ``values`` (defaults + overrides)."""
@@ -197,7 +161,7 @@ class Rig:
     def image(self) -> np.ndarray:
         """The comparison image at the scene's view, ``(h, w, 3)`` uint8."""
         self.reset_view()
-        return _grab(self.rw)
+        return grab(self.rw)
 
     def time_frames(self, warmup: int, frames: int) -> FrameTiming:
         """Warm-up frames, then ``frames`` timed frames with a camera azimuth step each."""
@@ -328,7 +292,7 @@ class VtkScatteringRig:
 
     def reset_view(self) -> None:
         assert self.scene is not None
-        _set_view(self.renderer, self.scene.azimuth, self.scene.elevation)
+        front_view(self.renderer, self.scene.azimuth, self.scene.elevation)
 
     def set_setting(self, blending: float, reach: float) -> None:
         """``SetVolumetricScatteringBlending(blending)`` (0 gradient shading … 2 volumetric) and
@@ -339,7 +303,7 @@ class VtkScatteringRig:
 
     def image(self) -> np.ndarray:
         self.reset_view()
-        return _grab(self.rw)
+        return grab(self.rw)
 
     def time_frames(self, warmup: int, frames: int) -> FrameTiming:
         self.reset_view()

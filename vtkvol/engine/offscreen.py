@@ -108,8 +108,15 @@ def simple_volume_scene(
     volume.SetMapper(mapper)
     volume.SetProperty(prop)
     ren.AddVolume(volume)
-    cam = ren.GetActiveCamera()
-    ren.ResetCamera()
+    front_view(ren, azimuth, elevation)
+    return rw, ren, volume
+
+
+def front_view(renderer: vtk.vtkRenderer, azimuth: float = 0.0, elevation: float = 0.0) -> None:
+    """Look along +y with z up (x to the right), orbit by ``azimuth``/``elevation`` degrees and
+    zoom to fit everything in ``renderer``."""
+    cam = renderer.GetActiveCamera()
+    renderer.ResetCamera()
     fp = np.array(cam.GetFocalPoint())
     dist = cam.GetDistance()
     cam.SetPosition(*(fp + np.array([0.0, -dist, 0.0])))
@@ -117,5 +124,4 @@ def simple_volume_scene(
     cam.Azimuth(azimuth)
     cam.Elevation(elevation)
     cam.OrthogonalizeViewUp()
-    ren.ResetCamera()
-    return rw, ren, volume
+    renderer.ResetCamera()
