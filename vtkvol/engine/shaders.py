@@ -16,6 +16,7 @@ host and the technique is merged into one replacement string by :func:`compose`.
 
 from __future__ import annotations
 
+import functools
 import re
 from collections import defaultdict
 from dataclasses import dataclass
@@ -96,15 +97,22 @@ def parse(text: str, origin: str) -> list[Section]:
 
 def load(name: str, defines: dict[str, str] | None = None) -> list[Section]:
     """Parse ``resources/shaders/<name>``; ``defines`` become ``#define`` lines in every section
-    (compile-time variants: on llvmpipe, branches on uniforms cost as much as all branches)."""
+    (compile-time variants: on llvmpipe, branches on uniforms cost as much as all branches).
+
+    The host asks for its sections on every frame, so files are read and parsed once."""
+    return list(_load_cached(name, tuple(sorted((defines or {}).items()))))
+
+
+@functools.cache
+def _load_cached(name: str, defines: tuple[tuple[str, str], ...]) -> tuple[Section, ...]:
     sections = parse(read_resource(name), name)
     if defines:
-        prefix = "\n".join(f"#define {k} {v}" for k, v in defines.items())
+        prefix = "\n".join(f"#define {k} {v}" for k, v in defines)
         sections = [
             Section(s.tag, s.phase, s.where, f"{prefix}\n{s.code}", s.origin) if i == 0 else s
             for i, s in enumerate(sections)
         ]
-    return sections
+    return tuple(sections)
 
 
 def compose(sections: list[Section]) -> dict[tuple[str, Phase], str]:
