@@ -1,5 +1,6 @@
 """Illumination techniques shipped with vtkvol (``vtkvol.plugins``).
 
-One module per technique, each paired with ``resources/shaders/<name>.glsl`` and registered under
-the ``vtkvol.techniques`` entry point. See ``vtkvol.engine.technique`` for the shape they share.
+One package per technique: ``__init__`` holds its VTK-free declaration (``TECHNIQUE``, a
+:class:`vtkvol.model.techniques.TechniqueSpec`), ``technique.py`` its engine part and
+``shaders/`` its GLSL. Each is registered under the ``vtkvol.techniques`` entry point.
 """

@@ -12,10 +12,11 @@ from scipy.ndimage import gaussian_filter
 
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import grab, simple_volume_scene
-from vtkvol.engine.technique import available_techniques, get_technique
+from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
 from vtkvol.model.params import Invalidates
-from vtkvol.plugins import cone_traced as ct
+from vtkvol.model.techniques import get_spec
+from vtkvol.plugins.cone_traced import technique as ct
 from vtkvol.reference import (
     DirectionalLight,
     ambient_occlusion_mc,
@@ -34,8 +35,8 @@ SIZE = (96, 96)
 # Declaration
 # ------------------------------------------------------------------------------------------------
 def test_registered_with_documented_parameters():
-    assert available_techniques()["cone_traced"] == "vtkvol.plugins.cone_traced:ConeTraced"
-    cls = get_technique("cone_traced")
+    assert get_spec("cone_traced").engine == "vtkvol.plugins.cone_traced.technique:ConeTraced"
+    cls = technique_class("cone_traced")
     assert cls is ct.ConeTraced
     names = {p.name for p in cls.PARAMETERS}
     assert {"sigma", "span", "shadow_angle", "ao_mode", "ao_cones", "ao_angle", "h", "h0",

@@ -7,11 +7,11 @@ from typing import ClassVar
 import numpy as np
 import pytest
 
-import vtkvol.engine.technique as technique_module
 from vtkvol.engine import shaders
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.engine.technique import Technique
+from vtkvol.model.techniques import TechniqueSpec, register
 
 pytestmark = pytest.mark.gl
 
@@ -22,9 +22,12 @@ float vv_ambient_visibility(vec3 texPos, vec3 normalDS) { return 1.0; }
 """
 
 
+BROKEN = TechniqueSpec(name="broken", label="Broken on purpose",
+                       engine=f"{__name__}:BrokenTechnique")
+
+
 class BrokenTechnique(Technique):
-    NAME: ClassVar[str] = "broken"
-    LABEL: ClassVar[str] = "Broken on purpose"
+    SPEC = BROKEN
     SHADER: ClassVar[str] = "broken.glsl"
 
     def sections(self, values):
@@ -32,9 +35,9 @@ class BrokenTechnique(Technique):
 
 
 @pytest.fixture
-def broken_registered(monkeypatch):
-    table = {**technique_module._BUILTIN, "broken": f"{__name__}:BrokenTechnique"}
-    monkeypatch.setattr(technique_module, "_BUILTIN", table)
+def broken_registered():
+    with register(BROKEN):
+        yield
 
 
 def test_shader_compile_failure_falls_back_to_local_and_reports(broken_registered):

@@ -11,13 +11,13 @@ import hashlib
 import json
 import shutil
 import warnings
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 import pytest
 
-from vtkvol.engine import technique
 from vtkvol.io import read_volume
 from vtkvol.model import (
     Camera,
@@ -47,6 +47,7 @@ from vtkvol.model.session import (
     read_session,
     save_session,
 )
+from vtkvol.model.techniques import TechniqueSpec, register
 
 FIXTURES = Path(__file__).parent / "fixtures" / "sessions"
 HEADER = '{"format": "vtkvol-session", "version": 1, '
@@ -54,27 +55,24 @@ WINDOW = {"geometry": "AdnQywADAAAAAAB4", "state": "AAAA/wAAAAD9AAAA", "docks": 
 
 
 # -- a technique with declared parameters (the installed built-in "local" declares none) ------
-class FakeShadows(technique.Technique):
-    NAME: ClassVar[str] = "fake_shadows"
-    LABEL: ClassVar[str] = "Fake shadows"
-    SHADER: ClassVar[str] = "fake_shadows.glsl"
-    PARAMETERS = (
+FAKE_SHADOWS = TechniqueSpec(
+    name="fake_shadows",
+    label="Fake shadows",
+    engine="nowhere.fake_shadows:FakeShadows",  # sessions never import the engine part
+    parameters=(
         Param("density", 1.0, "Density", "Shadow density.", range=(0.0, 5.0), unit="voxel"),
         Param("steps", 16, "Steps", "March steps.", kind="int", range=(1, 64)),
         Param("soft", True, "Soft", "Soft shadows.", kind="bool"),
         Param("quality", "high", "Quality", "Preset.", kind="choice", choices=("low", "high")),
-    )
+    ),
+)
 
 
 @pytest.fixture(autouse=True)
-def fake_technique(monkeypatch: pytest.MonkeyPatch) -> None:
-    """Make "fake_shadows" an installed technique for every test."""
-    original = technique.get_technique
-
-    def get_technique(name: str) -> type[technique.Technique]:
-        return FakeShadows if name == FakeShadows.NAME else original(name)
-
-    monkeypatch.setattr(technique, "get_technique", get_technique)
+def fake_technique() -> Iterator[None]:
+    """Make "fake_shadows" a registered technique for every test."""
+    with register(FAKE_SHADOWS):
+        yield
 
 
 # -- helpers ----------------------------------------------------------------------------------
@@ -102,8 +100,9 @@ def rich_model() -> SceneModel:
             Channel(name="membrane", visible=False, color=(1.0, 0.2, 1.0), tf_linked_to=0),
         ],
         lights=[
-            Light(direction=(0.0, 0.0, 1.0), intensity=2.5, color=(1.0, 0.9, 0.8)),
-            Light(kind="point", position=(10.0, -5.0, 40.0), intensity=0.5, enabled=False),
+            Light(direction=(0.0, 0.0, 1.0), intensity=2.5, color=(1.0, 0.9, 0.8), size=0.5),
+            Light(kind="point", position=(10.0, -5.0, 40.0), intensity=0.5, enabled=False,
+                  size=2.0, falloff="inverse_square"),
         ],
         illumination=Illumination(
             method="fake_shadows",
@@ -428,7 +427,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 3; this version reads up to 1)"),
+         "(format version 99; this version reads up to 2)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -737,12 +736,28 @@ def test_migrate_v0_to_v1_matches_fixture() -> None:
     raw = load_fixture("v0_pre_release.vtkvol.json")
     untouched = copy.deepcopy(raw)
     assert detect_version(raw) == 0
-    assert migrate(raw) == load_fixture("v0_pre_release.migrated.vtkvol.json")
+    assert MIGRATIONS[0](raw) == load_fixture("v0_pre_release.migrated.vtkvol.json")
+    assert migrate(raw)["version"] == VERSION
     assert raw == untouched  # pure: the input is not modified
 
 
+def test_migrate_v1_to_v2_matches_fixture() -> None:
+    raw = load_fixture("v1_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = migrate(raw)
+    assert out == load_fixture("v1_complete.migrated.vtkvol.json")
+    assert [(x["size"], x["falloff"]) for x in out["scene"]["lights"]] == [(0.0, "none")] * 2
+    assert raw == untouched
+
+
+def test_v1_file_reads_without_warnings_as_ideal_lights() -> None:
+    session = read_session(FIXTURES / "v1_complete.vtkvol.json")
+    assert session.warnings == []
+    assert [(x.size, x.falloff) for x in session.model.lights] == [(0.0, "none")] * 2
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v1_complete.vtkvol.json")
+    doc = load_fixture("v2_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -772,8 +787,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v1 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v1_complete.vtkvol.json")
+    """The checked-in v2 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v2_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -793,5 +808,5 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 2; this version reads up to 1"):
-        migrate({"format": FORMAT, "version": 2})
+    with pytest.raises(ValueError, match="format version 3; this version reads up to 2"):
+        migrate({"format": FORMAT, "version": 3})

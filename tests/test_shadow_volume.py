@@ -14,9 +14,10 @@ from scipy import ndimage
 from vtkvol.engine.gl import gl
 from vtkvol.engine.illuminator import Illuminator, LightSpec
 from vtkvol.engine.offscreen import grab, simple_volume_scene
-from vtkvol.engine.technique import available_techniques, get_technique
+from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
-from vtkvol.plugins import shadow_volume as sv
+from vtkvol.model.techniques import get_spec
+from vtkvol.plugins.shadow_volume import technique as sv
 from vtkvol.reference import (
     DirectionalLight,
     phantom_slab,
@@ -65,8 +66,10 @@ def _light_volume(il: Illuminator) -> np.ndarray:
 # Declaration
 # ------------------------------------------------------------------------------------------------
 def test_registered_with_documented_parameters():
-    assert available_techniques()["shadow_volume"] == "vtkvol.plugins.shadow_volume:ShadowVolume"
-    cls = get_technique("shadow_volume")
+    assert get_spec("shadow_volume").engine == (
+        "vtkvol.plugins.shadow_volume.technique:ShadowVolume"
+    )
+    cls = technique_class("shadow_volume")
     assert cls is sv.ShadowVolume
     assert cls.NAME == "shadow_volume" and cls.SHADER == "shadow_volume.glsl"
     names = {p.name for p in cls.PARAMETERS}

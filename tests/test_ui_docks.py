@@ -323,19 +323,19 @@ def test_illumination_method_and_generated_parameters(window):
     dock = window.lights_dock
     choices = [dock.method.itemData(i) for i in range(dock.method.count())]
     assert "local" in choices
-    with_params = [n for n in choices if dock.techniques[n].PARAMETERS]
+    with_params = [n for n in choices if dock.techniques[n].parameters]
     if not with_params:
         pytest.skip("no installed technique declares parameters")
     name = with_params[0]
-    cls = dock.techniques[name]
+    spec = dock.techniques[name]
     dock.method.setCurrentIndex(dock.method.findData(name))
     assert window.model.illumination.method == name
-    assert dock.description.text() == cls.DESCRIPTION
-    for param in cls.PARAMETERS:
+    assert dock.description.text() == spec.description
+    for param in spec.parameters:
         widget = dock.param_widget(param.name)
         assert widget.objectName() == f"param_{param.name}"
         assert param.doc in widget.toolTip()
-    numeric = next(p for p in cls.PARAMETERS if p.kind == "float" and p.range is not None)
+    numeric = next(p for p in spec.parameters if p.kind == "float" and p.range is not None)
     widget = dock.param_widget(numeric.name)
     lo, hi = numeric.range
     target = lo + 0.5 * (hi - lo) if numeric.step is None else (
@@ -346,6 +346,24 @@ def test_illumination_method_and_generated_parameters(window):
     assert widget.value() == pytest.approx(lo)
     dock.method.setCurrentIndex(dock.method.findData("local"))
     assert window.model.illumination.method == "local"
+
+
+def test_parameters_without_effect_are_hidden(window):
+    """cone_traced's view-cone angle applies only in view_cone mode (applies_when)."""
+    dock = window.lights_dock
+    if "cone_traced" not in dock.techniques:
+        pytest.skip("cone_traced not installed")
+    window.model.illumination.method = "cone_traced"
+    try:
+        window.model.illumination.set_value("ao_mode", "baked_hemisphere")
+        angle = dock.param_widget("ao_angle")
+        resolution = dock.param_widget("ao_resolution")
+        assert angle.isHidden() and not resolution.isHidden()
+        window.model.illumination.set_value("ao_mode", "view_cone")
+        assert not angle.isHidden() and resolution.isHidden()
+    finally:
+        window.model.illumination.set_value("ao_mode", "baked_hemisphere")
+        window.model.illumination.method = "local"
 
 
 def test_light_gizmo_drag_moves_the_light(window, qtbot):

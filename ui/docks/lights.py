@@ -4,7 +4,7 @@
   direction as azimuth/elevation in degrees or position in µm, colour, intensity. The light
   selected here is the one the 3-D view's gizmo moves (``currentLightChanged``).
 * Illumination (``model.illumination``): the method chooser lists the installed techniques
-  (``vtkvol.engine.technique.installed_techniques``); each technique's parameters become
+  (``vtkvol.model.techniques.technique_specs``, no VTK); each technique's parameters become
   widgets generated from its ``PARAMETERS`` declaration, with the declared range, step,
   unit, scale and doc (as the tooltip). Nothing about a parameter is written here.
 
@@ -36,9 +36,9 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from vtkvol.engine.technique import Technique, installed_techniques
 from vtkvol.model.params import Param
 from vtkvol.model.scene import Light, SceneModel
+from vtkvol.model.techniques import TechniqueSpec, technique_specs
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
 MAX_LIGHTS = 4
@@ -194,9 +194,9 @@ class LightsDock(ModelDock):
     currentLightChanged = Signal(int)
 
     def __init__(self, model: SceneModel, parent: QWidget | None = None,
-                 techniques: dict[str, type[Technique]] | None = None) -> None:
+                 techniques: dict[str, TechniqueSpec] | None = None) -> None:
         super().__init__(model, parent)
-        self.techniques = techniques if techniques is not None else installed_techniques()
+        self.techniques = techniques if techniques is not None else technique_specs()
         self._current = 0
         self._param_setters: dict[str, Callable[[Any], None]] = {}
         self._param_widgets: dict[str, QWidget] = {}
@@ -280,9 +280,9 @@ class LightsDock(ModelDock):
         method_layout = QVBoxLayout(method_box)
         self.method = QComboBox()
         self.method.setObjectName("illum_method")
-        for name, cls in self.techniques.items():
-            self.method.addItem(cls.LABEL, name)
-            self.method.setItemData(self.method.count() - 1, cls.DESCRIPTION,
+        for name, spec in self.techniques.items():
+            self.method.addItem(spec.label, name)
+            self.method.setItemData(self.method.count() - 1, spec.description,
                                     Qt.ItemDataRole.ToolTipRole)
         method_layout.addWidget(self.method)
         self.description = hint_label("")
@@ -379,7 +379,7 @@ class LightsDock(ModelDock):
         self.model.lights = remaining
 
     # -- illumination ---------------------------------------------------------------------------
-    def technique(self) -> type[Technique] | None:
+    def technique(self) -> TechniqueSpec | None:
         return self.techniques.get(self.model.illumination.method)
 
     def _on_method(self, index: int) -> None:
@@ -396,12 +396,12 @@ class LightsDock(ModelDock):
         self.model.illumination.set_value(param.name, checked)
 
     def _on_defaults(self) -> None:
-        cls = self.technique()
-        if cls is None:
+        spec = self.technique()
+        if spec is None:
             return
         illumination = self.model.illumination
         parameters = {k: dict(v) for k, v in illumination.parameters.items()}
-        parameters[cls.NAME] = cls.defaults()
+        parameters[spec.name] = spec.defaults()
         illumination.parameters = parameters
 
     def param_widget(self, name: str) -> QWidget:
@@ -413,19 +413,19 @@ class LightsDock(ModelDock):
             self.param_form.removeRow(0)
         self._param_setters.clear()
         self._param_widgets.clear()
-        cls = self.technique()
+        spec = self.technique()
         self._shown_method = self.model.illumination.method
-        if cls is None:
+        if spec is None:
             self.description.setText(
                 f"“{self.model.illumination.method}” is not installed here; its settings are "
                 "kept in the session.")
             self.reset_params.setEnabled(False)
             return
-        self.description.setText(cls.DESCRIPTION)
-        self.reset_params.setEnabled(bool(cls.PARAMETERS))
-        if not cls.PARAMETERS:
+        self.description.setText(spec.description)
+        self.reset_params.setEnabled(bool(spec.parameters))
+        if not spec.parameters:
             self.param_form.addRow(hint_label("This method has no parameters."))
-        for param in cls.PARAMETERS:
+        for param in spec.parameters:
             widget, signal, setter = make_param_widget(param)
             widget.setObjectName(f"param_{param.name}")
             label = QLabel(param_label(param))
@@ -437,17 +437,21 @@ class LightsDock(ModelDock):
         self._show_params()
 
     def _show_params(self) -> None:
-        cls = self.technique()
-        if cls is None:
+        spec = self.technique()
+        if spec is None:
             return
-        values = {**cls.defaults(), **self.model.illumination.values_for()}
-        for name, setter in self._param_setters.items():
-            widget = self._param_widgets[name]
+        values = {**spec.defaults(), **self.model.illumination.values_for()}
+        for param in spec.parameters:
+            widget = self._param_widgets.get(param.name)
+            if widget is None:
+                continue
             widget.blockSignals(True)
             try:
-                setter(values[name])
+                self._param_setters[param.name](values[param.name])
             finally:
                 widget.blockSignals(False)
+            # A parameter without effect under the other values (applies_when) is hidden.
+            self.param_form.setRowVisible(widget, param.applies(values))
 
     # -- model → widgets ------------------------------------------------------------------------
     def _on_model_changed(self, paths: frozenset[str]) -> None:

@@ -20,16 +20,22 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtkvol.engine import technique as technique_registry
 from vtkvol.engine.technique import Technique
+from vtkvol.model.techniques import TechniqueSpec, register
 
 if TYPE_CHECKING:
     from vtkvol.engine.gl import Texture3D
     from vtkvol.engine.illuminator import Changes
 
 NAME = "bench_reference"
-_TARGET = "vtkvol.bench.reference_technique:ReferenceVolume"
 MAX_REFERENCE_LIGHTS = 4
+
+SPEC = TechniqueSpec(
+    name=NAME,
+    label="Reference (CPU volumes)",
+    engine="vtkvol.bench.reference_technique:ReferenceVolume",
+    description="Benchmark only: shading with numpy reference visibility.",
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -65,11 +71,12 @@ class ReferenceVolume(Technique):
     """Shades with :class:`ReferenceVolumes` set through :meth:`use` (class-wide: the bench
     renders one reference at a time)."""
 
-    NAME: ClassVar[str] = NAME
-    LABEL: ClassVar[str] = "Reference (CPU volumes)"
-    DESCRIPTION: ClassVar[str] = "Benchmark only: shading with numpy reference visibility."
-    PARAMETERS = ()
+    SPEC = SPEC
     SHADER: ClassVar[str] = "reference_volume.glsl"
+
+    @classmethod
+    def shader_package(cls) -> str:
+        return "vtkvol.resources"
 
     #: The volumes the next frame shades with (set by :meth:`use`).
     current: ClassVar[ReferenceVolumes | None] = None
@@ -121,26 +128,14 @@ class ReferenceVolume(Technique):
 
     def release(self) -> None:
         self._release_textures()
-        self.host.shader_property.GetFragmentCustomUniforms().RemoveUniform(
-            "vv_bench_reference_dims"
-        )
 
 
 @contextmanager
 def registered() -> Iterator[None]:
-    """Make ``bench_reference`` resolvable by ``get_technique`` for the duration of the block.
-
-    The technique registry reads its built-in table on every lookup, so adding the entry here
-    and removing it afterwards keeps the reference out of every user-facing method list.
-    """
-    table = technique_registry._BUILTIN
-    had = NAME in table
-    table[NAME] = _TARGET
-    try:
+    """Register ``bench_reference`` for the duration of the block (it is not an entry point, so
+    it never appears in a user-facing method list)."""
+    with register(SPEC):
         yield
-    finally:
-        if not had:
-            table.pop(NAME, None)
 
 
 def without_reference(names: Sequence[str]) -> list[str]:

@@ -159,7 +159,7 @@ def reference_spec(
         cell = sp
         if shape_zyx is not None and "resolution" in values:
             try:  # the light grid's cell size, from the technique itself
-                from vtkvol.plugins.shadow_volume import LightGrid
+                from vtkvol.plugins.shadow_volume.technique import LightGrid
 
                 grid = LightGrid.for_data(tuple(shape_zyx)[::-1], sp, values["resolution"])
                 cx, cy, cz = (float(c) for c in grid.cell_um)

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.plugins.shadow_volume import LightGrid, ShadowVolume, light_volume_cpu
+from vtkvol.plugins.shadow_volume.technique import LightGrid, ShadowVolume, light_volume_cpu
 
 Row = dict[str, Any]
 

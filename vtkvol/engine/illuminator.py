@@ -27,7 +27,7 @@ from vtk.util.numpy_support import vtk_to_numpy
 
 from vtkvol.engine import shaders
 from vtkvol.engine.gl import Texture2D
-from vtkvol.engine.technique import Technique, get_technique
+from vtkvol.engine.technique import Technique, technique_class
 from vtkvol.model.params import Invalidates, validate_values
 from vtkvol.model.scene import Light
 
@@ -103,7 +103,7 @@ class Illuminator:
         self._lights: list[Light] = [Light()] if lights is None else list(lights)
         self._check_lights(self._lights)
         self._values: dict[str, dict[str, Any]] = {}
-        self._technique_cls: type[Technique] = get_technique(method)
+        self._technique_cls: type[Technique] = technique_class(method)
         self._technique: Technique | None = None
         self._detach_requested = False
         self._changes = Changes(first=True, opacity=True, lights=True)
@@ -145,7 +145,7 @@ class Illuminator:
 
     def set_method(self, method: str, parameters: Mapping[str, Any] | None = None) -> None:
         """Switch technique; its resources are released at the next frame."""
-        cls = get_technique(method)
+        cls = technique_class(method)
         if cls is not self._technique_cls:
             self._detach_requested = True
             self._technique_cls = cls
@@ -377,7 +377,6 @@ class Illuminator:
         first_attach = self._technique is None
         if first_attach:
             self._technique = self._technique_cls(self)
-            self._technique.attach()
         self._upload_weights()
         changes, self._changes = self._changes, Changes()
         changes.first = changes.first or first_attach

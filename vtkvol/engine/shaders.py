@@ -1,6 +1,7 @@
 """GLSL files sectioned by the VTK template tag they touch, and their composition.
 
-A shader file in ``resources/shaders`` is plain GLSL with marker lines::
+A shader file is plain GLSL in the ``shaders/`` folder of a package: the host's in
+``vtkvol.resources``, each technique's in its plugin package. Fragment files carry marker lines::
 
     //@inject //VTK::ComputeLighting::Dec pre before
     float vv_light_visibility(int i, vec3 texPos, vec3 dirDS) { return 1.0; }
@@ -8,7 +9,9 @@ A shader file in ``resources/shaders`` is plain GLSL with marker lines::
 Marker fields: the tag; ``pre`` (applied before VTK's own substitutions, so the tag still
 exists) or ``post`` (after them; needed for tags VTK creates itself, such as
 ``//VTK::ComputeLighting::Exit``); and where the code goes: ``before`` or ``after`` the tag
-(the tag is kept) or ``replace``. ``//@include common/name.glsl`` inlines a helper file.
+(the tag is kept) or ``replace``. ``//@include name.glsl`` inlines a helper file from the same
+package's ``shaders/`` (or, failing that, the host's). Compute shaders use the same loader
+(:func:`compute_source`): includes, and defines inserted after ``#version``.
 
 VTK keeps one replacement per (tag, pre/post), so every snippet aimed at the same tag by the
 host and the technique is merged into one replacement string by :func:`compose`.
@@ -45,15 +48,25 @@ class ShaderFileError(ValueError):
     """A shader resource is missing or malformed."""
 
 
-def read_resource(name: str) -> str:
-    """Text of ``resources/shaders/<name>`` (``name`` may contain ``common/``)."""
-    path = resources.files("vtkvol.resources").joinpath("shaders", *name.split("/"))
-    if not path.is_file():
-        raise ShaderFileError(f"shader resource {name!r} not found in vtkvol.resources/shaders")
-    return path.read_text(encoding="utf-8")
+HOST_PACKAGE = "vtkvol.resources"
 
 
-def _expand_includes(text: str, origin: str, seen: tuple[str, ...] = ()) -> str:
+def read_resource(name: str, package: str = HOST_PACKAGE) -> str:
+    """Text of ``<package>/shaders/<name>``; for a technique's package, a name it does not
+    have is looked up among the host's shaders (shared helpers)."""
+    for pkg in dict.fromkeys((package, HOST_PACKAGE)):
+        try:
+            path = resources.files(pkg).joinpath("shaders", *name.split("/"))
+        except ModuleNotFoundError:
+            continue
+        if path.is_file():
+            return path.read_text(encoding="utf-8")
+    raise ShaderFileError(f"shader {name!r} not found in {package}/shaders")
+
+
+def _expand_includes(
+    text: str, origin: str, package: str = HOST_PACKAGE, seen: tuple[str, ...] = ()
+) -> str:
     out = []
     for line in text.splitlines():
         m = _INCLUDE.match(line)
@@ -62,13 +75,27 @@ def _expand_includes(text: str, origin: str, seen: tuple[str, ...] = ()) -> str:
             if name in seen:
                 raise ShaderFileError(f"{origin}: include cycle through {name}")
             out.append(f"// ---- vtkvol include {name}")
-            out.append(_expand_includes(read_resource(name), name, (*seen, name)))
+            out.append(
+                _expand_includes(read_resource(name, package), name, package, (*seen, name))
+            )
         else:
             out.append(line)
     return "\n".join(out)
 
 
-def parse(text: str, origin: str) -> list[Section]:
+def compute_source(
+    name: str, defines: dict[str, str] | None = None, package: str = HOST_PACKAGE
+) -> str:
+    """A compute shader's full source: includes expanded and ``defines`` as ``#define`` lines
+    right after the ``#version`` line (which GLSL requires to come first)."""
+    text = _expand_includes(read_resource(name, package), name, package)
+    lines = text.splitlines()
+    at = next((i + 1 for i, line in enumerate(lines) if line.startswith("#version")), 0)
+    extra = [f"#define {k} {v}" for k, v in sorted((defines or {}).items())]
+    return "\n".join([*lines[:at], *extra, *lines[at:]]) + "\n"
+
+
+def parse(text: str, origin: str, package: str = HOST_PACKAGE) -> list[Section]:
     """Split a sectioned GLSL text into :class:`Section` objects."""
     sections: list[Section] = []
     current: tuple[str, Phase, Where] | None = None
@@ -76,7 +103,7 @@ def parse(text: str, origin: str) -> list[Section]:
 
     def flush() -> None:
         if current is not None:
-            code = _expand_includes("\n".join(body).strip("\n"), origin)
+            code = _expand_includes("\n".join(body).strip("\n"), origin, package)
             sections.append(Section(*current, code=code, origin=origin))
 
     for line in text.splitlines():
@@ -95,17 +122,22 @@ def parse(text: str, origin: str) -> list[Section]:
     return sections
 
 
-def load(name: str, defines: dict[str, str] | None = None) -> list[Section]:
-    """Parse ``resources/shaders/<name>``; ``defines`` become ``#define`` lines in every section
-    (compile-time variants: on llvmpipe, branches on uniforms cost as much as all branches).
+def load(
+    name: str, defines: dict[str, str] | None = None, package: str = HOST_PACKAGE
+) -> list[Section]:
+    """Parse ``<package>/shaders/<name>``; ``defines`` become ``#define`` lines before the first
+    section (compile-time variants: on llvmpipe, branches on uniforms cost as much as all
+    branches).
 
     The host asks for its sections on every frame, so files are read and parsed once."""
-    return list(_load_cached(name, tuple(sorted((defines or {}).items()))))
+    return list(_load_cached(name, tuple(sorted((defines or {}).items())), package))
 
 
 @functools.cache
-def _load_cached(name: str, defines: tuple[tuple[str, str], ...]) -> tuple[Section, ...]:
-    sections = parse(read_resource(name), name)
+def _load_cached(
+    name: str, defines: tuple[tuple[str, str], ...], package: str
+) -> tuple[Section, ...]:
+    sections = parse(read_resource(name, package), name, package)
     if defines:
         prefix = "\n".join(f"#define {k} {v}" for k, v in defines)
         sections = [

@@ -1,83 +1,102 @@
-"""The shape every illumination technique has, and the registry that finds them.
+"""The engine side of an illumination technique: the hooks the host calls, and loading them.
 
-One technique = one module in ``plugins/`` + one GLSL file in ``resources/shaders/``, registered
-under the ``vtkvol.techniques`` entry point. A technique:
+A technique is a plugin package (``vtkvol/plugins/<name>/``): its VTK-free declaration
+(:class:`vtkvol.model.techniques.TechniqueSpec`, the entry point), an engine class derived from
+:class:`Technique` (named by ``spec.engine``) and its GLSL in ``shaders/``. The engine class:
 
-* declares ``NAME``, ``LABEL``, ``DESCRIPTION``, ``PARAMETERS`` (:class:`vtkvol.model.Param`)
-  and ``SHADER`` (file name);
-* supplies the GLSL functions the host's lighting code calls for every shaded sample::
+* sets ``SPEC`` (the declaration) and ``SHADER`` (its fragment GLSL file in ``shaders/``);
+* supplies, in that file, the GLSL hooks it changes; the host's defaults stand for the rest
+  (docs/architecture.md, "Technique contract")::
 
-      float vv_light_visibility(int light, vec3 texPos, vec3 dirDS);  // 1 = unshadowed
-      float vv_ambient_visibility(vec3 texPos, vec3 normalDS);         // 1 = unoccluded
+      float vv_light_visibility(int light, vec3 texPos, vec3 dirDS);         // 1 = unshadowed
+      vec3  vv_light_transmittance_rgb(int light, vec3 texPos, vec3 dirDS);  // coloured
+      float vv_ambient_visibility(vec3 texPos, vec3 normalDS);               // 1 = unoccluded
+      vec3  vv_irradiance(vec3 texPos);            // in-scattered light ("medium" model)
 
   (``texPos`` is VTK's texture coordinate ``g_dataPos``; directions are unit vectors in
   dataset space, µm-scaled, pointing towards the light / away from the surface);
-* implements the hooks below. The host calls every hook with the GL context current (from the
-  renderer's ``StartEvent``), so techniques never make contexts current themselves.
+* implements the Python hooks below. The host calls every hook with the GL context current
+  (from the renderer's ``StartEvent``), so techniques never make contexts current themselves.
 
-Lifecycle (mirrored): ``attach`` → (``prepare`` per frame)* → ``release``.
+The host owns every uniform and texture binding: a technique returns uniform values from
+:meth:`Technique.uniforms` and binds textures through ``host.bind_texture``; the host removes
+all of them when the technique is switched or released. A technique releases only the GL
+objects it created (textures, compute programs).
+
+Lifecycle: ``__init__`` → (``prepare`` per frame)* → ``release``.
 """
 
 from __future__ import annotations
 
 import importlib
+import warnings
 from collections.abc import Mapping
-from importlib import metadata
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from vtkvol.engine import shaders
-from vtkvol.model.params import Param, defaults
+from vtkvol.model.params import Param
+from vtkvol.model.techniques import TechniqueSpec, get_spec, technique_specs
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
-
-ENTRY_POINT_GROUP = "vtkvol.techniques"
-
-# Used when the package metadata is not installed (running from a source checkout).
-_BUILTIN = {
-    "local": "vtkvol.plugins.local_shading:LocalShading",
-    "shadow_volume": "vtkvol.plugins.shadow_volume:ShadowVolume",
-    "cone_traced": "vtkvol.plugins.cone_traced:ConeTraced",
-}
 
 
 class Technique:
     """Base class: a technique that needs no precomputation and no textures."""
 
+    SPEC: ClassVar[TechniqueSpec]
+    SHADER: ClassVar[str]
+    # Shortcuts to the declaration (set from SPEC for every subclass).
     NAME: ClassVar[str]
     LABEL: ClassVar[str]
-    DESCRIPTION: ClassVar[str] = ""
-    PARAMETERS: ClassVar[tuple[Param, ...]] = ()
-    SHADER: ClassVar[str]
+    PARAMETERS: ClassVar[tuple[Param, ...]]
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        spec = cls.__dict__.get("SPEC")
+        if spec is not None:
+            cls.NAME, cls.LABEL, cls.PARAMETERS = spec.name, spec.label, spec.parameters
 
     def __init__(self, host: Illuminator) -> None:
         self.host = host
+        #: Progressive techniques: iterations accumulated since the last reset, and whether
+        #: the result is final (the host stops asking for frames). Others are always done.
+        self.iteration = 0
+        self.converged = not self.SPEC.has("progressive")
 
     # -- hooks --------------------------------------------------------------------------------
+    @classmethod
+    def shader_package(cls) -> str:
+        """The package whose ``shaders/`` folder holds this technique's GLSL."""
+        return cls.__module__.rpartition(".")[0] or cls.__module__
+
     def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
         """Compile-time constants for the GLSL (``SHADER``-invalidating parameters)."""
         return {}
 
     def sections(self, values: Mapping[str, Any]) -> list[shaders.Section]:
         """The technique's GLSL sections: ``SHADER`` with :meth:`shader_defines` applied."""
-        return shaders.load(self.SHADER, self.shader_defines(values))
-
-    def attach(self) -> None:
-        """Create GL resources (textures, compute programs). Context is current."""
+        return shaders.load(self.SHADER, self.shader_defines(values), package=self.shader_package())
 
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
-        """Bring precomputed data up to date before a frame. ``changes`` says what changed
-        since the last frame: ``opacity`` (data, TF, crop, weights, placement), ``lights``,
-        ``parameters`` (names), ``first``."""
+        """Bring precomputed data up to date before a frame (``changes``: what changed since the
+        last ``prepare``, see :class:`~vtkvol.engine.illuminator.Changes`). A progressive
+        technique runs its iterations for this frame here, restarting when
+        ``changes.reset_accumulation``, and updates :attr:`iteration` and :attr:`converged`."""
 
     def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Extra per-frame uniform values (numeric declared parameters are sent already)."""
         return {}
 
     def release(self) -> None:
-        """Release everything ``attach``/``prepare`` created. Context is current."""
+        """Release the GL objects ``prepare`` created. Context is current."""
+
+    def stats(self) -> dict[str, Any]:
+        """Counters for diagnostics and the benchmark (e.g. ``recomputes``, ``backend``,
+        ``texture_bytes``); values are plain numbers and strings."""
+        return {}
 
     # -- verification -------------------------------------------------------------------------
     def light_visibility_cpu(
@@ -90,42 +109,35 @@ class Technique:
 
     @classmethod
     def defaults(cls) -> dict[str, Any]:
-        return defaults(cls.PARAMETERS)
+        return cls.SPEC.defaults()
 
 
-def available_techniques() -> dict[str, str]:
-    """``{name: "module:Class"}`` of every registered technique (entry points + built-ins)."""
-    found = dict(_BUILTIN)
-    try:
-        for ep in metadata.entry_points(group=ENTRY_POINT_GROUP):
-            found[ep.name] = ep.value
-    except Exception:  # broken metadata must not take the app down
-        pass
-    return found
-
-
-def get_technique(name: str) -> type[Technique]:
-    """The technique class registered as ``name``; ``ValueError`` lists the known names."""
-    table = available_techniques()
-    if name not in table:
-        raise ValueError(f"unknown illumination method {name!r}; available: {', '.join(table)}")
-    module_name, _, attr = table[name].partition(":")
+def technique_class(name: str | TechniqueSpec) -> type[Technique]:
+    """Import the engine class of technique ``name`` (``ValueError`` lists the known names)."""
+    spec = name if isinstance(name, TechniqueSpec) else get_spec(name)
+    module_name, _, attr = spec.engine.partition(":")
     try:
         module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        raise ValueError(f"illumination method {name!r} is not installed ({exc})") from exc
-    cls = getattr(module, attr)
+        cls = getattr(module, attr)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(
+            f"illumination method {spec.name!r}: its engine {spec.engine} cannot be loaded ({exc})"
+        ) from exc
     if not (isinstance(cls, type) and issubclass(cls, Technique)):
-        raise TypeError(f"{table[name]} is not a vtkvol Technique")
+        raise TypeError(f"{spec.engine} is not a vtkvol Technique")
+    if getattr(cls, "SPEC", None) is not spec:
+        raise TypeError(f"{spec.engine}.SPEC is not the declaration registered as {spec.name!r}")
     return cls
 
 
 def installed_techniques() -> dict[str, type[Technique]]:
-    """Every technique that imports cleanly, by name (what the method chooser offers)."""
+    """Engine classes of every declared technique whose engine part imports cleanly (a broken
+    one is reported with a ``RuntimeWarning``)."""
     out: dict[str, type[Technique]] = {}
-    for name in available_techniques():
+    for name, spec in technique_specs().items():
         try:
-            out[name] = get_technique(name)
-        except (ValueError, TypeError, ImportError):
-            continue
+            out[name] = technique_class(spec)
+        except (ValueError, TypeError) as exc:
+            warnings.warn(f"vtkvol illumination plugin {name!r} is unavailable: {exc}",
+                          RuntimeWarning, stacklevel=2)
     return out

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 1
+VERSION = 2
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -92,7 +92,22 @@ def _v0_to_v1(raw: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1}
+def _v1_to_v2(raw: dict[str, Any]) -> dict[str, Any]:
+    """v1 → v2: lights gained a physical ``size`` and a distance ``falloff``. v1 lights were
+    ideal (size 0) and did not fall off with distance, which the new defaults state exactly."""
+    out = copy.deepcopy(raw)
+    out["version"] = 2
+    scene = out.get("scene")
+    lights = scene.get("lights") if isinstance(scene, dict) else None
+    if isinstance(lights, list):
+        for light in lights:
+            if isinstance(light, dict):
+                light.setdefault("size", 0.0)
+                light.setdefault("falloff", "none")
+    return out
+
+
+MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

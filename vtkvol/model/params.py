@@ -16,16 +16,15 @@ from typing import Any, Literal
 
 
 class Invalidates(enum.Flag):
-    """What must be redone when a value changes; the engine merges these per batch.
-
-    Order of work: DATA, SHADER, ILLUMINATION, ACCUMULATION, FRAME.
-    """
+    """What must be redone when a value changes. The technique host merges the flags of every
+    parameter changed since the last frame into ``Changes.invalidates``: SHADER rebuilds the
+    program, ILLUMINATION recomputes precomputed light, ACCUMULATION restarts progressive
+    refinement (ILLUMINATION implies it), FRAME only uploads uniforms."""
 
     FRAME = enum.auto()  #: upload uniforms and render again
     ACCUMULATION = enum.auto()  #: restart progressive refinement
     ILLUMINATION = enum.auto()  #: recompute precomputed light (shadow volume, filtered opacity)
     SHADER = enum.auto()  #: replacement text changed: the program is rebuilt
-    DATA = enum.auto()  #: re-upload the volume
 
 
 @dataclass(frozen=True)
@@ -34,7 +33,9 @@ class Param:
 
     ``kind`` is ``"float"``, ``"int"``, ``"bool"`` or ``"choice"``. ``range`` is inclusive.
     ``unit`` is shown in labels (``"voxel"``, ``"°"``, ``""``). ``scale="log"`` asks the UI for
-    a logarithmic slider.
+    a logarithmic slider. ``applies_when`` lists ``(other parameter, values)`` pairs that must
+    all hold for this parameter to have an effect (the dock hides it otherwise), e.g.
+    ``(("ao_mode", ("view_cone",)),)``.
     """
 
     name: str
@@ -49,6 +50,11 @@ class Param:
     choices: tuple[str, ...] = ()
     invalidates: Invalidates = Invalidates.FRAME
     uniform: bool = field(default=True)  # uploaded as vv_<technique>_<name> when numeric
+    applies_when: tuple[tuple[str, tuple[Any, ...]], ...] = ()
+
+    def applies(self, values: Mapping[str, Any]) -> bool:
+        """Whether this parameter has an effect given the technique's other ``values``."""
+        return all(values.get(other) in allowed for other, allowed in self.applies_when)
 
     def validate(self, value: Any) -> Any:
         """Return ``value`` coerced to this parameter's type, or raise ``ValueError``."""
@@ -94,6 +100,7 @@ def validate_values(params: Iterable[Param], values: Mapping[str, Any]) -> dict[
 
 
 def invalidations(params: Iterable[Param], names: Iterable[str]) -> Invalidates:
+    """The merged :class:`Invalidates` of the parameters ``names`` (unknown names: nothing)."""
     declared = {p.name: p for p in params}
     result = Invalidates(0)
     for name in names:

@@ -42,6 +42,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from vtkvol.model.migrations import FORMAT, VERSION, migrate
 from vtkvol.model.params import Param
 from vtkvol.model.scene import SceneModel
+from vtkvol.model.techniques import get_spec
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -665,14 +666,11 @@ def _listing(items: list[str], limit: int = _MAX_LISTED) -> str:
 # -- technique parameters -----------------------------------------------------------------------
 def _technique_parameters(name: str) -> tuple[tuple[Param, ...] | None, str]:
     """The declared parameters of an installed technique, or ``(None, why not)``."""
-    # Imported here: vtkvol.model must not depend on the engine at import time.
-    from vtkvol.engine import technique
-
     try:
-        cls = technique.get_technique(name)
-    except Exception as exc:  # a broken plugin must not stop a session from opening
+        spec = get_spec(name)
+    except ValueError as exc:
         return None, str(exc)
-    return tuple(cls.PARAMETERS), ""
+    return spec.parameters, ""
 
 
 def _technique_known(name: str) -> bool:

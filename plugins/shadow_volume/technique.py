@@ -59,15 +59,14 @@ from vtkvol.engine.gl import (
 )
 from vtkvol.engine.shaders import read_resource
 from vtkvol.engine.technique import Technique
-from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.params import Invalidates
+from vtkvol.plugins.shadow_volume import RESOLUTIONS, TECHNIQUE
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
 
 log = logging.getLogger(__name__)
 
-#: Resolution choice -> reduction factor per axis.
-RESOLUTIONS: dict[str, int] = {"full": 1, "half": 2, "quarter": 4}
 #: Largest filter radius R in cells (the filter has (2R + 2)² taps per cell).
 RMAX = 8
 #: Work-group size (u, v) of the propagation kernel.
@@ -78,7 +77,7 @@ BLOCK = 4
 MAX_OPACITY = float(np.float32(0.999999))
 #: Tap radius and weights of the thesis model (8×8 neighbourhood, σ = 1).
 SEED000_RADIUS = 3
-COMPUTE_SOURCE = "shadow_volume_propagate.comp"
+COMPUTE_SOURCE = "propagate.comp.glsl"
 TEXTURE_UNIFORM = "vv_shadow_volume_tex"
 
 _ILLUM = Invalidates.ILLUMINATION
@@ -87,54 +86,8 @@ _ILLUM = Invalidates.ILLUMINATION
 class ShadowVolume(Technique):
     """Shadows from a precomputed light volume per light (packed one light per channel)."""
 
-    NAME: ClassVar[str] = "shadow_volume"
-    LABEL: ClassVar[str] = "Precomputed shadow volume"
-    DESCRIPTION: ClassVar[str] = (
-        "Cast shadows from up to four lights, precomputed slice by slice into a light volume "
-        "whenever the light, transfer function, crop or data change; one texture fetch per "
-        "shaded sample, so frames cost almost the same as local shading."
-    )
+    SPEC = TECHNIQUE
     SHADER: ClassVar[str] = "shadow_volume.glsl"
-    PARAMETERS: ClassVar[tuple[Param, ...]] = (
-        Param(
-            "model", "transmittance", "Model",
-            "transmittance: physically based T = Π(1 − α) with opacity corrected for the "
-            "oblique path through each slice. seed000: the thesis's additive, clamped opacity "
-            "with a fixed unit Gaussian over 8×8 neighbours (for reproduction).",
-            kind="choice", choices=("transmittance", "seed000"), invalidates=_ILLUM,
-            uniform=False,
-        ),
-        Param(
-            "resolution", "full", "Resolution",
-            "Light-volume cells per axis relative to the data: full, half or quarter. Lower "
-            "resolution recomputes 8× or 64× faster and blurs the shadow edge accordingly.",
-            kind="choice", choices=tuple(RESOLUTIONS), invalidates=_ILLUM, uniform=False,
-        ),
-        Param(
-            "softness", 0.0, "Softness",
-            "Standard deviation of the Gaussian blur applied per slice, in light-volume cells "
-            "(transmittance model): penumbrae widen with the square root of the distance to "
-            "the occluder. 0 = hard shadows (bilinear interpolation only).",
-            range=(0.0, 4.0), step=0.1, unit="voxel", invalidates=_ILLUM, uniform=False,
-        ),
-        Param(
-            "strength", 1.0, "Strength",
-            "How much of the shadow is applied: visibility = 1 − strength·(1 − V).",
-            range=(0.0, 1.0), step=0.05,
-        ),
-        Param(
-            "offset", 1.25, "Offset h₀",
-            "The light volume is read this many cells towards the light, so that a surface "
-            "does not shadow itself (the thesis's h₀ = 1.25).",
-            range=(0.0, 4.0), step=0.05, unit="voxel",
-        ),
-        Param(
-            "backend", "auto", "Compute on",
-            "auto: compute shader when the OpenGL context has them, else numpy; cpu: always "
-            "numpy (verification).",
-            kind="choice", choices=("auto", "cpu"), invalidates=_ILLUM, uniform=False,
-        ),
-    )
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
@@ -805,7 +758,7 @@ class GpuPropagator:
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
-        self._source = read_resource(COMPUTE_SOURCE)
+        self._source = read_resource(COMPUTE_SOURCE, __package__)
         self._programs: dict[tuple, ComputeProgram] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self.program(("convert",))  # fail now, not mid-frame, when compute cannot work
