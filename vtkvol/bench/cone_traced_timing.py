@@ -5,11 +5,12 @@ Functions return plain rows (lists of dicts) so the benchmark (``vtkvol bench``)
 them; ``python -m vtkvol.bench.cone_traced_timing`` prints every table as markdown.
 
 Accuracy is per point: the CPU cone tracer
-(:func:`~vtkvol.plugins.cone_traced.technique.cone_trace_cpu`, the shader's algorithm) against independent Monte-Carlo references (:mod:`vtkvol.reference`) at
-the points the renderer shades (TF opacity above the threshold; for AO also a defined normal):
-voxel centres, and for AO also random off-grid positions ("samples", where a ray sample lands),
-which is where baked AO (:func:`~vtkvol.plugins.cone_traced.technique.baked_ao_cpu`,
-the bake's algorithm, then one trilinear fetch: :func:`~vtkvol.plugins.cone_traced.technique.sample_grid`) pays for its
+(:func:`~vtkvol.plugins.cone_traced.technique.cone_trace_cpu`, the shader's algorithm) against
+independent Monte-Carlo references (:mod:`vtkvol.reference`) at the points the renderer shades (TF
+opacity above the threshold; for AO also a defined normal): voxel centres, and for AO also random
+off-grid positions ("samples", where a ray sample lands), which is where baked AO
+(:func:`~vtkvol.plugins.cone_traced.technique.baked_ao_cpu`, the bake's algorithm, then one
+trilinear fetch: :func:`~vtkvol.plugins.cone_traced.technique.sample_grid`) pays for its
 interpolation. Phantoms are 1 µm voxels, so voxels = µm.
 """
 
