@@ -1,16 +1,19 @@
-// vtkvol host lighting: replaces VTK's shading result by ours, per shaded sample.
-// Injected after the technique's code. Tested with VTK 9.7.1, headlight and scene-light variants
-// of computeLighting() (both define `shading_gradient` and `lightingComponent`).
+// vtkvol host lighting, "surface" model: replaces VTK's shading result by ours, per shaded
+// sample. Injected after the technique's code and the hook defaults. Tested with VTK 9.7.1,
+// headlight and scene-light variants of computeLighting() (both define `shading_gradient` and
+// `lightingComponent`).
 //
-// Shading formula (documented in docs/architecture.md and docs/techniques.md):
+// Shading formula (docs/architecture.md, "Lighting models"):
 //   n   = -normalize(gradient)                      outward normal, dataset space
 //   C   = ka * albedo * A(x)                         A: ambient visibility (1 = unoccluded)
-//       + sum_i  V_i(x) * E_i * ( kd * max(n.l_i, 0) * albedo + ks * max(n.h_i, 0)^p )
-//   V_i: light visibility (transmittance towards light i, 1 = unshadowed), E_i: light colour *
-//   intensity. With two-sided lighting (the renderer's default) n is first flipped to face the
-//   viewer, so a surface seen from inside is lit like one seen from outside. Where the gradient is
-//   zero (homogeneous interior) the sample is lit as an unoriented medium: n.l := 1, no specular.
-//   ka, kd, ks, p come from the vtkVolumeProperty (per component).
+//       + sum_i  T_i(x) * E_i(x) * ( kd * max(n.l_i, 0) * albedo + ks * max(n.h_i, 0)^p )
+//       + albedo * S(x)                              S: in-scattered irradiance (default 0)
+//   T_i: RGB transmittance towards light i (1 = unshadowed), E_i: light colour * intensity,
+//   with inverse-square fall-off where the light asks for it. With two-sided lighting (the
+//   renderer's default) n is first flipped to face the viewer, so a surface seen from inside is
+//   lit like one seen from outside. Where the gradient is zero (homogeneous interior) the sample
+//   is lit as an unoriented medium: n.l := 1, no specular. ka, kd, ks, p come from the
+//   vtkVolumeProperty (per component).
 
 //@inject //VTK::ComputeLighting::Dec pre before
 vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
@@ -25,7 +28,7 @@ vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
   for (int i = 0; i < vv_numLights; ++i)
   {
     vec3 l = vv_directionToLight(i, posDS);
-    float vis = vv_light_visibility(i, g_dataPos, l);
+    vec3 transmittance = vv_light_transmittance_rgb(i, g_dataPos, l);
     float ndl = 1.0;
     float spec = 0.0;
     if (oriented)
@@ -36,9 +39,10 @@ vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
       ndl = max(ndl, 0.0);
       spec = ndl > 0.0 ? pow(max(ndh, 0.0), in_shininess[c]) : 0.0;
     }
-    color += vis * vv_lightColor(i) * (in_diffuse[c] * ndl * albedo + in_specular[c] * spec);
+    color += transmittance * vv_lightColor(i, posDS)
+      * (in_diffuse[c] * ndl * albedo + in_specular[c] * spec);
   }
-  return color;
+  return color + albedo * vv_irradiance(g_dataPos);
 }
 
 //@inject //VTK::ComputeLighting::Exit post replace

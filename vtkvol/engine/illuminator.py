@@ -16,6 +16,8 @@ through vtkvol's model or from user code touching the VTK objects directly.
 from __future__ import annotations
 
 import logging
+import math
+import re
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -28,13 +30,24 @@ from vtk.util.numpy_support import vtk_to_numpy
 from vtkvol.engine import shaders
 from vtkvol.engine.gl import Texture2D
 from vtkvol.engine.technique import Technique, technique_class
-from vtkvol.model.params import Invalidates, validate_values
+from vtkvol.model.params import Invalidates
 from vtkvol.model.scene import Light
+from vtkvol.model.techniques import TechniqueSpec
 
 logger = logging.getLogger(__name__)
 
 MAX_LIGHTS = 4
-WEIGHT_TABLE_WIDTH = 256
+#: Floats per light in the ``vv_lights`` uniform array (layout in host_prelude.glsl).
+LIGHT_STRIDE = 12
+#: GLSL hooks a technique may define; the host supplies defaults for the others
+#: (resources/shaders/host_hooks.glsl).
+HOOKS: dict[str, str] = {
+    "vv_light_visibility": "VV_HAS_LIGHT_VISIBILITY",
+    "vv_light_transmittance_rgb": "VV_HAS_LIGHT_TRANSMITTANCE_RGB",
+    "vv_ambient_visibility": "VV_HAS_AMBIENT_VISIBILITY",
+    "vv_irradiance": "VV_HAS_IRRADIANCE",
+}
+_HOOK_DEFINITION = re.compile(r"\b(?:float|vec3)\s+(vv_\w+)\s*\(")
 
 
 @dataclass(frozen=True)
@@ -44,6 +57,12 @@ class LightSpec:
     kind: str  #: "directional" or "point"
     vector: tuple[float, float, float]  #: unit direction towards the light, or position (µm)
     color: tuple[float, float, float]  #: colour × intensity
+    #: Physical extent: angular radius in **radians** (directional) or radius in µm (point);
+    #: 0 = ideal light.
+    size: float = 0.0
+    #: Inverse-square fall-off: irradiance × (d0/r)², d0 (µm) = distance to the volume's centre;
+    #: 0 = no fall-off.
+    falloff_distance: float = 0.0
 
     @property
     def is_point(self) -> bool:
@@ -55,12 +74,32 @@ class Changes:
     """What changed since the technique's last ``prepare`` (merged over skipped frames)."""
 
     opacity: bool = False  #: data, transfer function, crop, slice weights or volume placement
-    lights: bool = False
+    lights: bool = False  #: light geometry: kind, direction, position, size, enabled, fall-off
+    light_colors: bool = False  #: colour or intensity only (never a reason to recompute)
     parameters: set[str] = field(default_factory=set)
+    #: Merged :class:`Invalidates` of the changed parameters.
+    invalidates: Invalidates = field(default_factory=lambda: Invalidates(0))
+    view: bool = False  #: camera or viewport changed (told to view-dependent techniques only)
     first: bool = False  #: first frame after attach
 
     def any_parameter(self, params: Iterable[Any], flag: Invalidates) -> bool:
         return any(p.name in self.parameters and p.invalidates & flag for p in params)
+
+    @property
+    def reset_accumulation(self) -> bool:
+        """Whether a progressive technique must restart: anything but the camera changed."""
+        restart = Invalidates.ACCUMULATION | Invalidates.ILLUMINATION | Invalidates.SHADER
+        return (self.first or self.opacity or self.lights or self.light_colors
+                or bool(self.invalidates & restart))
+
+    def merge(self, other: Changes) -> None:
+        self.opacity |= other.opacity
+        self.lights |= other.lights
+        self.light_colors |= other.light_colors
+        self.parameters |= other.parameters
+        self.invalidates |= other.invalidates
+        self.view |= other.view
+        self.first |= other.first
 
 
 class Illuminator:
@@ -73,12 +112,25 @@ class Illuminator:
     renderer
         The ``vtkRenderer`` that renders it.
     method
-        Technique name (``vtkvol.engine.technique.available_techniques()``), e.g. ``"local"``,
+        Technique name (``vtkvol.model.techniques.technique_specs()``), e.g. ``"local"``,
         ``"shadow_volume"``, ``"cone_traced"``.
     lights
         Up to four :class:`vtkvol.model.Light` in world space. Default: one directional light.
     parameters
         Technique parameter values; missing ones take the declared defaults.
+
+    Attributes
+    ----------
+    on_error
+        Called with a one-line, user-facing message when the technique fails (its shader does
+        not compile, or its GL work fails); the illuminator has then switched itself to
+        ``"local"`` (:attr:`failed_method` names the method) and does not retry it until
+        :meth:`set_method` is called with it again.
+    on_progress
+        Called after each frame of a progressive technique with ``(iteration, converged)``.
+    profiling
+        When True, techniques time their precomputation on the GPU (timer queries) and report
+        it in ``technique.stats()``; off by default so that nothing waits for the GPU.
     """
 
     def __init__(
@@ -108,25 +160,34 @@ class Illuminator:
         self._detach_requested = False
         self._changes = Changes(first=True, opacity=True, lights=True)
         self._signature: tuple | None = None
+        self._light_signature: tuple | None = None
+        self._view_signature: tuple | None = None
         self._weights: np.ndarray | None = None  # (3, W) or None for identity
         self._weights_version = 0
         self._weights_texture: Texture2D | None = None
         self._textures: dict[str, Any] = {}
+        self._uniforms: set[str] = set()  # custom uniforms set for the technique (host-owned)
+        self._expected_markers: tuple[set[str], set[str]] | None = None
         self._opacity_cache: tuple[tuple, np.ndarray] | None = None
         self._fragment_source = ""
         self._closed = False
+        self._albedo = 1.0
+        self._phase_g = 0.0
         self.last_prepare_ms = 0.0
         self.render_window: vtk.vtkRenderWindow | None = None
+        self.profiling = False
+        self.last_error: str | None = None
+        self.failed_method: str | None = None
+        self.on_error: Callable[[str], None] | None = None
+        self.on_progress: Callable[[int, bool], None] | None = None
         self.set_parameters(**(parameters or {}))
-        # Illumination lives in VTK's shaded computeLighting(): switch shading on (PyVista's
-        # add_volume leaves it off) and restore the user's setting on release().
+        # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
+        # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
+        # unshaded one (no gradient is computed). The user's setting is restored on release().
         prop = volume.GetProperty()
         self._user_shade = [prop.GetShade(c) for c in range(4)]
-        for c in range(4):
-            prop.SetShade(c, 1)
+        self._apply_shade()
         self._start_tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._on_start)
-        self.last_error: str | None = None
-        self.on_error: Callable[[str], None] | None = None  # e.g. the app's error dialog
         self._error_tag = mapper.AddObserver(vtk.vtkCommand.ErrorEvent, self._on_mapper_error)
         self._capture = _capture_source(self)  # keep a reference: VTK holds it weakly
         self._shader_tag = volume.GetMapper().AddObserver(
@@ -139,17 +200,26 @@ class Illuminator:
         return self._technique_cls.NAME
 
     @property
+    def spec(self) -> TechniqueSpec:
+        """The active technique's declaration."""
+        return self._technique_cls.SPEC
+
+    @property
     def technique(self) -> Technique | None:
         """The attached technique instance (None until the first frame)."""
         return self._technique
 
     def set_method(self, method: str, parameters: Mapping[str, Any] | None = None) -> None:
-        """Switch technique; its resources are released at the next frame."""
+        """Switch technique; its resources are released at the next frame. Choosing a method
+        that failed before tries it again."""
         cls = technique_class(method)
         if cls is not self._technique_cls:
             self._detach_requested = True
             self._technique_cls = cls
             self._changes = Changes(first=True, opacity=True, lights=True)
+            self._apply_shade()
+        if method == self.failed_method:
+            self.failed_method = None
         if parameters:
             self.set_parameters(**parameters)
         else:
@@ -162,26 +232,45 @@ class Illuminator:
 
     def set_parameters(self, **values: Any) -> None:
         """Validate and set parameter values of the active technique (``ValueError`` if bad)."""
-        current = self._values.get(self.method, self._technique_cls.defaults())
-        merged = validate_values(self._technique_cls.PARAMETERS, {**current, **values})
+        spec = self._technique_cls.SPEC
+        current = self._values.get(self.method, spec.defaults())
+        merged = spec.validate({**current, **values})
         changed = {k for k in merged if merged[k] != current.get(k)}
         self._values[self.method] = merged
         self._changes.parameters |= changed
+        self._changes.invalidates |= spec.invalidations(changed)
 
     @property
     def lights(self) -> list[Light]:
         return list(self._lights)
 
     def set_lights(self, lights: Sequence[Light]) -> None:
+        """Replace the lights (world space). Techniques are told whether the geometry changed
+        (``Changes.lights``) or only colours and intensities (``Changes.light_colors``)."""
         lights = list(lights)
         self._check_lights(lights)
         self._lights = lights
-        self._changes.lights = True
 
     @staticmethod
     def _check_lights(lights: Sequence[Light]) -> None:
         if len(lights) > MAX_LIGHTS:
             raise ValueError(f"at most {MAX_LIGHTS} lights are supported, not {len(lights)}")
+
+    def set_material(self, *, albedo: float | None = None, phase_g: float | None = None) -> None:
+        """Scattering material of the ``medium`` lighting model: single-scattering ``albedo``
+        (0…1) and the Henyey–Greenstein asymmetry ``phase_g`` (−0.99…0.99; 0 = isotropic)."""
+        if albedo is not None:
+            if not (math.isfinite(albedo) and 0.0 <= albedo <= 1.0):
+                raise ValueError(f"albedo must lie in 0…1, not {albedo!r}")
+            if albedo != self._albedo:
+                self._albedo = float(albedo)
+                self._changes.invalidates |= Invalidates.ACCUMULATION
+        if phase_g is not None:
+            if not (math.isfinite(phase_g) and -0.99 <= phase_g <= 0.99):
+                raise ValueError(f"phase_g must lie in −0.99…0.99, not {phase_g!r}")
+            if phase_g != self._phase_g:
+                self._phase_g = float(phase_g)
+                self._changes.invalidates |= Invalidates.ACCUMULATION
 
     def set_slice_weights(self, weights: np.ndarray | None) -> None:
         """Per-axis slice-contribution weights, shape (3, W) for x, y, z over 0…1 (or None)."""
@@ -203,6 +292,37 @@ class Illuminator:
         """Force a recompute of precomputed light at the next frame (rarely needed: changes to
         the input image, opacity functions, cropping and volume matrix are detected)."""
         self._changes.opacity = True
+
+    # -- progressive techniques -----------------------------------------------------------------
+    @property
+    def wants_frame(self) -> bool:
+        """True while a progressive technique has not converged (render again to refine)."""
+        if self._closed or self.failed_method == self.method:
+            return False
+        tech = self._technique
+        if tech is None or self._detach_requested:
+            return self.spec.has("progressive")
+        return not tech.converged
+
+    def converge(self, max_iterations: int | None = None, max_seconds: float | None = None) -> int:
+        """Render until the technique has converged, ``max_iterations`` frames have been
+        rendered or ``max_seconds`` have passed (batch rendering, scripts). Returns the number
+        of frames rendered. Non-progressive techniques need one frame."""
+        window = self.renderer.GetRenderWindow()
+        if window is None:
+            raise RuntimeError("the renderer is not in a render window")
+        t0 = time.perf_counter()
+        frames = 0
+        while True:
+            window.Render()
+            frames += 1
+            if not self.wants_frame:
+                break
+            if max_iterations is not None and frames >= max_iterations:
+                break
+            if max_seconds is not None and time.perf_counter() - t0 >= max_seconds:
+                break
+        return frames
 
     # -- what techniques read -------------------------------------------------------------------
     @property
@@ -233,6 +353,10 @@ class Illuminator:
         """Enabled lights converted to dataset space (through the volume's inverse matrix)."""
         inv = vtk.vtkMatrix4x4()
         vtk.vtkMatrix4x4.Invert(self.volume.GetMatrix(), inv)
+        linear = np.array([[inv.GetElement(i, j) for j in range(3)] for i in range(3)])
+        length_scale = abs(np.linalg.det(linear)) ** (1.0 / 3.0)  # µm world → µm dataset
+        bounds = self.image.GetBounds()
+        center = np.array([(bounds[2 * a] + bounds[2 * a + 1]) / 2 for a in range(3)])
         specs = []
         for light in self._lights:
             if not light.enabled or light.intensity <= 0:
@@ -241,11 +365,18 @@ class Illuminator:
             if light.kind == "point":
                 p = inv.MultiplyPoint((*light.position, 1.0))
                 pos = np.array(p[:3]) / p[3]
-                specs.append(LightSpec("point", tuple(float(v) for v in pos), color))
+                falloff = (
+                    float(np.linalg.norm(pos - center)) if light.falloff == "inverse_square"
+                    else 0.0
+                )
+                specs.append(LightSpec("point", tuple(float(v) for v in pos), color,
+                                       size=light.size * length_scale,
+                                       falloff_distance=falloff))
             else:
                 d = np.array(inv.MultiplyPoint((*light.direction, 0.0))[:3])
                 d = d / max(np.linalg.norm(d), 1e-30)
-                specs.append(LightSpec("directional", tuple(float(v) for v in d), color))
+                specs.append(LightSpec("directional", tuple(float(v) for v in d), color,
+                                       size=math.radians(light.angular_radius_deg())))
         return specs
 
     def opacity_volume(self) -> np.ndarray:
@@ -312,7 +443,8 @@ class Illuminator:
 
         The texture stays active so VTK's unit manager never reuses its unit; VTK declares an
         ``int`` custom uniform holding the unit, which a post replacement retypes to a sampler
-        (the robust recipe of FINDINGS §2a).
+        (docs/architecture.md, "GL resources"). The binding belongs to the host: it is removed
+        when the technique is switched or released.
         """
         unit = texture.activate()
         self.shader_property.GetFragmentCustomUniforms().SetUniformi(uniform, unit)
@@ -325,62 +457,100 @@ class Illuminator:
 
     @property
     def shaded(self) -> bool:
-        """True when VTK generates its shaded ``computeLighting()`` (where our lighting hooks in):
-        shading on for a component and a composite or isosurface blend. MIP, MinIP, average and
-        additive blends, and unshaded composite, show no illumination."""
+        """True when VTK generates its shaded ``computeLighting()`` (where the ``surface``
+        lighting hooks in): shading on for a used component and a composite or isosurface
+        blend. MIP, MinIP, average and additive blends, and unshaded composite, show no
+        surface illumination."""
         prop = self.volume.GetProperty()
-        blend = self.volume.GetMapper().GetBlendMode()
-        shading_blends = (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ISOSURFACE_BLEND)
         scalars = self.image.GetPointData().GetScalars()
         ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
         # VTK generates the shaded code when any *used* component is shaded (component 0 for
         # dependent components).
         used = range(ncomp) if prop.GetIndependentComponents() else range(1)
-        return blend in shading_blends and any(prop.GetShade(c) for c in used)
+        return self._compositing() and any(prop.GetShade(c) for c in used)
+
+    def _compositing(self) -> bool:
+        blend = self.volume.GetMapper().GetBlendMode()
+        return blend in (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ISOSURFACE_BLEND)
+
+    def _apply_shade(self) -> None:
+        # surface: VTK's shaded variant computes the gradient we shade with; medium: the
+        # unshaded variant skips it (the medium model uses no gradient).
+        prop = self.volume.GetProperty()
+        shade = 1 if self.spec.lighting == "surface" else 0
+        for c in range(4):
+            prop.SetShade(c, shade)
 
     @property
     def fragment_source(self) -> str:
         """The last fragment shader VTK built with our replacements (for tests/diagnostics)."""
         return self._fragment_source
 
-    # -- frame ----------------------------------------------------------------------------------
+    # -- failures -------------------------------------------------------------------------------
+    def _fail(self, why: str) -> None:
+        """Switch to local shading, remember the failed method and tell the user once."""
+        if self.method == "local":
+            logger.error("local shading failed: %s", why)
+            return
+        failed, label = self.method, self._technique_cls.LABEL
+        self.last_error = f"The {label!r} illumination {why}; showing local shading instead."
+        self.set_method("local")
+        self.failed_method = failed
+        logger.error("illumination %s failed (%s); fell back to local shading", failed, why)
+        if self.on_error is not None:
+            self.on_error(self.last_error)
+
     def _on_mapper_error(self, _mapper: Any, _event: str, *_args: Any) -> None:
         # The mapper reports "Shader failed to compile" (the GLSL log goes to VTK's output
         # window). A technique whose shader does not build on this GPU/driver must not leave
-        # the view black: fall back to local shading at the next frame and tell the user.
-        if self.method == "local":
-            return
-        failed = self.method
-        self.last_error = (
-            f"The {self._technique_cls.LABEL!r} illumination could not be compiled by this "
-            "OpenGL driver; showing local shading instead. The driver's message is in the log."
-        )
-        self.set_method("local")
-        if self.on_error is not None:
-            self.on_error(self.last_error)
-        logger.error("illumination %s failed to compile; fell back to local shading", failed)
+        # the view black: fall back to local shading at the next frame.
+        self._fail("could not be compiled by this OpenGL driver (the driver's message is in "
+                   "the log)")
 
+    def _check_built_source(self, source: str) -> None:
+        """Every section must have reached the shader VTK built (a missing VTK tag is an
+        error, not a silent no-op) and every uniform set for the technique must be used."""
+        pending, self._expected_markers = self._expected_markers, None
+        if pending is None:
+            return
+        markers, uniforms = pending
+        missing = sorted(m for m in markers if m not in source)
+        if missing:
+            self._fail(f"targets a VTK shader tag this VTK does not have ({', '.join(missing)})")
+            return
+        unused = sorted(u for u in uniforms if len(re.findall(rf"\b{u}\b", source)) < 2)
+        if unused:
+            self._fail(f"sets uniforms its shader never reads ({', '.join(unused)})")
+
+    # -- frame ----------------------------------------------------------------------------------
     def _on_start(self, _renderer: Any, _event: str) -> None:
         if self._closed:
             return
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
         if self._detach_requested and self._technique is not None:
-            self._technique.release()
-            self._technique = None
+            self._release_technique()
         self._detach_requested = False
-        signature = self._opacity_signature()
-        if signature != self._signature:
-            self._signature = signature
-            self._changes.opacity = True
-        values = self.parameters
-        first_attach = self._technique is None
-        if first_attach:
+        self._detect_changes()
+        if self._technique is None:
             self._technique = self._technique_cls(self)
+            self._changes.first = True
         self._upload_weights()
+        values = self.parameters
         changes, self._changes = self._changes, Changes()
-        changes.first = changes.first or first_attach
-        self._technique.prepare(changes, values)  # type: ignore[union-attr]
+        try:
+            self._technique.prepare(changes, values)
+        except Exception as exc:  # a technique's GL or numpy failure must not kill the view
+            logger.exception("illumination %s failed in prepare", self.method)
+            self._fail(f"failed ({type(exc).__name__}: {exc})")
+            self._release_technique()
+            self._detach_requested = False
+            self._technique = self._technique_cls(self)
+            values = self.parameters
+            self._technique.prepare(Changes(first=True, opacity=True, lights=True), values)
+        tech = self._technique
+        if tech.SPEC.has("progressive") and self.on_progress is not None:
+            self.on_progress(tech.iteration, tech.converged)
         # After prepare: textures bound there must be retyped to samplers in this very build.
         self._install_shader(values)
         self._upload_uniforms(values)
@@ -389,6 +559,33 @@ class Illuminator:
         for name, (texture, _sampler) in self._textures.items():
             fu.SetUniformi(name, texture.activate())
         self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+
+    def _detect_changes(self) -> None:
+        signature = self._opacity_signature()
+        if signature != self._signature:
+            self._signature = signature
+            self._changes.opacity = True
+        specs = self.light_specs()
+        geometry = tuple((s.kind, s.vector, s.size, s.falloff_distance) for s in specs)
+        colors = tuple(s.color for s in specs)
+        if self._light_signature is None or geometry != self._light_signature[0]:
+            self._changes.lights = True
+        elif colors != self._light_signature[1]:
+            self._changes.light_colors = True
+        self._light_signature = (geometry, colors)
+        if self.spec.has("view_dependent"):
+            view = self._camera_signature()
+            if view != self._view_signature:
+                self._view_signature = view
+                self._changes.view = True
+
+    def _camera_signature(self) -> tuple:
+        cam = self.renderer.GetActiveCamera()
+        return (
+            tuple(cam.GetPosition()), tuple(cam.GetFocalPoint()), tuple(cam.GetViewUp()),
+            cam.GetViewAngle(), cam.GetParallelProjection(), cam.GetParallelScale(),
+            tuple(self.renderer.GetSize()),
+        )
 
     def _install_shader(self, values: Mapping[str, Any]) -> None:
         tech = self._technique
@@ -401,13 +598,22 @@ class Illuminator:
             sections += shaders.load(
                 "host_slice_weights.glsl", {"VV_INDEPENDENT": "1"} if independent else None
             )
-        sections += tech.sections(values)
-        if self.shaded:
-            sections += shaders.load("host_lighting.glsl")
+        own = tech.sections(values)
+        defined = {m for s in own for m in _HOOK_DEFINITION.findall(s.code)}
+        hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
+        sections += own
+        lighting = {"surface": "host_lighting.glsl", "medium": "host_medium.glsl"}[
+            tech.SPEC.lighting
+        ]
+        if self.shaded or (tech.SPEC.lighting == "medium" and self._compositing()):
+            sections += shaders.load("host_hooks.glsl", hooks)
+            sections += shaders.load(lighting)
         replacements = shaders.compose(sections)
         for name, (_texture, sampler) in self._textures.items():
             replacements[(f"uniform int {name};", "post")] = f"uniform {sampler} {name};"
-        self._replacements.install(replacements)
+        if self._replacements.install(replacements):
+            markers = {shaders.marker(s) for s in sections}
+            self._expected_markers = (markers, self._technique_uniform_names(values))
 
     def _upload_weights(self) -> None:
         if self._weights is None:
@@ -427,29 +633,57 @@ class Illuminator:
             "vv_sliceWeightsWidth", float(self._weights.shape[1])
         )
 
+    def _technique_uniform_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        tech = self._technique
+        assert tech is not None
+        out: dict[str, Any] = {}
+        for p in tech.PARAMETERS:
+            if p.uniform and p.kind != "choice":
+                value = values[p.name]
+                out[f"vv_{tech.NAME}_{p.name}"] = int(value) if p.kind in ("int", "bool") else (
+                    float(value)
+                )
+        out.update(tech.uniforms(values))
+        return out
+
+    def _technique_uniform_names(self, values: Mapping[str, Any]) -> set[str]:
+        return set(self._technique_uniform_values(values))
+
     def _upload_uniforms(self, values: Mapping[str, Any]) -> None:
         fu = self.shader_property.GetFragmentCustomUniforms()
         specs = self.light_specs()
-        packed = np.zeros(8 * MAX_LIGHTS, np.float32)
+        packed = np.zeros(LIGHT_STRIDE * MAX_LIGHTS, np.float32)
         for i, spec in enumerate(specs):
-            packed[8 * i : 8 * i + 3] = spec.vector
-            packed[8 * i + 3] = 1.0 if spec.is_point else 0.0
-            packed[8 * i + 4 : 8 * i + 7] = spec.color
+            base = LIGHT_STRIDE * i
+            packed[base : base + 3] = spec.vector
+            packed[base + 3] = 1.0 if spec.is_point else 0.0
+            packed[base + 4 : base + 7] = spec.color
+            packed[base + 7] = spec.size
+            packed[base + 8] = spec.falloff_distance
         fu.SetUniformi("vv_numLights", len(specs))
         fu.SetUniform1fv("vv_lights", len(packed), packed.tolist())
-        tech = self._technique
-        assert tech is not None
-        for p in tech.PARAMETERS:
-            if not p.uniform or p.kind == "choice":
-                continue
-            name = f"vv_{tech.NAME}_{p.name}"
-            value = values[p.name]
-            if p.kind in ("int", "bool"):
-                fu.SetUniformi(name, int(value))
-            else:
-                fu.SetUniformf(name, float(value))
-        for name, value in tech.uniforms(values).items():
+        if self.spec.lighting == "medium":
+            fu.SetUniformf("vv_albedo", self._albedo)
+            fu.SetUniformf("vv_phaseG", self._phase_g)
+        else:
+            for name in _MEDIUM_UNIFORMS:
+                fu.RemoveUniform(name)
+        for name, value in self._technique_uniform_values(values).items():
             _set_uniform(fu, name, value)
+            self._uniforms.add(name)
+
+    def _release_technique(self) -> None:
+        """Release the technique and everything the host set up for it (its uniforms and
+        texture bindings), so nothing of it survives a switch."""
+        if self._technique is not None:
+            self._technique.release()
+            self._technique = None
+        fu = self.shader_property.GetFragmentCustomUniforms()
+        for name in self._uniforms:
+            fu.RemoveUniform(name)
+        self._uniforms.clear()
+        for name in [n for n in self._textures if n not in _HOST_TEXTURES]:
+            self.unbind_texture(name)
 
     # -- signatures -----------------------------------------------------------------------------
     def _opacity_signature(self) -> tuple:
@@ -482,19 +716,15 @@ class Illuminator:
         self._closed = True
         if self.render_window is not None:  # GL resources exist only after a first frame
             self.render_window.MakeCurrent()
-        if self._technique is not None:
-            self._technique.release()
-            self._technique = None
+        self._release_technique()
         if self._weights_texture is not None:
             self._weights_texture.release()
             self._weights_texture = None
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name in list(self._textures):
             self.unbind_texture(name)
-        for name in ("vv_numLights", "vv_lights", "vv_sliceWeightsWidth"):
+        for name in ("vv_numLights", "vv_lights", "vv_sliceWeightsWidth", *_MEDIUM_UNIFORMS):
             fu.RemoveUniform(name)
-        for p in self._technique_cls.PARAMETERS:
-            fu.RemoveUniform(f"vv_{self._technique_cls.NAME}_{p.name}")
         self._replacements.clear()
         prop = self.volume.GetProperty()
         for c, shade in enumerate(self._user_shade):
@@ -504,14 +734,22 @@ class Illuminator:
         self.volume.GetMapper().RemoveObserver(self._error_tag)
 
 
+#: Uniforms and textures the host sets for itself (not for the technique).
+_MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
+_HOST_TEXTURES = frozenset({"vv_sliceWeights"})
+
+
 def _capture_source(illuminator: Illuminator) -> Callable[..., None]:
     """Observer for UpdateShaderEvent, whose call data is the bound vtkShaderProgram. It does not
-    fire on the frame a program is (re)built (FINDINGS §1), only on the frames after."""
+    fire on the frame a program is (re)built (docs/architecture.md, "GL resources"), only on the
+    frames after: the first of those checks the build."""
 
     @vtk.calldata_type(vtk.VTK_OBJECT)
     def capture(_mapper: Any, _event: str, program: Any = None) -> None:
         if program is not None:
-            illuminator._fragment_source = program.GetFragmentShader().GetSource()
+            source = program.GetFragmentShader().GetSource()
+            illuminator._fragment_source = source
+            illuminator._check_built_source(source)
 
     return capture
 

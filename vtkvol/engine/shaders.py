@@ -147,6 +147,13 @@ def _load_cached(
     return tuple(sections)
 
 
+def marker(section: Section) -> str:
+    """The comment :func:`compose` puts before a section's code; finding it in the shader VTK
+    built proves the section's tag existed. (The tag is written without its ``//VTK::`` prefix
+    so VTK's own substitutions can never match the comment.)"""
+    return f"vtkvol<{section.origin}> at {section.tag.removeprefix('//VTK::')}"
+
+
 def compose(sections: list[Section]) -> dict[tuple[str, Phase], str]:
     """Merge sections into one replacement string per (tag, phase), in list order."""
     grouped: dict[tuple[str, Phase], list[Section]] = defaultdict(list)
@@ -158,9 +165,9 @@ def compose(sections: list[Section]) -> dict[tuple[str, Phase], str]:
         if len(replaced) > 1:
             names = ", ".join(s.origin for s in replaced)
             raise ShaderFileError(f"{tag} ({phase}) is replaced by more than one file: {names}")
-        before = [f"// vtkvol<{s.origin}>\n{s.code}" for s in group if s.where == "before"]
-        after = [f"// vtkvol<{s.origin}>\n{s.code}" for s in group if s.where == "after"]
-        middle = [replaced[0].code] if replaced else [tag]
+        before = [f"// {marker(s)}\n{s.code}" for s in group if s.where == "before"]
+        after = [f"// {marker(s)}\n{s.code}" for s in group if s.where == "after"]
+        middle = [f"// {marker(replaced[0])}\n{replaced[0].code}"] if replaced else [tag]
         result[(tag, phase)] = "\n".join([*before, *middle, *after])
     return result
 

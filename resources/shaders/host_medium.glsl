@@ -1,0 +1,37 @@
+// vtkvol host lighting, "medium" model: emission-absorption with scattering, no gradient.
+// Replaces VTK's shading result per shaded sample; VTK's loop then multiplies by the step
+// opacity, so a sample contributes alpha_step * C. Tested with VTK 9.7.1.
+//
+// Shading formula (docs/architecture.md, "Lighting models"):
+//   C = a * albedo * ( ka * A(x) + sum_i T_i(x) * E_i(x) * 4pi p(cos theta_i) + S(x) )
+//   a: single-scattering albedo (vv_albedo), albedo: the transfer function's colour, A: ambient
+//   visibility, T_i: RGB transmittance towards light i, E_i: light colour * intensity (with
+//   inverse-square fall-off where asked), p: Henyey-Greenstein phase function with asymmetry g
+//   (vv_phaseG; g = 0 is isotropic, 4pi p = 1), theta_i: angle between the light's propagation
+//   direction (-l_i) and the direction to the viewer, S: in-scattered irradiance from the
+//   technique (multiple scattering), 0 by default. ka comes from the vtkVolumeProperty.
+
+//@inject //VTK::ComputeLighting::Dec pre before
+// 4pi times the Henyey-Greenstein phase function: 1 for g = 0, normalised over the sphere.
+float vv_phase4pi(float cosTheta, float g)
+{
+  float denom = 1.0 + g * g - 2.0 * g * cosTheta;
+  return (1.0 - g * g) / (denom * sqrt(denom));
+}
+
+vec3 vv_shade_medium(vec3 albedo, int c)
+{
+  vec3 posDS = vv_texToDataset(g_dataPos);
+  vec3 v = normalize(in_eyePosObjs[0].xyz - posDS);
+  vec3 light = in_ambient[c] * vec3(vv_ambient_visibility(g_dataPos, vec3(0.0)));
+  for (int i = 0; i < vv_numLights; ++i)
+  {
+    vec3 l = vv_directionToLight(i, posDS);
+    light += vv_light_transmittance_rgb(i, g_dataPos, l) * vv_lightColor(i, posDS)
+      * vv_phase4pi(dot(-l, v), vv_phaseG);
+  }
+  return vv_albedo * albedo * (light + vv_irradiance(g_dataPos));
+}
+
+//@inject //VTK::ComputeLighting::Exit post replace
+  finalColor.rgb = vv_shade_medium(color.rgb, lightingComponent);
