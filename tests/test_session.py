@@ -120,7 +120,7 @@ def rich_model() -> SceneModel:
         render=RenderSettings(
             blend_mode="mip", channel_mixing="composite", sample_distance=0.25, jitter=False,
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
-            background=(1.0, 1.0, 1.0),
+            background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3,
         ),
     )
 

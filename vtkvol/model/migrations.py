@@ -93,11 +93,17 @@ def _v0_to_v1(raw: dict[str, Any]) -> dict[str, Any]:
 
 
 def _v1_to_v2(raw: dict[str, Any]) -> dict[str, Any]:
-    """v1 → v2: lights gained a physical ``size`` and a distance ``falloff``. v1 lights were
-    ideal (size 0) and did not fall off with distance, which the new defaults state exactly."""
+    """v1 → v2: lights gained a physical ``size`` and a distance ``falloff``; render settings
+    gained the ``medium`` material (``albedo``, ``phase_g``). v1 lights were ideal (size 0) and
+    did not fall off with distance, which the new defaults state exactly; v1 had no medium
+    techniques, so the material's defaults change nothing."""
     out = copy.deepcopy(raw)
     out["version"] = 2
     scene = out.get("scene")
+    render = scene.get("render") if isinstance(scene, dict) else None
+    if isinstance(render, dict):
+        render.setdefault("albedo", 1.0)
+        render.setdefault("phase_g", 0.0)
     lights = scene.get("lights") if isinstance(scene, dict) else None
     if isinstance(lights, list):
         for light in lights:

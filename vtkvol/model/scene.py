@@ -226,6 +226,11 @@ class RenderSettings(EventedModel):
     specular_power: float = Field(20.0, ge=1.0, le=128.0)
     isosurface_value: float | None = None  #: data units; None = mid of the first channel's TF
     background: RGB = (0.08, 0.08, 0.1)
+    #: Scattering material of ``medium`` techniques (docs/architecture.md, "Lighting models"):
+    #: single-scattering albedo (0…1) and Henyey–Greenstein asymmetry g (0 = isotropic,
+    #: > 0 forward). Surface techniques ignore both.
+    albedo: float = Field(1.0, ge=0.0, le=1.0)
+    phase_g: float = Field(0.0, ge=-0.99, le=0.99)
 
 
 class SceneModel(EventedModel):
