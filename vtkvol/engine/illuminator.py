@@ -443,7 +443,7 @@ class Illuminator:
 
         The texture stays active so VTK's unit manager never reuses its unit; VTK declares an
         ``int`` custom uniform holding the unit, which a post replacement retypes to a sampler
-        (docs/architecture.md, "GL resources"). The binding belongs to the host: it is removed
+        (docs/architecture.md, "Engine"). The binding belongs to the host: it is removed
         when the technique is switched or released.
         """
         unit = texture.activate()
@@ -741,7 +741,7 @@ _HOST_TEXTURES = frozenset({"vv_sliceWeights"})
 
 def _capture_source(illuminator: Illuminator) -> Callable[..., None]:
     """Observer for UpdateShaderEvent, whose call data is the bound vtkShaderProgram. It does not
-    fire on the frame a program is (re)built (docs/architecture.md, "GL resources"), only on the
+    fire on the frame a program is (re)built (docs/architecture.md, "Engine"), only on the
     frames after: the first of those checks the build."""
 
     @vtk.calldata_type(vtk.VTK_OBJECT)
