@@ -279,3 +279,12 @@ def test_a_technique_that_does_not_fit_the_template_fails_loudly_once(glsl, para
         assert il.failed_method is None
         il.release()
         rw.Finalize()
+
+
+def test_render_image_refines_a_progressive_technique_to_the_end(recorded, small_volume):
+    from vtkvol.engine.api import render_image
+
+    image = render_image(small_volume, method="refining", size=(64, 64))
+    iterations = [c.reset_accumulation for c in recorded]
+    assert iterations[0] and iterations.count(True) == 1 and len(iterations) == 4
+    assert image.shape == (64, 64, 3) and image.max() > 50

@@ -38,7 +38,7 @@ def illuminate(
         The ``vtkRenderer`` showing it, or a PyVista ``Plotter`` (its active renderer is used).
     method
         ``"local"``, ``"shadow_volume"``, ``"cone_traced"``, … (see
-        :func:`vtkvol.engine.technique.available_techniques`).
+        :func:`vtkvol.model.techniques.technique_specs`).
     lights
         World-space :class:`vtkvol.Light` objects (µm); default one directional light.
     **parameters
@@ -47,7 +47,8 @@ def illuminate(
     Returns
     -------
     Illuminator
-        Keep it: ``set_lights``, ``set_parameters``, ``set_method``; ``release()`` removes
+        Keep it: ``set_lights``, ``set_parameters``, ``set_method``, ``set_material``;
+        ``converge()`` refines a progressive technique to the end; ``release()`` removes
         everything it added. Transfer-function, data and crop edits made on the VTK objects are
         picked up automatically at the next render.
     """
@@ -68,13 +69,15 @@ def render_image(
     azimuth: float | None = None,
     elevation: float | None = None,
     parameters: dict[str, Any] | None = None,
+    max_seconds: float | None = 300.0,
 ) -> np.ndarray:
     """Render ``data`` offscreen and return an ``(h, w, 3)`` uint8 image.
 
     ``model`` (e.g. from a session file) gives the full view; otherwise a default scene is made.
     ``method``/``preset``/``parameters`` override it. ``azimuth``/``elevation`` (degrees): with a
     model whose camera is set, they orbit from that view; otherwise they place the camera from the
-    front view (looking along +y, z up; default 30°/20°, the app's opening view).
+    front view (looking along +y, z up; default 30°/20°, the app's opening view). A progressive
+    technique refines until it has converged or ``max_seconds`` have passed (None: no limit).
     """
     model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
     if preset is not None:
@@ -99,7 +102,12 @@ def render_image(
                 azimuth=30.0 if azimuth is None else azimuth,
                 elevation=20.0 if elevation is None else elevation,
             )
-        return grab(rw)
+        image = grab(rw)
+        illuminator = scene.illuminator
+        if illuminator is not None and illuminator.wants_frame:
+            illuminator.converge(max_seconds=max_seconds)
+            image = grab(rw, render=False)
+        return image
     finally:
         scene.close()
         rw.Finalize()
