@@ -288,3 +288,41 @@ def test_render_image_refines_a_progressive_technique_to_the_end(recorded, small
     iterations = [c.reset_accumulation for c in recorded]
     assert iterations[0] and iterations.count(True) == 1 and len(iterations) == 4
     assert image.shape == (64, 64, 3) and image.max() > 50
+
+
+class Exploding(Technique):
+    SPEC = TechniqueSpec(name="exploding", label="Exploding", engine=f"{__name__}:Exploding")
+    SHADER: ClassVar[str] = ""
+
+    def sections(self, values: Mapping[str, Any]) -> list[shaders.Section]:
+        return []
+
+    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+        raise RuntimeError("out of texture memory")
+
+
+def test_a_technique_that_raises_falls_back_in_the_same_frame():
+    with register(Exploding.SPEC):
+        rw, ren, volume = scene()
+        il = Illuminator(volume, ren, method="exploding")
+        errors: list[str] = []
+        il.on_error = errors.append
+        image = grab(rw)
+        assert il.method == "local" and image.max() > 50
+        assert errors == ["The 'Exploding' illumination failed (RuntimeError: out of texture "
+                          "memory); showing local shading instead."]
+        il.release()
+        rw.Finalize()
+
+
+def test_rgb_capability_and_rgb_hook_go_together():
+    cls = inline("undeclared_rgb", RED_LIGHT)  # defines the hook without declaring "rgb"
+    with register(cls.SPEC):
+        rw, ren, volume = scene()
+        il = Illuminator(volume, ren, method="undeclared_rgb")
+        errors: list[str] = []
+        il.on_error = errors.append
+        grab(rw)
+        assert il.method == "local" and "'rgb' capability" in errors[0]
+        il.release()
+        rw.Finalize()

@@ -536,29 +536,32 @@ class Illuminator:
             self._technique = self._technique_cls(self)
             self._changes.first = True
         self._upload_weights()
-        values = self.parameters
         changes, self._changes = self._changes, Changes()
         try:
-            self._technique.prepare(changes, values)
+            self._prepare_and_install(changes)
         except Exception as exc:  # a technique's GL or numpy failure must not kill the view
-            logger.exception("illumination %s failed in prepare", self.method)
+            logger.exception("illumination %s failed to prepare", self.method)
             self._fail(f"failed ({type(exc).__name__}: {exc})")
             self._release_technique()
             self._detach_requested = False
             self._technique = self._technique_cls(self)
-            values = self.parameters
-            self._technique.prepare(Changes(first=True, opacity=True, lights=True), values)
-        tech = self._technique
-        if tech.SPEC.has("progressive") and self.on_progress is not None:
-            self.on_progress(tech.iteration, tech.converged)
-        # After prepare: textures bound there must be retyped to samplers in this very build.
-        self._install_shader(values)
-        self._upload_uniforms(values)
+            self._prepare_and_install(Changes(first=True, opacity=True, lights=True))
         # Keep our textures bound to their units (another pass may have re-bound units).
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name, (texture, _sampler) in self._textures.items():
             fu.SetUniformi(name, texture.activate())
         self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+
+    def _prepare_and_install(self, changes: Changes) -> None:
+        tech = self._technique
+        assert tech is not None
+        values = self.parameters
+        tech.prepare(changes, values)
+        if tech.SPEC.has("progressive") and self.on_progress is not None:
+            self.on_progress(tech.iteration, tech.converged)
+        # After prepare: textures bound there must be retyped to samplers in this very build.
+        self._install_shader(values)
+        self._upload_uniforms(values)
 
     def _detect_changes(self) -> None:
         signature = self._opacity_signature()
@@ -601,6 +604,12 @@ class Illuminator:
         own = tech.sections(values)
         defined = {m for s in own for m in _HOOK_DEFINITION.findall(s.code)}
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
+        if tech.SPEC.has("rgb") != ("vv_light_transmittance_rgb" in defined):
+            # The capability is what the dock and the benchmark read; it must not lie.
+            raise ValueError(
+                f"technique {tech.NAME!r}: declaring the 'rgb' capability and defining "
+                "vv_light_transmittance_rgb go together"
+            )
         sections += own
         lighting = {"surface": "host_lighting.glsl", "medium": "host_medium.glsl"}[
             tech.SPEC.lighting

@@ -127,6 +127,8 @@ def technique_class(name: str | TechniqueSpec) -> type[Technique]:
         raise TypeError(f"{spec.engine} is not a vtkvol Technique")
     if getattr(cls, "SPEC", None) is not spec:
         raise TypeError(f"{spec.engine}.SPEC is not the declaration registered as {spec.name!r}")
+    if spec.has("cpu_path") and cls.light_visibility_cpu is Technique.light_visibility_cpu:
+        raise TypeError(f"{spec.engine} declares a CPU path but has no light_visibility_cpu")
     return cls
 
 
