@@ -54,3 +54,12 @@ def test_shader_compile_failure_falls_back_to_local_and_reports(broken_registere
     assert image.max() > 50, "the fallback frame shows the volume again"
     il.release()
     rw.Finalize()
+
+
+def test_render_image_of_a_broken_technique_shows_local_shading(broken_registered, small_volume):
+    from vtkvol.engine.api import render_image
+
+    broken = render_image(small_volume, method="broken", size=(64, 64))
+    local = render_image(small_volume, method="local", size=(64, 64))
+    assert np.abs(broken.astype(int) - local.astype(int)).max() <= 2
+    assert local.max() > 50

@@ -104,6 +104,8 @@ def render_image(
             )
         image = grab(rw)
         illuminator = scene.illuminator
+        if illuminator is not None and illuminator.failed_method is not None:
+            image = grab(rw)  # the failed build showed nothing; this frame is local shading
         if illuminator is not None and illuminator.wants_frame:
             illuminator.converge(max_seconds=max_seconds)
             image = grab(rw, render=False)
