@@ -326,3 +326,21 @@ def test_rgb_capability_and_rgb_hook_go_together():
         assert il.method == "local" and "'rgb' capability" in errors[0]
         il.release()
         rw.Finalize()
+
+
+def test_multichannel_texture_round_trips_and_checks_shapes():
+    from vtkvol.engine.gl import Texture3D
+
+    rw, _ren, _volume = scene()
+    rw.Render()
+    data = np.random.default_rng(0).random((3, 4, 5, 4)).astype(np.float32)
+    tex = Texture3D(rw, (3, 4, 5), data=data, channels=4)
+    assert np.array_equal(tex.download(), data) and tex.nbytes == 3 * 4 * 5 * 4 * 4
+    tex.upload(2 * data)
+    assert np.array_equal(tex.download(), 2 * data)
+    with pytest.raises(ValueError, match=r"texture data shape \(3, 4, 5\) != \(3, 4, 5, 4\)"):
+        tex.upload(data[..., 0])
+    with pytest.raises(ValueError, match="channels must be 1, 2 or 4"):
+        Texture3D(rw, (3, 4, 5), channels=3)
+    tex.release()
+    rw.Finalize()

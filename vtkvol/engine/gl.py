@@ -13,7 +13,7 @@ Every function here expects the render window's context to be current; the techn
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import vtk
@@ -61,11 +61,16 @@ def max_3d_texture_size(render_window: vtk.vtkRenderWindow) -> int:
 
 
 class Texture3D:
-    """A single-channel float 3D texture (R32F or R16F) in VTK's context.
+    """A float 3D texture of 1, 2 or 4 channels (R32F, RG32F, RGBA32F) in VTK's context.
 
-    ``shape`` is (nz, ny, nx) like the numpy arrays it is filled from. Linear filtering,
-    clamp-to-edge (or clamp-to-border with ``border``), optional mip chain.
+    ``shape`` is (nz, ny, nx) like the numpy arrays it is filled from (``[z, y, x]`` for one
+    channel, ``[z, y, x, c]`` for more). Linear filtering, clamp-to-edge (or clamp-to-border
+    with ``border``), optional mip chain (single channel).
     """
+
+    _FORMATS: ClassVar[dict[int, tuple[str, str]]] = {
+        1: ("GL_R32F", "GL_RED"), 2: ("GL_RG32F", "GL_RG"), 4: ("GL_RGBA32F", "GL_RGBA"),
+    }
 
     def __init__(
         self,
@@ -75,9 +80,15 @@ class Texture3D:
         data: np.ndarray | None = None,
         mip_levels: int = 1,
         border: float | None = None,
+        channels: int = 1,
     ) -> None:
+        if channels not in self._FORMATS:
+            raise ValueError(f"channels must be 1, 2 or 4, not {channels}")
+        if channels > 1 and mip_levels > 1:
+            raise ValueError("only single-channel textures have mip levels here")
         self.render_window = render_window
         self.shape = tuple(int(s) for s in shape_zyx)
+        self.channels = int(channels)
         self.mip_levels = int(mip_levels)
         tex = vtk.vtkTextureObject()
         tex.SetContext(render_window)
@@ -97,15 +108,31 @@ class Texture3D:
             tex.SetMaxLevel(self.mip_levels - 1)  # default 0 hides the mips (FINDINGS §4)
         nz, ny, nx = self.shape
         if data is None:
-            ok = tex.Allocate3D(nx, ny, nz, 1, vtk.VTK_FLOAT)
+            ok = tex.Allocate3D(nx, ny, nz, self.channels, vtk.VTK_FLOAT)
         else:
-            arr = np.ascontiguousarray(data, dtype=np.float32)
-            if arr.shape != self.shape:
-                raise ValueError(f"texture data shape {arr.shape} != {self.shape}")
-            ok = tex.Create3DFromRaw(nx, ny, nz, 1, vtk.VTK_FLOAT, arr)
+            arr = self._checked(data)
+            ok = tex.Create3DFromRaw(nx, ny, nz, self.channels, vtk.VTK_FLOAT, arr)
         if not ok:
-            raise GLUnavailableError(f"could not allocate a {nx}×{ny}×{nz} float 3D texture")
+            raise GLUnavailableError(
+                f"could not allocate a {nx}×{ny}×{nz}×{self.channels} float 3D texture"
+            )
         self.tex = tex
+
+    def _checked(self, data: np.ndarray) -> np.ndarray:
+        arr = np.ascontiguousarray(data, dtype=np.float32)
+        want = self.shape if self.channels == 1 else (*self.shape, self.channels)
+        if arr.shape != want:
+            raise ValueError(f"texture data shape {arr.shape} != {want}")
+        return arr
+
+    @property
+    def gl_format(self) -> int:
+        """The sized internal format (``GL_R32F``, ``GL_RG32F`` or ``GL_RGBA32F``)."""
+        return getattr(gl(self.render_window), self._FORMATS[self.channels][0])
+
+    @property
+    def _pixel_format(self) -> int:
+        return getattr(gl(self.render_window), self._FORMATS[self.channels][1])
 
     @property
     def handle(self) -> int:
@@ -117,16 +144,17 @@ class Texture3D:
         return int(self.tex.GetTextureUnit())
 
     def upload(self, data: np.ndarray, level: int = 0) -> None:
-        """Replace the contents of ``level`` in place (keeps the texture unit)."""
+        """Replace the contents of level 0 in place (keeps the texture unit), or (re)specify
+        the storage of mip ``level`` > 0 (single channel)."""
         GL = gl(self.render_window)
-        arr = np.ascontiguousarray(data, dtype=np.float32)
+        arr = self._checked(data) if level == 0 else np.ascontiguousarray(data, np.float32)
         self.tex.Activate()
         state = self.render_window.GetState()
         state.vtkglPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
-        nz, ny, nx = arr.shape
+        nz, ny, nx = arr.shape[:3]
         if level == 0:
             GL.glTexSubImage3D(
-                GL.GL_TEXTURE_3D, 0, 0, 0, 0, nx, ny, nz, GL.GL_RED, GL.GL_FLOAT, arr
+                GL.GL_TEXTURE_3D, 0, 0, 0, 0, nx, ny, nz, self._pixel_format, GL.GL_FLOAT, arr
             )
         else:
             GL.glTexImage3D(
@@ -139,21 +167,24 @@ class Texture3D:
         GL.glGenerateMipmap(GL.GL_TEXTURE_3D)
 
     def download(self, level: int = 0) -> np.ndarray:
-        """Read back a level (for tests and verification); shape (nz, ny, nx)."""
+        """Read back a level (for tests and verification); shape (nz, ny, nx[, channels])."""
         GL = gl(self.render_window)
         self.tex.Activate()
         GL.glFinish()
         nz, ny, nx = (max(1, s >> level) for s in self.shape)
-        out = np.empty((nz, ny, nx), np.float32)
+        shape = (nz, ny, nx) if self.channels == 1 else (nz, ny, nx, self.channels)
+        out = np.empty(shape, np.float32)
         self.render_window.GetState().vtkglPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-        GL.glGetTexImage(GL.GL_TEXTURE_3D, level, GL.GL_RED, GL.GL_FLOAT, out)
+        GL.glGetTexImage(GL.GL_TEXTURE_3D, level, self._pixel_format, GL.GL_FLOAT, out)
         return out
 
     def bind_image(self, unit: int, access: str = "write", level: int = 0) -> None:
         """Bind as ``image3D`` on image unit ``unit`` for a compute shader."""
         GL = gl(self.render_window)
         mode = {"read": GL.GL_READ_ONLY, "write": GL.GL_WRITE_ONLY, "readwrite": GL.GL_READ_WRITE}
-        GL.glBindImageTexture(unit, self.handle, level, GL.GL_TRUE, 0, mode[access], GL.GL_R32F)
+        GL.glBindImageTexture(
+            unit, self.handle, level, GL.GL_TRUE, 0, mode[access], self.gl_format
+        )
 
     def release(self) -> None:
         if self.tex is not None:
@@ -167,7 +198,7 @@ class Texture3D:
         total = 0
         for level in range(self.mip_levels):
             total += max(1, nx >> level) * max(1, ny >> level) * max(1, nz >> level) * 4
-        return total
+        return total * self.channels
 
 
 class Texture2D:
