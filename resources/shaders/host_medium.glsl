@@ -9,7 +9,8 @@
 //   inverse-square fall-off where asked), p: Henyey-Greenstein phase function with asymmetry g
 //   (vv_phaseG; g = 0 is isotropic, 4pi p = 1), theta_i: angle between the light's propagation
 //   direction (-l_i) and the direction to the viewer, S: in-scattered irradiance from the
-//   technique (multiple scattering), 0 by default. ka comes from the vtkVolumeProperty.
+//   technique (multiple scattering), 0 by default; the bracket is clamped at 0. ka comes from the
+//   vtkVolumeProperty.
 
 //@inject //VTK::ComputeLighting::Dec pre before
 // 4pi times the Henyey-Greenstein phase function: 1 for g = 0, normalised over the sphere.
@@ -30,7 +31,9 @@ vec3 vv_shade_medium(vec3 albedo, int c)
     light += vv_light_transmittance_rgb(i, g_dataPos, l) * vv_lightColor(i, posDS)
       * vv_phase4pi(dot(-l, v), vv_phaseG);
   }
-  return vv_albedo * albedo * (light + vv_irradiance(g_dataPos));
+  // Diffusion-type techniques hand back scattered light that can be negative where it moves
+  // light away from a peak; the total received is never negative.
+  return vv_albedo * albedo * max(light + vv_irradiance(g_dataPos), vec3(0.0));
 }
 
 //@inject //VTK::ComputeLighting::Exit post replace

@@ -256,6 +256,16 @@ class Illuminator:
         if len(lights) > MAX_LIGHTS:
             raise ValueError(f"at most {MAX_LIGHTS} lights are supported, not {len(lights)}")
 
+    @property
+    def albedo(self) -> float:
+        """Single-scattering albedo of the ``medium`` model (0…1)."""
+        return self._albedo
+
+    @property
+    def phase_g(self) -> float:
+        """Henyey–Greenstein asymmetry of the ``medium`` model (0 = isotropic)."""
+        return self._phase_g
+
     def set_material(self, *, albedo: float | None = None, phase_g: float | None = None) -> None:
         """Scattering material of the ``medium`` lighting model: single-scattering ``albedo``
         (0…1) and the Henyey–Greenstein asymmetry ``phase_g`` (−0.99…0.99; 0 = isotropic)."""

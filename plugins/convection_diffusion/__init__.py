@@ -1,0 +1,73 @@
+"""Convection–diffusion multiple scattering (seed 003 §3.2, "KD"): the declaration.
+
+Light from each source is convected into the volume with absorption, then diffused where the
+medium scatters; the result refines over frames and is never reset by camera moves. The engine
+part is :mod:`.technique` (GPU compute, ping-pong textures), the numpy twin :mod:`.cpu`, the
+decisions the paper leaves open are in docs/convection-diffusion.md. This module imports no VTK.
+"""
+
+from __future__ import annotations
+
+from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.techniques import BenchSetting, TechniqueSpec
+
+_RESTART = Invalidates.ACCUMULATION
+
+PARAMETERS: tuple[Param, ...] = (
+    Param(
+        "iterations_per_frame", 4, "Iterations per frame",
+        "Transport iterations run before each frame: more refine faster, each frame costs more.",
+        kind="int", range=(1, 256), step=1, uniform=False,
+    ),
+    Param(
+        "max_iterations", 0, "Iterations",
+        "Iterations after which the result is final. 0 = automatic: four times what the light "
+        "front needs to cross the volume's diagonal (it moves half a voxel per iteration).",
+        kind="int", range=(0, 100000), step=1, uniform=False,
+    ),
+    Param(
+        "diffusion_steps", 1, "Diffusion steps",
+        "Explicit diffusion steps per iteration (0 = direct light only, no multiple scattering).",
+        kind="int", range=(0, 16), step=1, invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "absorption_mapping", "matched", "Absorption",
+        "matched: the per-iteration absorption is set so an axis-aligned light decays exactly as "
+        "exp(−σ·distance) (tanh(σh)); vpt: half the opacity of a voxel, as the authors' code "
+        "does (for reproduction).",
+        kind="choice", choices=("matched", "vpt"), invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "convection_extinction", "total", "Convected extinction",
+        "total: the convected light is attenuated by the full extinction σ_t, as the references "
+        "assume; paper: by the absorbed part (1 − albedo)·σ_t only (seed 003's eq. 8).",
+        kind="choice", choices=("total", "paper"), invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "backend", "auto", "Compute on",
+        "auto: compute shaders when the OpenGL context has them, else numpy; cpu: always numpy "
+        "(verification).",
+        kind="choice", choices=("auto", "cpu"), invalidates=_RESTART, uniform=False,
+    ),
+)
+
+TECHNIQUE = TechniqueSpec(
+    name="convection_diffusion",
+    label="Multiple scattering (convection–diffusion)",
+    engine="vtkvol.plugins.convection_diffusion.technique:ConvectionDiffusion",
+    description=(
+        "Soft, glowing light that scatters inside the specimen (seed 003's convection–diffusion): "
+        "each light is carried into the volume with absorption and diffused where the medium "
+        "scatters, refining over frames; camera moves never restart it."
+    ),
+    parameters=PARAMETERS,
+    lighting="medium",
+    capabilities={"progressive", "cpu_path"},
+    bench=(
+        BenchSetting({}, "KD", quick=True),
+        BenchSetting({"diffusion_steps": 0}, "KD direct only"),
+        BenchSetting({"absorption_mapping": "vpt", "convection_extinction": "paper"},
+                     "KD as published"),
+    ),
+    stability=(BenchSetting({}, "KD", quick=True),),
+)
