@@ -116,7 +116,8 @@ def test_scattering_brightens_the_shadowed_side_of_a_scattering_cloud():
         t.step(3 * cpu.iterations_to_cross(grid))
     assert np.abs(dark.rho_s).max() == 0.0
     below = (slice(6, 8), slice(8, 12), slice(8, 12))  # inside the cloud, far from the light
-    assert (bright.direct_rgb() + bright.rho_s)[below].mean() > 1.2 * dark.direct_rgb()[below].mean()
+    received = (bright.direct_rgb() + bright.rho_s)[below].mean()
+    assert received > 1.2 * dark.direct_rgb()[below].mean()
 
 
 # -- the technique in the ray caster (GL) -------------------------------------------------------
