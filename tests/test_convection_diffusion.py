@@ -203,3 +203,44 @@ def test_multiple_scattering_brightens_the_image():
         il.release()
         rw.Finalize()
     assert means[2] > 1.05 * means[0]
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize(
+    ("shape", "spacing", "lights"),
+    [
+        ((2, 2, 2), (1.0, 1.0, 1.0), "one"),
+        ((16, 16, 16), (1.0, 1.0, 1.0), "none"),
+        ((8, 20, 30), (0.2, 0.2, 1.5), "four"),
+    ],
+    ids=["tiny", "no_lights", "anisotropic_four_lights"],
+)
+def test_edge_cases_converge_without_errors(shape, spacing, lights):
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.engine.offscreen import grab, simple_volume_scene
+    from vtkvol.model.scene import Light
+
+    arr = np.ones(shape, np.float32)
+    rw, _ren, volume = simple_volume_scene(arr, spacing=spacing, size=(48, 48),
+                                           opacity=[(0.0, 0.5), (1.0, 0.5)])
+    centre = tuple(0.5 * (n - 1) * s for n, s in zip(shape[::-1], spacing, strict=True))
+    chosen = {
+        "none": [],
+        "one": [Light()],
+        "four": [Light(direction=(0, 0, 1)), Light(direction=(1, 0, 0)),
+                 Light(kind="point", position=centre), Light(direction=(-1, -1, 0.2))],
+    }[lights]
+    il = Illuminator(volume, _ren, method="convection_diffusion", lights=chosen)
+    errors: list[str] = []
+    il.on_error = errors.append
+    il.converge(max_iterations=400)
+    image = grab(rw)
+    assert errors == [] and il.method == "convection_diffusion" and not il.wants_frame
+    stats = il.technique.stats()
+    assert stats["texture_bytes"] > 0 and stats["iterations"] > 0
+    if lights == "none":  # only the ambient term ka = 0.3 of an opaque white volume
+        assert abs(int(image.max()) - round(0.3 * 255)) <= 3
+    else:
+        assert image.max() > 0.3 * 255 + 10
+    il.release()
+    rw.Finalize()
