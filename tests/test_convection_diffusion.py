@@ -244,3 +244,29 @@ def test_edge_cases_converge_without_errors(shape, spacing, lights):
         assert image.max() > 0.3 * 255 + 10
     il.release()
     rw.Finalize()
+
+
+@pytest.mark.gl
+def test_no_gl_objects_outlive_a_restart_or_release():
+    from vtkvol.engine.gl import gl
+    from vtkvol.engine.offscreen import grab
+    from vtkvol.model.scene import Light
+
+    rw, _ren, il = kd_scene("auto")
+    GL = gl(rw)
+    handles: set[int] = set()
+    programs: set[int] = set()
+    for i in range(5):
+        il.set_lights([Light(direction=(1.0, 0.2 * i, 1.0))])  # restart: new textures
+        grab(rw)
+        gpu = il.technique._gpu
+        handles |= {t.handle for t in gpu.textures}
+        programs |= {int(p.prog.GetHandle()) for p in gpu._programs.values()}
+    rw.MakeCurrent()
+    live = {h for h in handles if GL.glIsTexture(h)}
+    assert len(live) == 6  # ρ ×2, ρ_s ×2, σ_a, λ of the current restart only
+    il.release()
+    rw.MakeCurrent()
+    assert not any(GL.glIsTexture(h) for h in handles)
+    assert not any(GL.glIsProgram(p) for p in programs)
+    rw.Finalize()
