@@ -234,9 +234,8 @@ class GpuTransport:
         self._programs: dict[tuple[str, int], ComputeProgram] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self._rho: list[Texture3D] = []
-        self._rho_s: list[Texture3D] = []
         self._sigma_a: Texture3D | None = None
-        self._lam: Texture3D | None = None
+        self.diffusion: GpuDiffusion | None = None
         self._grid = cpu.Grid((1, 1, 1), (1.0, 1.0, 1.0))
         self._channels = 1
         self._lights: list[cpu.LightSource] = []
@@ -249,11 +248,13 @@ class GpuTransport:
 
     @property
     def rho_s(self) -> Texture3D:
-        return self._rho_s[0]
+        assert self.diffusion is not None
+        return self.diffusion.rho_s
 
     @property
     def textures(self) -> list[Texture3D]:
-        return [*self._rho, *self._rho_s, *(t for t in (self._sigma_a, self._lam) if t)]
+        own = [*self._rho, *(t for t in (self._sigma_a,) if t)]
+        return own + (self.diffusion.textures if self.diffusion is not None else [])
 
     def program(self, kind: str, channels: int) -> ComputeProgram:
         key = (kind, channels)
@@ -272,12 +273,13 @@ class GpuTransport:
         channels = light_channels(len(setup.lights))
         zeros = np.zeros(shape if channels == 1 else (*shape, channels), np.float32)
         self._rho = [Texture3D(rw, shape, channels=channels, data=zeros) for _ in range(2)]
-        empty = np.zeros((*shape, 4), np.float32)
-        self._rho_s = [Texture3D(rw, shape, channels=4, data=empty) for _ in range(2)]
         self._sigma_a = Texture3D(rw, shape, data=setup.sigma_a)
-        self._lam = Texture3D(rw, shape, data=setup.lam)
-        for tex in self.textures:
+        self._sigma_a.tex.Deactivate()
+        for tex in self._rho:
             tex.tex.Deactivate()  # created bound to units; image units are separate
+        if self.diffusion is None:
+            self.diffusion = GpuDiffusion(rw)
+        self.diffusion.reset(setup.grid, setup.lam, channels)
         self._grid, self._lights, self._colors = setup.grid, setup.lights, setup.colors
         self._channels = channels
 
@@ -287,7 +289,6 @@ class GpuTransport:
         nz, ny, nx = grid.shape_zyx
         groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
         conv = self.program("convection", self._channels)
-        diff = self.program("diffusion", self._channels)
         light_vecs = []
         for light in self._lights:
             if light.kind == "point":
@@ -296,8 +297,6 @@ class GpuTransport:
                 u = cpu.propagation(grid, light).reshape(3)
                 light_vecs += [*(float(c) for c in u), 0.0]
         light_vecs += [0.0] * (16 - len(light_vecs))
-        colors = [c for color in self._colors for c in color]
-        colors += [0.0] * (12 - len(colors))
         for _ in range(iterations):
             program = conv.use()
             self._set(conv, "vv_rhoIn", 0)
@@ -312,52 +311,117 @@ class GpuTransport:
             program.SetUniform4fv("vv_lightVec", 4, light_vecs)
             self._rho[0].bind_image(0, "read")
             self._rho[1].bind_image(1, "write")
-            assert self._sigma_a is not None and self._lam is not None
+            assert self._sigma_a is not None
             self._sigma_a.bind_image(2, "read")
             conv.dispatch(groups)
             self._rho.reverse()
             if diffusion_steps:
-                program = diff.use()
-                self._set(diff, "vv_direct", 0)
-                self._set(diff, "vv_scatteredIn", 1)
-                self._set(diff, "vv_scatteredOut", 2)
-                self._set(diff, "vv_lambda", 3)
-                self._set(diff, "vv_dims", nx, ny, nz)
-                self._set(diff, "vv_weights", *grid.axis_weights.tolist(), integer=False)
-                self._set(diff, "vv_numLights", len(self._lights))
-                program.SetUniform3fv("vv_color", 4, colors)
-                self._rho[0].bind_image(0, "read")
-                self._lam.bind_image(3, "read")
-                for _ in range(diffusion_steps):
-                    self._rho_s[0].bind_image(1, "read")
-                    self._rho_s[1].bind_image(2, "write")
-                    diff.dispatch(groups)
-                    self._rho_s.reverse()
-        for unit in range(4):
-            GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
+                assert self.diffusion is not None
+                self.diffusion.run(self._rho[0], self._colors, diffusion_steps)
+        unbind_images(GL, 4)
         conv.done()
 
     def _set(self, prog: ComputeProgram, name: str, *values: float, integer: bool = True) -> None:
-        GL = gl(self.render_window)
-        handle = int(prog.prog.GetHandle())
-        loc = self._locations.get((handle, name))
-        if loc is None:
-            loc = int(GL.glGetUniformLocation(handle, name))
-            if loc < 0:
-                raise GLUnavailableError(f"compute shader {prog.name!r} has no uniform {name!r}")
-            self._locations[(handle, name)] = loc
-        fn = f"glUniform{len(values)}{'i' if integer else 'f'}"
-        getattr(GL, fn)(loc, *values)
+        set_uniform(self._locations, prog, name, *values, integer=integer)
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
         """(ρ ``[z, y, x(, channels)]``, ρ_s ``[z, y, x, 4]``) for tests and verification."""
-        return self._rho[0].download(), self._rho_s[0].download()
+        return self._rho[0].download(), self.rho_s.download()
+
+    def _release_textures(self) -> None:
+        for tex in [*self._rho, *(t for t in (self._sigma_a,) if t)]:
+            tex.release()
+        self._rho = []
+        self._sigma_a = None
+
+    def release(self) -> None:
+        self._release_textures()
+        if self.diffusion is not None:
+            self.diffusion.release()
+            self.diffusion = None
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._locations.clear()
+
+
+class GpuDiffusion:
+    """The diffusion step on the GPU (``diffusion.comp.glsl``): ρ_s ping-pongs between two RGBA
+    textures; the direct light comes from a texture of up to four channels weighted by RGB
+    colours. Also used by the hybrid method (seed 003 HD), which shares KD's diffusion."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[int, ComputeProgram] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+        self._rho_s: list[Texture3D] = []
+        self._lam: Texture3D | None = None
+        self._grid = cpu.Grid((1, 1, 1), (1.0, 1.0, 1.0))
+        self._channels = 1
+
+    @property
+    def rho_s(self) -> Texture3D:
+        return self._rho_s[0]
+
+    @property
+    def textures(self) -> list[Texture3D]:
+        return [*self._rho_s, *(t for t in (self._lam,) if t)]
+
+    def program(self, channels: int) -> ComputeProgram:
+        prog = self._programs.get(channels)
+        if prog is None:
+            source = compute_source("diffusion.comp.glsl", {"VV_CHANNELS": str(channels)},
+                                    __package__)
+            prog = ComputeProgram(self.render_window, source, "diffusion")
+            self._programs[channels] = prog
+        return prog
+
+    def reset(self, grid: cpu.Grid, lam: np.ndarray, channels: int) -> None:
+        """Zero ρ_s on ``grid`` with diffusion rate ``lam``; the direct light will have
+        ``channels`` channels."""
+        self._release_textures()
+        rw = self.render_window
+        empty = np.zeros((*grid.shape_zyx, 4), np.float32)
+        self._rho_s = [Texture3D(rw, grid.shape_zyx, channels=4, data=empty) for _ in range(2)]
+        self._lam = Texture3D(rw, grid.shape_zyx, data=lam)
+        for tex in self.textures:
+            tex.tex.Deactivate()  # created bound to units; image units are separate
+        self._grid, self._channels = grid, channels
+
+    def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+            steps: int) -> None:
+        """``steps`` diffusion steps of Σ_l colors[l]·direct[l] + ρ_s into ρ_s."""
+        GL = gl(self.render_window)
+        nz, ny, nx = self._grid.shape_zyx
+        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
+        flat = [c for color in colors for c in color]
+        flat += [0.0] * (12 - len(flat))
+        prog = self.program(self._channels)
+        program = prog.use()
+        for name, unit in (("vv_direct", 0), ("vv_scatteredIn", 1), ("vv_scatteredOut", 2),
+                           ("vv_lambda", 3)):
+            set_uniform(self._locations, prog, name, unit)
+        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
+        set_uniform(self._locations, prog, "vv_weights", *self._grid.axis_weights.tolist(),
+                    integer=False)
+        set_uniform(self._locations, prog, "vv_numLights", len(colors))
+        program.SetUniform3fv("vv_color", 4, flat)
+        assert self._lam is not None
+        direct.bind_image(0, "read")
+        self._lam.bind_image(3, "read")
+        for _ in range(steps):
+            self._rho_s[0].bind_image(1, "read")
+            self._rho_s[1].bind_image(2, "write")
+            prog.dispatch(groups)
+            self._rho_s.reverse()
+        unbind_images(GL, 4)
+        prog.done()
 
     def _release_textures(self) -> None:
         for tex in self.textures:
             tex.release()
-        self._rho, self._rho_s = [], []
-        self._sigma_a = self._lam = None
+        self._rho_s = []
+        self._lam = None
 
     def release(self) -> None:
         self._release_textures()
@@ -365,3 +429,24 @@ class GpuTransport:
             prog.release()
         self._programs.clear()
         self._locations.clear()
+
+
+def set_uniform(cache: dict[tuple[int, str], int], prog: ComputeProgram, name: str,
+                *values: float, integer: bool = True) -> None:
+    """Set a uniform of the bound compute program; a missing one is an error (a renamed or
+    optimised-away uniform must not be silently ignored)."""
+    GL = gl(prog.render_window)
+    handle = int(prog.prog.GetHandle())
+    loc = cache.get((handle, name))
+    if loc is None:
+        loc = int(GL.glGetUniformLocation(handle, name))
+        if loc < 0:
+            raise GLUnavailableError(f"compute shader {prog.name!r} has no uniform {name!r}")
+        cache[(handle, name)] = loc
+    getattr(GL, f"glUniform{len(values)}{'i' if integer else 'f'}")(loc, *values)
+
+
+def unbind_images(GL: Any, units: int) -> None:
+    """Detach image units 0…units−1 (a texture left bound there stays referenced)."""
+    for unit in range(units):
+        GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
