@@ -3,7 +3,7 @@
 Light from each source is convected into the volume with absorption, then diffused where the
 medium scatters; the result refines over frames and is never reset by camera moves. The engine
 part is :mod:`.technique` (GPU compute, ping-pong textures), the numpy twin :mod:`.cpu`, the
-decisions the paper leaves open are in docs/convection-diffusion.md. This module imports no VTK.
+decisions the paper leaves open are in docs/multiple-scattering.md. This module imports no VTK.
 """
 
 from __future__ import annotations

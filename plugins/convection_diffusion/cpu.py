@@ -2,7 +2,7 @@
 
 It is the fallback without compute shaders and the oracle the GPU path is compared with. Arrays
 are ``[z, y, x]`` float32 on the data's voxel centres; lengths are µm (dataset space). What the
-paper leaves open and how it is decided here (docs/convection-diffusion.md has the derivations):
+paper leaves open and how it is decided here (docs/multiple-scattering.md has the derivations):
 
 * **Convection** (eq. 8, upwind differences eqs. 10–12): per light, an energy density ρ_l moves
   away from the light by h = ½·(smallest voxel edge) per iteration (the paper's Courant ½) and is

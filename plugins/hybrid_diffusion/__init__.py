@@ -1,0 +1,73 @@
+"""Hybrid diffusion multiple scattering (seed 003 §3.3, "HD"): the declaration.
+
+The direct light is estimated per voxel by tracking towards a randomly chosen light (unbiased,
+averaged over iterations), the multiple scattering by convection–diffusion's diffusion step;
+memory does not grow with the number of lights. Engine part :mod:`.technique`, numpy twin
+:mod:`.cpu`, decisions in docs/multiple-scattering.md ("Hybrid diffusion"). No VTK here.
+"""
+
+from __future__ import annotations
+
+from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.techniques import BenchSetting, TechniqueSpec
+
+_RESTART = Invalidates.ACCUMULATION
+
+PARAMETERS: tuple[Param, ...] = (
+    Param(
+        "iterations_per_frame", 2, "Iterations per frame",
+        "Samples of the direct light (and diffusion steps) per voxel before each frame.",
+        kind="int", range=(1, 256), step=1, uniform=False,
+    ),
+    Param(
+        "max_iterations", 256, "Iterations",
+        "Samples per voxel after which the result is final (the noise falls as 1/√iterations).",
+        kind="int", range=(1, 100000), step=1, uniform=False,
+    ),
+    Param(
+        "diffusion_steps", 1, "Diffusion steps",
+        "Explicit diffusion steps per iteration (0 = direct light only, no multiple scattering).",
+        kind="int", range=(0, 16), step=1, invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "estimator", "ratio", "Estimator",
+        "ratio: ratio tracking, unbiased with less noise (project default); delta: the paper's "
+        "Woodcock tracking, where a path either reaches the light or is absorbed.",
+        kind="choice", choices=("ratio", "delta"), invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "light_sampling", "one", "Lights per sample",
+        "one: each sample tracks towards one light chosen at random (cost independent of the "
+        "number of lights, as in the paper); all: towards every light.",
+        kind="choice", choices=("one", "all"), invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "seed", 0, "Seed", "Random seed of the sample streams.",
+        kind="int", range=(0, 2**31 - 1), step=1, invalidates=_RESTART, uniform=False,
+    ),
+    Param(
+        "backend", "auto", "Compute on",
+        "auto: compute shaders when the OpenGL context has them, else numpy; cpu: always numpy "
+        "(verification).",
+        kind="choice", choices=("auto", "cpu"), invalidates=_RESTART, uniform=False,
+    ),
+)
+
+TECHNIQUE = TechniqueSpec(
+    name="hybrid_diffusion",
+    label="Multiple scattering (hybrid diffusion)",
+    engine="vtkvol.plugins.hybrid_diffusion.technique:HybridDiffusion",
+    description=(
+        "Light that scatters inside the specimen (seed 003's hybrid method): direct light traced "
+        "from every voxel towards the lights, unbiased and refining over frames, plus diffused "
+        "multiple scattering; memory independent of the number of lights."
+    ),
+    parameters=PARAMETERS,
+    lighting="medium",
+    capabilities={"progressive", "cpu_path"},
+    bench=(
+        BenchSetting({}, "HD", quick=True),
+        BenchSetting({"estimator": "delta"}, "HD delta tracking"),
+    ),
+    stability=(BenchSetting({"max_iterations": 16}, "HD 16 samples", quick=True),),
+)

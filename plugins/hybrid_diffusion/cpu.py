@@ -1,0 +1,185 @@
+"""Hybrid diffusion (seed 003 §3.3, "HD"): the direct light estimated per voxel by tracking
+towards a light, averaged over iterations — the numpy path (fallback and test oracle of
+``shaders/direct.comp.glsl``, which mirrors it operation by operation in float32).
+
+Per iteration k and voxel x: a counter-based random stream (a 32-bit PCG hash of the voxel's
+index, k and the seed, so the CPU and the GPU draw the same numbers) picks one light uniformly
+(weight = number of lights; or every light with ``light_sampling="all"``) and tracks from x
+towards it through σ_t (trilinear, per µm) with the global majorant σ̄: free flights
+t += −ln(1 − ξ)/σ̄ up to the box exit (or the point light).
+
+* ``delta`` (the paper's Woodcock tracking): at each tentative collision a real collision with
+  probability σ/σ̄ ends the path with 0; escaping yields the light's colour × weight;
+* ``ratio`` (unbiased, lower variance): the throughput is multiplied by (1 − σ/σ̄) at each
+  tentative collision instead.
+
+A path longer than :data:`MAX_STEPS` tentative collisions counts as absorbed (a bias below
+e^−(MAX_STEPS/2) for any volume the majorant describes well). The estimate ρ_d is an RGB running
+mean; the multiple scattering is the convection–diffusion method's diffusion step
+(:mod:`vtkvol.plugins.convection_diffusion.cpu`) applied to ρ_d + ρ_s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Literal
+
+import numpy as np
+
+from vtkvol.plugins.convection_diffusion.cpu import Grid, LightSource
+
+#: Tentative collisions after which a path counts as absorbed.
+MAX_STEPS = 512
+#: Ratio tracking stops once the throughput is this small (its remaining contribution).
+MIN_THROUGHPUT = 1e-6
+
+Estimator = Literal["delta", "ratio"]
+LightSampling = Literal["one", "all"]
+
+_U32 = np.uint32
+
+
+def pcg(v: np.ndarray) -> np.ndarray:
+    """The 32-bit PCG hash (RXS-M-XS) of every element of a uint32 array."""
+    v = np.asarray(v, _U32)
+    state = v * _U32(747796405) + _U32(2891336453)
+    word = ((state >> ((state >> _U32(28)) + _U32(4))) ^ state) * _U32(277803737)
+    return (word >> _U32(22)) ^ word
+
+
+def stream_keys(shape_zyx: Sequence[int], iteration: int, seed: int) -> np.ndarray:
+    """One key per voxel (flat index x + nx·(y + ny·z)) for iteration ``iteration``."""
+    n = int(np.prod(shape_zyx))
+    base = pcg(np.array([(iteration + int(pcg(np.array([seed], _U32))[0])) & 0xFFFFFFFF], _U32))
+    return pcg(np.arange(n, dtype=_U32) ^ base[0]).reshape(tuple(shape_zyx))
+
+
+def uniform(keys: np.ndarray, draw: int) -> np.ndarray:
+    """The ``draw``-th number of each stream, in [0, 1) with 24-bit resolution (float32)."""
+    bits = pcg(keys + _U32(draw)) >> _U32(8)
+    return bits.astype(np.float32) * np.float32(1.0 / 16777216.0)
+
+
+def unit(vector: Sequence[float]) -> np.ndarray:
+    """``vector`` normalised in float32 (the exact numbers the GPU path is given)."""
+    v = np.asarray(vector, np.float64)
+    return (v / max(float(np.linalg.norm(v)), 1e-30)).astype(np.float32)
+
+
+def centres32(grid: Grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Voxel-centre coordinates (µm) computed in float32 as the GPU does, each ``[z, y, x]``."""
+    nz, ny, nx = grid.shape_zyx
+    out = []
+    for o, s, n, axis in zip(grid.origin, grid.spacing, (nx, ny, nz), (2, 1, 0), strict=True):
+        c = np.float32(o) + np.float32(s) * np.arange(n, dtype=np.float32)
+        shape = [1, 1, 1]
+        shape[axis] = n
+        out.append(np.broadcast_to(c.reshape(shape), grid.shape_zyx))
+    return out[0], out[1], out[2]
+
+
+def trilinear(sigma: np.ndarray, grid: Grid, px: np.ndarray, py: np.ndarray,
+              pz: np.ndarray) -> np.ndarray:
+    """``sigma`` interpolated at dataset positions (µm; float32), clamped to the box."""
+    nz, ny, nx = sigma.shape
+    coords = []
+    for p, o, s, n in zip((px, py, pz), grid.origin, grid.spacing, (nx, ny, nz), strict=True):
+        f = np.clip((p - np.float32(o)) / np.float32(s), np.float32(0), np.float32(n - 1))
+        i0 = np.minimum(np.floor(f), np.float32(max(n - 2, 0))).astype(np.int64)
+        coords.append((i0, np.minimum(i0 + 1, n - 1), f - i0.astype(np.float32)))
+    (x0, x1, wx), (y0, y1, wy), (z0, z1, wz) = coords
+    one = np.float32(1.0)
+
+    def lerp(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return a * (one - w) + b * w
+
+    c00 = lerp(sigma[z0, y0, x0], sigma[z0, y0, x1], wx)
+    c01 = lerp(sigma[z0, y1, x0], sigma[z0, y1, x1], wx)
+    c10 = lerp(sigma[z1, y0, x0], sigma[z1, y0, x1], wx)
+    c11 = lerp(sigma[z1, y1, x0], sigma[z1, y1, x1], wx)
+    return lerp(lerp(c00, c01, wy), lerp(c10, c11, wy), wz)
+
+
+def _towards(grid: Grid, light: LightSource, x: np.ndarray, y: np.ndarray,
+             z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(dx, dy, dz, t_end): unit direction to the light and the tracking distance (µm)."""
+    f = np.float32
+    if light.kind == "point":
+        dx, dy, dz = (f(v) - c for v, c in zip(light.vector, (x, y, z), strict=True))
+        dist = np.sqrt(dx * dx + dy * dy + dz * dz)
+        inv = np.float32(1.0) / np.maximum(dist, np.float32(1e-12))
+        dx, dy, dz = dx * inv, dy * inv, dz * inv
+    else:
+        dx, dy, dz = (np.full_like(x, c) for c in unit(light.vector))
+        dist = None
+    exit_t = np.full_like(x, np.float32(np.inf))
+    for p, d, o, s, n in zip((x, y, z), (dx, dy, dz), grid.origin, grid.spacing,
+                             grid.shape_zyx[::-1], strict=True):
+        lo = np.float32(o)
+        hi = lo + np.float32(s) * np.float32(n - 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(d > 0, (hi - p) / d, np.where(d < 0, (lo - p) / d, np.inf))
+        exit_t = np.minimum(exit_t, t.astype(np.float32))
+    exit_t = np.maximum(exit_t, np.float32(0.0))
+    t_end = exit_t if dist is None else np.minimum(exit_t, dist)
+    return dx, dy, dz, t_end
+
+
+def direct_sample(
+    sigma_t: np.ndarray, grid: Grid, lights: Sequence[LightSource],
+    colors: Sequence[tuple[float, float, float]], *, iteration: int, seed: int,
+    estimator: Estimator, light_sampling: LightSampling,
+) -> np.ndarray:
+    """One sample of the direct light at every voxel centre, ``[z, y, x, 3]`` float32."""
+    shape = grid.shape_zyx
+    out = np.zeros((*shape, 3), np.float32)
+    if not lights:
+        return out
+    keys = stream_keys(shape, iteration, seed)
+    xs, ys, zs = centres32(grid)
+    majorant = np.float32(sigma_t.max())
+    n = len(lights)
+    if light_sampling == "one":
+        pick = np.minimum((uniform(keys, 0) * np.float32(n)).astype(np.int64), n - 1)
+        chosen = [(index, pick == index, np.float32(n)) for index in range(n)]
+    else:
+        chosen = [(index, np.ones(shape, bool), np.float32(1.0)) for index in range(n)]
+    for index, mask, weight in chosen:
+        if not mask.any():
+            continue
+        throughput = _track(sigma_t, grid, lights[index], keys[mask], xs[mask], ys[mask],
+                            zs[mask], majorant, estimator, first_draw=1 + 4096 * index)
+        out[mask] += (throughput * weight)[:, None] * np.asarray(colors[index], np.float32)
+    return out
+
+
+def _track(sigma_t: np.ndarray, grid: Grid, light: LightSource, keys: np.ndarray,
+           x: np.ndarray, y: np.ndarray, z: np.ndarray, majorant: np.float32,
+           estimator: Estimator, first_draw: int) -> np.ndarray:
+    dx, dy, dz, t_end = _towards(grid, light, x, y, z)
+    throughput = np.ones_like(x)
+    if majorant <= 0:
+        return throughput
+    t = np.zeros_like(x)
+    alive = np.ones(x.shape, bool)
+    draw = first_draw
+    inv_majorant = np.float32(1.0) / majorant
+    for _ in range(MAX_STEPS):
+        if not alive.any():
+            break
+        xi = uniform(keys, draw)
+        draw += 1
+        t = np.where(alive, t - np.log(np.float32(1.0) - xi) * inv_majorant, t)
+        escaped = alive & (t >= t_end)
+        alive &= ~escaped
+        sigma = trilinear(sigma_t, grid, x + t * dx, y + t * dy, z + t * dz)
+        ratio = np.minimum(sigma * inv_majorant, np.float32(1.0))
+        if estimator == "ratio":
+            throughput = np.where(alive, throughput * (np.float32(1.0) - ratio), throughput)
+            alive &= throughput >= np.float32(MIN_THROUGHPUT)
+        else:
+            collide = alive & (uniform(keys, draw) < ratio)
+            throughput = np.where(collide, np.float32(0.0), throughput)
+            alive &= ~collide
+        draw += 1  # both estimators use two draws per step, so their streams line up
+    return np.where(alive, np.float32(0.0), throughput)  # too many steps: absorbed

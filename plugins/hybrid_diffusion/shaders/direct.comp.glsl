@@ -1,0 +1,131 @@
+#version 430
+// vtkvol technique "hybrid_diffusion": one sample of the direct light per voxel, averaged into
+// the running mean rho_d (in place: each invocation touches only its own voxel). Mirrors
+// plugins/hybrid_diffusion/cpu.py operation by operation in float32 (the numpy path is the
+// test oracle). Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
+//
+// Defines: VV_RATIO (1 = ratio tracking, 0 = delta tracking), VV_ALL_LIGHTS (1 = every light
+// per iteration, 0 = one chosen at random), VV_MAX_STEPS, VV_MIN_THROUGHPUT.
+// Grid: the data's voxel centres (dataset µm: vv_origin + vv_spacing * index).
+
+layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
+
+layout(r32f) uniform readonly image3D vv_sigma;        // extinction sigma_t per µm
+layout(rgba32f) uniform image3D vv_direct;             // rho_d (rgb), read and written
+uniform ivec3 vv_dims;
+uniform vec3 vv_origin;
+uniform vec3 vv_spacing;
+uniform float vv_majorant;      // max sigma_t (per µm)
+uniform uint vv_iteration;      // k: the running mean's sample index
+uniform uint vv_seed;
+uniform int vv_numLights;
+uniform vec4 vv_lightVec[4];    // xyz: direction towards the light (unit) or position; w = point
+uniform vec3 vv_color[4];
+
+uint pcg(uint v)
+{
+  uint state = v * 747796405u + 2891336453u;
+  uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+  return (word >> 22u) ^ word;
+}
+
+float uniformDraw(uint key, uint draw)
+{
+  return float(pcg(key + draw) >> 8u) * (1.0 / 16777216.0);
+}
+
+float lerp(float a, float b, float w) { return a * (1.0 - w) + b * w; }
+
+float sigmaAt(vec3 p)
+{
+  ivec3 i0, i1;
+  vec3 w;
+  for (int a = 0; a < 3; ++a)
+  {
+    float f = clamp((p[a] - vv_origin[a]) / vv_spacing[a], 0.0, float(vv_dims[a] - 1));
+    i0[a] = int(min(floor(f), float(max(vv_dims[a] - 2, 0))));
+    i1[a] = min(i0[a] + 1, vv_dims[a] - 1);
+    w[a] = f - float(i0[a]);
+  }
+  float c00 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i0.y, i0.z)).r,
+                   imageLoad(vv_sigma, ivec3(i1.x, i0.y, i0.z)).r, w.x);
+  float c01 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i1.y, i0.z)).r,
+                   imageLoad(vv_sigma, ivec3(i1.x, i1.y, i0.z)).r, w.x);
+  float c10 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i0.y, i1.z)).r,
+                   imageLoad(vv_sigma, ivec3(i1.x, i0.y, i1.z)).r, w.x);
+  float c11 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i1.y, i1.z)).r,
+                   imageLoad(vv_sigma, ivec3(i1.x, i1.y, i1.z)).r, w.x);
+  return lerp(lerp(c00, c01, w.y), lerp(c10, c11, w.y), w.z);
+}
+
+// Throughput from pos towards light l (draws start at firstDraw).
+float track(uint key, vec3 pos, int l, uint firstDraw)
+{
+  vec3 d;
+  float dist = 1e30;
+  if (vv_lightVec[l].w > 0.5)
+  {
+    d = vv_lightVec[l].xyz - pos;
+    dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+    d = d * (1.0 / max(dist, 1e-12));
+  }
+  else
+  {
+    d = vv_lightVec[l].xyz;
+  }
+  float exitT = 1e30;
+  for (int a = 0; a < 3; ++a)
+  {
+    float lo = vv_origin[a];
+    float hi = vv_origin[a] + vv_spacing[a] * float(vv_dims[a] - 1);
+    float t = d[a] > 0.0 ? (hi - pos[a]) / d[a] : (d[a] < 0.0 ? (lo - pos[a]) / d[a] : 1e30);
+    exitT = min(exitT, t);
+  }
+  float tEnd = min(max(exitT, 0.0), dist);
+  if (vv_majorant <= 0.0) return 1.0;
+  float invMajorant = 1.0 / vv_majorant;
+  float throughput = 1.0;
+  float t = 0.0;
+  uint draw = firstDraw;
+  for (int step = 0; step < VV_MAX_STEPS; ++step)
+  {
+    float xi = uniformDraw(key, draw);
+    draw += 1u;
+    t = t - log(1.0 - xi) * invMajorant;
+    if (t >= tEnd) return throughput;
+    float ratio = min(sigmaAt(pos + t * d) * invMajorant, 1.0);
+#if VV_RATIO
+    throughput = throughput * (1.0 - ratio);
+    if (throughput < VV_MIN_THROUGHPUT) return throughput;
+#else
+    if (uniformDraw(key, draw) < ratio) return 0.0;
+#endif
+    draw += 1u;
+  }
+  return 0.0;  // too many tentative collisions: absorbed
+}
+
+void main()
+{
+  ivec3 p = ivec3(gl_GlobalInvocationID);
+  if (any(greaterThanEqual(p, vv_dims))) return;
+  uint index = uint(p.x + vv_dims.x * (p.y + vv_dims.y * p.z));
+  uint key = pcg(index ^ pcg(vv_iteration + pcg(vv_seed)));
+  vec3 pos = vv_origin + vv_spacing * vec3(p);
+  vec3 sampleRGB = vec3(0.0);
+#if VV_ALL_LIGHTS
+  for (int l = 0; l < vv_numLights; ++l)
+  {
+    sampleRGB += track(key, pos, l, 1u + 4096u * uint(l)) * vv_color[l];
+  }
+#else
+  if (vv_numLights > 0)
+  {
+    int l = min(int(uniformDraw(key, 0u) * float(vv_numLights)), vv_numLights - 1);
+    sampleRGB = (track(key, pos, l, 1u + 4096u * uint(l)) * float(vv_numLights)) * vv_color[l];
+  }
+#endif
+  vec3 mean = imageLoad(vv_direct, p).rgb;
+  mean = mean + (sampleRGB - mean) / float(vv_iteration + 1u);
+  imageStore(vv_direct, p, vec4(mean, 0.0));
+}

@@ -1,0 +1,326 @@
+"""Hybrid diffusion (seed 003 HD), engine part: the direct light's running mean ρ_d and the
+diffused light ρ_s, on the GPU (``direct.comp.glsl`` + convection–diffusion's diffusion step)
+or in numpy (:mod:`.cpu`). Restarts like every progressive technique: on opacity, light,
+material and ACCUMULATION-parameter changes, never on camera moves.
+
+HD is seed 003's KD with the convection replaced by tracking, so it shares KD's grid,
+extinction, diffusion rate and diffusion step (:mod:`vtkvol.plugins.convection_diffusion`).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections.abc import Mapping
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+import vtk
+
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, compute_supported, gl
+from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.technique import Technique
+from vtkvol.plugins.convection_diffusion import cpu as kd
+from vtkvol.plugins.convection_diffusion.technique import (
+    GROUP,
+    GpuDiffusion,
+    set_uniform,
+    unbind_images,
+)
+from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
+
+if TYPE_CHECKING:
+    from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
+
+log = logging.getLogger(__name__)
+
+DIRECT_UNIFORM = "vv_hybrid_diffusion_direct"
+SCATTERED_UNIFORM = "vv_hybrid_diffusion_scattered"
+#: The diffusion step reads the direct light as three "lights" with these colours: ρ_d's r, g, b.
+RGB_AS_LIGHTS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+
+
+class Setup:
+    """What one accumulation runs on (dataset space, µm)."""
+
+    def __init__(self, grid: kd.Grid, sigma_t: np.ndarray, lights: list[kd.LightSource],
+                 colors: list[tuple[float, float, float]], lam: np.ndarray) -> None:
+        self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
+            grid, sigma_t, lights, colors, lam)
+
+    @classmethod
+    def build(cls, grid: kd.Grid, sigma_t: np.ndarray, specs: list[Any],
+              albedo: float) -> Setup:
+        specs = specs[:4]
+        lights = [
+            kd.LightSource(s.kind, tuple(float(v) for v in (
+                s.vector if s.kind == "point" else cpu.unit(s.vector))))
+            for s in specs
+        ]
+        colors = [tuple(float(c) for c in getattr(s, "color", (1.0, 1.0, 1.0))) for s in specs]
+        return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo))
+
+
+class HybridDiffusion(Technique):
+    """Tracked direct light plus diffused multiple scattering, refined over frames."""
+
+    SPEC = TECHNIQUE
+    SHADER: ClassVar[str] = "hybrid_diffusion.glsl"
+
+    def __init__(self, host: Illuminator) -> None:
+        super().__init__(host)
+        self.setup: Setup | None = None
+        self._gpu: GpuHybrid | None = None
+        self._gpu_failed = False
+        self._rho_d: np.ndarray | None = None  # numpy path state
+        self._rho_s: np.ndarray | None = None
+        self._direct: Texture3D | None = None  # numpy path: what the shader samples
+        self._scattered: Texture3D | None = None
+        self._restarts = 0
+        self._backend = ""
+        self._last_ms = 0.0
+
+    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+        if changes.reset_accumulation or self.setup is None:
+            self._restart(values)
+        count = min(int(values["iterations_per_frame"]),
+                    int(values["max_iterations"]) - self.iteration)
+        if count > 0:
+            t0 = time.perf_counter()
+            for _ in range(count):
+                self._iterate(values)
+                self.iteration += 1
+            if self._gpu is None:
+                self._upload_cpu_state()
+            self._last_ms = (time.perf_counter() - t0) * 1e3
+        self.converged = self.iteration >= int(values["max_iterations"])
+        direct, scattered = (
+            (self._gpu.rho_d, self._gpu.diffusion.rho_s) if self._gpu is not None
+            else (self._direct, self._scattered)
+        )
+        assert direct is not None and scattered is not None
+        self.host.bind_texture(DIRECT_UNIFORM, direct)
+        self.host.bind_texture(SCATTERED_UNIFORM, scattered)
+
+    def stats(self) -> dict[str, Any]:
+        textures = [self._direct, self._scattered]
+        if self._gpu is not None:
+            textures += self._gpu.textures
+        return {
+            "recomputes": self._restarts,
+            "iterations": self.iteration,
+            "recompute_ms": self._last_ms,
+            "backend": self._backend,
+            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
+        }
+
+    def release(self) -> None:
+        for tex in (self._direct, self._scattered):
+            if tex is not None:
+                tex.release()
+        self._direct = self._scattered = None
+        if self._gpu is not None:
+            self._gpu.release()
+            self._gpu = None
+        self.setup = self._rho_d = self._rho_s = None
+
+    def light_visibility_cpu(
+        self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
+        values: Mapping[str, Any],
+    ) -> np.ndarray:
+        """The tracked transmittance towards ``light`` alone, averaged over ``max_iterations``
+        samples per voxel (default parameters: 256), ``[z, y, x]`` in 0…1."""
+        merged = {**self.defaults(), **values}
+        grid = kd.Grid(opacity.shape, spacing, self._origin())
+        sigma_t = kd.extinction(opacity, self.host.unit_distance)
+        setup = Setup.build(grid, sigma_t, [light], self.host.albedo)
+        mean = np.zeros((*grid.shape_zyx, 3), np.float32)
+        for k in range(int(merged["max_iterations"])):
+            sample = cpu.direct_sample(sigma_t, grid, setup.lights, [(1.0, 1.0, 1.0)],
+                                       iteration=k, seed=int(merged["seed"]),
+                                       estimator=merged["estimator"], light_sampling="all")
+            mean += (sample - mean) / np.float32(k + 1)
+        return mean[..., 0]
+
+    # -- internals ----------------------------------------------------------------------------
+    def _origin(self) -> tuple[float, float, float]:
+        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
+
+    def _restart(self, values: Mapping[str, Any]) -> None:
+        nx, ny, nz = self.host.dims
+        grid = kd.Grid((nz, ny, nx), self.host.spacing, self._origin())
+        sigma_t = kd.extinction(self.host.opacity_volume(), self.host.unit_distance)
+        self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo)
+        self.iteration = 0
+        self.converged = False
+        self._restarts += 1
+        gpu = self._gpu_path(values)
+        if gpu is not None:
+            try:
+                gpu.reset(self.setup, values)
+                self._backend = "gpu"
+                return
+            except GLUnavailableError as exc:
+                self._disable_gpu(exc)
+        self._rho_d = np.zeros((*grid.shape_zyx, 3), np.float32)
+        self._rho_s = np.zeros((*grid.shape_zyx, 3), np.float32)
+        self._backend = "cpu"
+        self._upload_cpu_state()
+
+    def _iterate(self, values: Mapping[str, Any]) -> None:
+        setup = self.setup
+        assert setup is not None
+        if self._gpu is not None:
+            self._gpu.step(self.iteration, values)
+            return
+        assert self._rho_d is not None and self._rho_s is not None
+        sample = cpu.direct_sample(
+            setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
+            seed=int(values["seed"]), estimator=values["estimator"],
+            light_sampling=values["light_sampling"],
+        )
+        self._rho_d = self._rho_d + (sample - self._rho_d) / np.float32(self.iteration + 1)
+        for _ in range(int(values["diffusion_steps"])):
+            self._rho_s = kd.diffusion_step(self._rho_d + self._rho_s, self._rho_s, setup.lam,
+                                            setup.grid)
+
+    def _gpu_path(self, values: Mapping[str, Any]) -> GpuHybrid | None:
+        if values["backend"] == "cpu" or self._gpu_failed:
+            if self._gpu is not None:
+                self._gpu.release()
+                self._gpu = None
+            return None
+        if self._gpu is None:
+            rw = self.host.render_window
+            try:
+                if rw is None or not compute_supported(rw):
+                    raise GLUnavailableError("this OpenGL context has no compute shaders")
+                self._gpu = GpuHybrid(rw)
+            except GLUnavailableError as exc:
+                self._disable_gpu(exc)
+                return None
+        return self._gpu
+
+    def _disable_gpu(self, exc: Exception) -> None:
+        if not self._gpu_failed:
+            log.warning("hybrid_diffusion: compute path unavailable, using numpy (%s)", exc)
+        self._gpu_failed = True
+        if self._gpu is not None:
+            self._gpu.release()
+            self._gpu = None
+
+    def _upload_cpu_state(self) -> None:
+        assert self._rho_d is not None and self._rho_s is not None
+        rw = self.host.render_window
+        shape = self._rho_d.shape[:3]
+        for name, field in (("_direct", self._rho_d), ("_scattered", self._rho_s)):
+            rgba = np.zeros((*shape, 4), np.float32)
+            rgba[..., :3] = field
+            tex: Texture3D | None = getattr(self, name)
+            if tex is None or tex.shape != shape:
+                if tex is not None:
+                    tex.release()
+                setattr(self, name, Texture3D(rw, shape, channels=4, data=rgba))
+            else:
+                tex.upload(rgba)
+
+
+class GpuHybrid:
+    """The compute path: ρ_d updated in place (each invocation owns its voxel), σ_t as an image,
+    and convection–diffusion's diffusion step on ρ_d + ρ_s."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[tuple[str, str], ComputeProgram] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+        self.rho_d: Texture3D | None = None  # type: ignore[assignment]
+        self._sigma: Texture3D | None = None
+        self.diffusion = GpuDiffusion(render_window)
+        self._setup: Setup | None = None
+        self.program("ratio", "one")  # fail now, not mid-frame, when compute cannot work
+
+    @property
+    def textures(self) -> list[Texture3D]:
+        own = [t for t in (self.rho_d, self._sigma) if t is not None]
+        return own + self.diffusion.textures
+
+    def program(self, estimator: str, light_sampling: str) -> ComputeProgram:
+        key = (estimator, light_sampling)
+        prog = self._programs.get(key)
+        if prog is None:
+            defines = {
+                "VV_RATIO": "1" if estimator == "ratio" else "0",
+                "VV_ALL_LIGHTS": "1" if light_sampling == "all" else "0",
+                "VV_MAX_STEPS": str(cpu.MAX_STEPS),
+                "VV_MIN_THROUGHPUT": repr(cpu.MIN_THROUGHPUT),
+            }
+            source = compute_source("direct.comp.glsl", defines, __package__)
+            prog = ComputeProgram(self.render_window, source, f"hybrid direct {key}")
+            self._programs[key] = prog
+        return prog
+
+    def reset(self, setup: Setup, values: Mapping[str, Any]) -> None:
+        self._release_textures()
+        rw = self.render_window
+        shape = setup.grid.shape_zyx
+        self.rho_d = Texture3D(rw, shape, channels=4, data=np.zeros((*shape, 4), np.float32))
+        self._sigma = Texture3D(rw, shape, data=setup.sigma_t)
+        for tex in (self.rho_d, self._sigma):
+            tex.tex.Deactivate()  # created bound to units; image units are separate
+        self.diffusion.reset(setup.grid, setup.lam, channels=4)
+        self._setup = setup
+
+    def step(self, iteration: int, values: Mapping[str, Any]) -> None:
+        setup = self._setup
+        assert setup is not None and self.rho_d is not None and self._sigma is not None
+        GL = gl(self.render_window)
+        grid = setup.grid
+        nz, ny, nx = grid.shape_zyx
+        prog = self.program(values["estimator"], values["light_sampling"])
+        program = prog.use()
+        vecs: list[float] = []
+        for light in setup.lights:
+            vecs += [*light.vector, 1.0 if light.kind == "point" else 0.0]
+        vecs += [0.0] * (16 - len(vecs))
+        colors = [c for color in setup.colors for c in color]
+        colors += [0.0] * (12 - len(colors))
+        for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
+            set_uniform(self._locations, prog, name, unit)
+        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
+        set_uniform(self._locations, prog, "vv_origin", *grid.origin, integer=False)
+        set_uniform(self._locations, prog, "vv_spacing", *grid.spacing, integer=False)
+        set_uniform(self._locations, prog, "vv_majorant", float(setup.sigma_t.max()),
+                    integer=False)
+        handle = int(prog.prog.GetHandle())
+        for name, value in (("vv_iteration", iteration), ("vv_seed", int(values["seed"]))):
+            GL.glUniform1ui(GL.glGetUniformLocation(handle, name), value)
+        set_uniform(self._locations, prog, "vv_numLights", len(setup.lights))
+        program.SetUniform4fv("vv_lightVec", 4, vecs)
+        program.SetUniform3fv("vv_color", 4, colors)
+        self._sigma.bind_image(0, "read")
+        self.rho_d.bind_image(1, "readwrite")
+        prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2])))
+        unbind_images(GL, 2)
+        prog.done()
+        steps = int(values["diffusion_steps"])
+        if steps:
+            self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
+
+    def download(self) -> tuple[np.ndarray, np.ndarray]:
+        """(ρ_d, ρ_s), each ``[z, y, x, 3]`` (tests and verification)."""
+        assert self.rho_d is not None
+        return self.rho_d.download()[..., :3], self.diffusion.rho_s.download()[..., :3]
+
+    def _release_textures(self) -> None:
+        for tex in (self.rho_d, self._sigma):
+            if tex is not None:
+                tex.release()
+        self.rho_d = self._sigma = None
+
+    def release(self) -> None:
+        self._release_textures()
+        self.diffusion.release()
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._locations.clear()

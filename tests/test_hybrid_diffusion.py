@@ -1,0 +1,149 @@
+"""Hybrid diffusion (seed 003 HD): tracked direct light against analytic transmittance, the GPU
+path against numpy, and the technique in the ray caster."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from vtkvol.plugins.convection_diffusion import cpu as kd
+from vtkvol.plugins.hybrid_diffusion import cpu
+
+
+def test_random_streams_are_uniform_deterministic_and_distinct():
+    keys = cpu.stream_keys((8, 16, 16), iteration=3, seed=7)
+    u = cpu.uniform(keys, 0)
+    assert u.dtype == np.float32 and u.min() >= 0.0 and u.max() < 1.0
+    assert abs(float(u.mean()) - 0.5) < 0.02 and abs(float(u.var()) - 1 / 12) < 0.005
+    assert np.array_equal(u, cpu.uniform(cpu.stream_keys((8, 16, 16), 3, 7), 0))
+    assert not np.array_equal(u, cpu.uniform(cpu.stream_keys((8, 16, 16), 4, 7), 0))
+    assert abs(np.corrcoef(u.ravel(), cpu.uniform(keys, 1).ravel())[0, 1]) < 0.05
+
+
+def test_trilinear_matches_linear_data_exactly():
+    grid = kd.Grid((4, 5, 6), (0.5, 1.0, 2.0), (1.0, 0.0, -1.0))
+    x, y, z = (c.astype(np.float64) for c in grid.centres())
+    field = (x + 2 * y - z + 0 * x * y * z).astype(np.float32)
+    p = np.array([[1.3, 0.2, 0.1], [3.4, 3.9, 4.5], [-5.0, 1.0, 0.0]], np.float32)
+    got = cpu.trilinear(field, grid, p[:, 0], p[:, 1], p[:, 2])
+    clamped = np.clip(p, [1.0, 0.0, -1.0], [3.5, 4.0, 5.0])
+    np.testing.assert_allclose(got, clamped[:, 0] + 2 * clamped[:, 1] - clamped[:, 2], rtol=1e-5)
+
+
+def tracked(estimator: str, n: int = 200) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` samples per voxel towards a light straight above, through columns of σ = 0.05 and
+    0.25 per µm alternating in x (constant along each path, so exp(−σ·d) is exact)."""
+    grid = kd.Grid((12, 4, 8), (1.0, 1.0, 1.0))
+    sigma = np.where(np.arange(8) % 2 == 0, 0.05, 0.25).astype(np.float32)
+    sigma = np.broadcast_to(sigma, grid.shape_zyx).copy()
+    light = [kd.LightSource("directional", (0.0, 0.0, 1.0))]  # above: paths end at z = 11
+    samples = np.stack([
+        cpu.direct_sample(sigma, grid, light, [(1.0, 1.0, 1.0)], iteration=k, seed=1,
+                          estimator=estimator, light_sampling="one")[..., 0]
+        for k in range(n)
+    ])
+    exact = np.exp(-sigma * (11 - np.arange(12))[:, None, None])
+    return samples, exact
+
+
+@pytest.mark.parametrize("estimator", ["ratio", "delta"])
+def test_tracked_direct_light_is_unbiased(estimator):
+    """Per depth and column, the mean of n samples is within 4 standard errors of exp(−σ·d)."""
+    samples, exact = tracked(estimator)
+    n = samples.shape[0]
+    stderr = samples.std(axis=0) / np.sqrt(n) + 1e-6
+    z_scores = np.abs(samples.mean(axis=0) - exact) / stderr
+    assert np.mean(z_scores < 4) > 0.99 and z_scores.mean() < 1.2
+
+
+def test_ratio_tracking_is_less_noisy_than_delta_tracking_where_the_majorant_is_loose():
+    ratio, _ = tracked("ratio", 100)
+    delta, _ = tracked("delta", 100)
+    thin = (slice(0, 10), slice(None), slice(0, None, 2))  # σ = 0.05 columns, majorant 0.25
+    assert ratio.std(axis=0)[thin].mean() < 0.6 * delta.std(axis=0)[thin].mean()
+
+
+def test_one_light_per_sample_is_weighted_by_the_number_of_lights():
+    grid = kd.Grid((6, 6, 6), (1.0, 1.0, 1.0))
+    clear = np.zeros(grid.shape_zyx, np.float32)
+    lights = [kd.LightSource("directional", (0.0, 0.0, 1.0)),
+              kd.LightSource("point", (2.5, 2.5, 40.0))]
+    colors = [(1.0, 0.0, 0.0), (0.0, 1.0, 0.0)]
+    s = cpu.direct_sample(clear, grid, lights, colors, iteration=0, seed=0, estimator="ratio",
+                          light_sampling="one")
+    # In empty space every path escapes: each voxel gets 2 × the colour of the light it chose.
+    chosen = {tuple(v) for v in np.unique(s.reshape(-1, 3), axis=0).tolist()}
+    assert chosen == {(2.0, 0.0, 0.0), (0.0, 2.0, 0.0)}
+    mean = np.mean([cpu.direct_sample(clear, grid, lights, colors, iteration=k, seed=0,
+                                      estimator="ratio", light_sampling="one")
+                    for k in range(64)], axis=0)
+    assert abs(float(mean[..., 0].mean()) - 1.0) < 0.05
+    every = cpu.direct_sample(clear, grid, lights, colors, iteration=0, seed=0,
+                              estimator="ratio", light_sampling="all")
+    assert np.allclose(every, [1.0, 1.0, 0.0])
+
+
+# -- GL ---------------------------------------------------------------------------------------
+def hd_scene(backend: str, lights=None, **params):
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.engine.offscreen import simple_volume_scene
+    from vtkvol.model.scene import Light
+
+    arr = np.zeros((20, 20, 20), np.float32)
+    arr[5:15, 5:15, 5:15] = 1.0
+    rw, ren, volume = simple_volume_scene(arr, size=(64, 64), opacity=[(0.0, 0.0), (1.0, 0.3)])
+    lights = lights or [Light(direction=(0.0, 0.3, 1.0)),
+                        Light(kind="point", position=(25.0, 9.5, 9.5), color=(1.0, 0.5, 0.2))]
+    il = Illuminator(volume, ren, method="hybrid_diffusion", lights=lights,
+                     parameters={"backend": backend, "iterations_per_frame": 3, **params})
+    il.set_material(albedo=0.8)
+    return rw, ren, il
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("estimator", ["ratio", "delta"])
+def test_gpu_path_matches_numpy(estimator):
+    from vtkvol.engine.offscreen import grab
+
+    states = {}
+    for backend in ("auto", "cpu"):
+        rw, _ren, il = hd_scene(backend, estimator=estimator, diffusion_steps=2)
+        grab(rw)
+        grab(rw)
+        tech = il.technique
+        assert tech.iteration == 6
+        rw.MakeCurrent()
+        if backend == "auto":
+            assert tech.stats()["backend"] == "gpu"
+            states[backend] = tech._gpu.download()
+        else:
+            states[backend] = (tech._rho_d, tech._rho_s)
+        il.release()
+        rw.Finalize()
+    (g_d, g_s), (c_d, c_s) = states["auto"], states["cpu"]
+    assert c_d.max() > 0.5 and np.abs(c_s).max() > 1e-3
+    # Float rounding can move a rare path across a decision (escape, collision); the rest agree.
+    close = np.abs(g_d - c_d).max(axis=-1) < 1e-5
+    assert close.mean() > 0.99
+    assert np.abs(g_d - c_d).mean() < 1e-3 and np.abs(g_s - c_s).mean() < 1e-3
+
+
+@pytest.mark.gl
+def test_refines_to_the_end_and_memory_does_not_grow_with_lights():
+    from vtkvol.engine.offscreen import grab
+    from vtkvol.model.scene import Light
+
+    sizes = {}
+    for count in (1, 3):
+        lights = [Light(direction=d) for d in ((0, 0, 1), (1, 0, 0), (0, 1, 1))[:count]]
+        rw, ren, il = hd_scene("auto", lights=lights, max_iterations=9)
+        assert il.converge(max_iterations=20) == 3 and not il.wants_frame
+        image = grab(rw)
+        assert image.max() > 40 and il.last_error is None
+        ren.GetActiveCamera().Azimuth(40)
+        grab(rw)
+        assert il.technique.stats()["recomputes"] == 1 and il.technique.iteration == 9
+        sizes[count] = il.technique.stats()["texture_bytes"]
+        il.release()
+        rw.Finalize()
+    assert sizes[1] == sizes[3] > 0
