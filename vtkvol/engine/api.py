@@ -29,6 +29,11 @@ def illuminate(
 ) -> Illuminator:
     """Give an existing ``vtkVolume`` a vtkvol illumination technique.
 
+    Supported: point scalars (cell data is refused with what to do), every cropping mode and
+    clipping planes (what they hide casts no shadow), ``vtkSmartVolumeMapper`` (rendered through
+    a GPU ray-cast mapper set up the same way until ``release()``). Shading is switched on for
+    surface techniques and restored by ``release()``.
+
     Parameters
     ----------
     volume
@@ -40,7 +45,9 @@ def illuminate(
         ``"local"``, ``"shadow_volume"``, ``"cone_traced"``, … (see
         :func:`vtkvol.model.techniques.technique_specs`).
     lights
-        World-space :class:`vtkvol.Light` objects (µm); default one directional light.
+        World-space :class:`vtkvol.Light` objects (µm); default: the renderer's own lights
+        (PyVista's light kit, VTK's headlight), followed at every frame, so the view keeps the
+        lighting it had.
     **parameters
         Technique parameters (validated against its declaration; ``ValueError`` if bad).
 
@@ -56,7 +63,8 @@ def illuminate(
         renderer = getattr(renderer, "renderer", None)
         if not isinstance(renderer, vtk.vtkRenderer):
             raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
-    return Illuminator(volume, renderer, method=method, lights=lights, parameters=parameters)
+    return Illuminator(volume, renderer, method=method,
+                       lights="renderer" if lights is None else lights, parameters=parameters)
 
 
 def render_image(

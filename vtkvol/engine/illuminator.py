@@ -21,7 +21,7 @@ import re
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import vtk
@@ -115,7 +115,9 @@ class Illuminator:
         Technique name (``vtkvol.model.techniques.technique_specs()``), e.g. ``"local"``,
         ``"shadow_volume"``, ``"cone_traced"``.
     lights
-        Up to four :class:`vtkvol.model.Light` in world space. Default: one directional light.
+        Up to four :class:`vtkvol.model.Light` in world space; ``"renderer"``: the renderer's
+        own switched-on lights (its headlight or light kit), followed at every frame. Default:
+        one directional light.
     parameters
         Technique parameter values; missing ones take the declared defaults.
 
@@ -139,21 +141,37 @@ class Illuminator:
         renderer: vtk.vtkRenderer,
         *,
         method: str = "local",
-        lights: Sequence[Light] | None = None,
+        lights: Sequence[Light] | Literal["renderer"] | None = None,
         parameters: Mapping[str, Any] | None = None,
     ) -> None:
+        self._user_mapper: vtk.vtkVolumeMapper | None = None
         mapper = volume.GetMapper()
+        if isinstance(mapper, vtk.vtkSmartVolumeMapper):
+            # The smart mapper hides its GPU mapper; render through our own, set up the same
+            # way, and give the user's back on release().
+            self._user_mapper = mapper
+            mapper = _gpu_mapper_like(mapper)
+            volume.SetMapper(mapper)
+            logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
+                        "vtkSmartVolumeMapper until release()")
         if not isinstance(mapper, vtk.vtkGPUVolumeRayCastMapper):
             raise TypeError(
-                "vtkvol illumination needs a GPU ray-cast mapper "
-                f"(vtkOpenGLGPUVolumeRayCastMapper), not {type(mapper).__name__}"
+                "vtkvol illumination needs a GPU ray-cast mapper, not "
+                f"{type(mapper).__name__}: use vtkOpenGLGPUVolumeRayCastMapper (PyVista: "
+                'plotter.add_volume(..., mapper="gpu"))'
             )
         self.volume = volume
         self.renderer = renderer
         self.shader_property = volume.GetShaderProperty()
         self._replacements = shaders.ReplacementSet(self.shader_property)
-        self._lights: list[Light] = [Light()] if lights is None else list(lights)
+        #: "renderer": follow the renderer's own (switched-on) lights at every frame.
+        self._follow_renderer = lights == "renderer"
+        self._lights: list[Light] = (
+            [Light()] if lights is None or self._follow_renderer else list(lights)  # type: ignore[arg-type]
+        )
         self._check_lights(self._lights)
+        self._unsupported: str | None = None
+        self._check_input(raise_error=True)
         self._values: dict[str, dict[str, Any]] = {}
         self._technique_cls: type[Technique] = technique_class(method)
         self._technique: Technique | None = None
@@ -250,6 +268,61 @@ class Illuminator:
         lights = list(lights)
         self._check_lights(lights)
         self._lights = lights
+        self._follow_renderer = False
+
+    def _check_input(self, *, raise_error: bool) -> bool:
+        """Whether the mapper's input can be illuminated (point scalars). Cell data cannot: at
+        the call that is a ``ValueError``; found later (the input arrives with the pipeline's
+        first update), the illuminator stands aside once with a message."""
+        mapper = self.volume.GetMapper()
+        if mapper.GetInputAlgorithm() is None and mapper.GetInput() is None:
+            return True  # no input yet: checked again at the first frame
+        try:
+            img = self.image
+        except RuntimeError:
+            return True
+        if img.GetPointData().GetScalars() is not None:
+            return True
+        what = "cell data" if img.GetCellData().GetScalars() is not None else "no scalars"
+        message = (
+            f"the volume's image has {what}; vtkvol illumination needs point scalars "
+            "(convert with vtkCellDataToPointData, in PyVista grid.cell_data_to_point_data())"
+        )
+        if raise_error:
+            raise ValueError(message)
+        if self._unsupported is None:
+            self._unsupported = message
+            self._replacements.clear()
+            self._expected_markers = None  # nothing of ours is built any more
+            prop = self.volume.GetProperty()
+            for c, shade in enumerate(self._user_shade):
+                prop.SetShade(c, shade)
+            logger.error("vtkvol: %s", message)
+            if self.on_error is not None:
+                self.on_error(message)
+        return False
+
+    def _renderer_lights(self) -> list[Light]:
+        """The renderer's switched-on lights as world-space vtkvol lights (camera lights, the
+        headlight and light kits included, through their transformed positions)."""
+        out: list[Light] = []
+        lights = self.renderer.GetLights()
+        lights.InitTraversal()
+        for _ in range(lights.GetNumberOfItems()):
+            light = lights.GetNextItem()
+            if light is None or not light.GetSwitch() or len(out) == MAX_LIGHTS:
+                continue
+            position = np.array(light.GetTransformedPosition())
+            focal = np.array(light.GetTransformedFocalPoint())
+            color = tuple(float(min(max(c, 0.0), 1.0)) for c in light.GetDiffuseColor())
+            intensity = float(min(max(light.GetIntensity(), 0.0), 100.0))
+            if light.GetPositional():
+                out.append(Light(kind="point", position=tuple(position), color=color,
+                                 intensity=intensity))
+            elif np.linalg.norm(position - focal) > 0:
+                out.append(Light(direction=tuple(position - focal), color=color,
+                                 intensity=intensity))
+        return out or [Light()]
 
     @staticmethod
     def _check_lights(lights: Sequence[Light]) -> None:
@@ -431,21 +504,42 @@ class Illuminator:
         return opacity
 
     def _apply_crop(self, opacity: np.ndarray) -> None:
+        """Zero what the mapper does not show: its cropping regions (any of VTK's 27-region
+        flags, not only the sub-volume) and its clipping planes."""
         mapper = self.volume.GetMapper()
-        if not mapper.GetCropping():
-            return
         img = self.image
-        planes = mapper.GetCroppingRegionPlanes()
         origin, spacing = img.GetOrigin(), img.GetSpacing()
         nz, ny, nx = opacity.shape
-        sl = []
-        for axis, n in enumerate((nx, ny, nz)):
-            lo = (planes[2 * axis] - origin[axis]) / spacing[axis]
-            hi = (planes[2 * axis + 1] - origin[axis]) / spacing[axis]
-            sl.append((max(0, int(np.ceil(lo - 1e-6))), min(n, int(np.floor(hi + 1e-6)) + 1)))
-        keep = np.zeros_like(opacity, dtype=bool)
-        keep[sl[2][0] : sl[2][1], sl[1][0] : sl[1][1], sl[0][0] : sl[0][1]] = True
-        opacity[~keep] = 0.0
+        if mapper.GetCropping():
+            planes = mapper.GetCroppingRegionPlanes()
+            flags = int(mapper.GetCroppingRegionFlags())
+            # Region of each voxel per axis: 0 below the first plane, 1 between, 2 above.
+            region = []
+            for axis, n in enumerate((nx, ny, nz)):
+                coord = origin[axis] + spacing[axis] * np.arange(n)
+                lo, hi = planes[2 * axis], planes[2 * axis + 1]
+                tol = 1e-6 * spacing[axis]
+                region.append((coord >= lo - tol).astype(np.int64)
+                              + (coord > hi + tol).astype(np.int64))
+            index = (region[0][None, None, :] + 3 * region[1][None, :, None]
+                     + 9 * region[2][:, None, None])
+            visible = np.array([(flags >> i) & 1 for i in range(27)], bool)
+            opacity[~visible[index]] = 0.0
+        clipping = mapper.GetClippingPlanes()
+        if clipping is not None and clipping.GetNumberOfItems():
+            # Clipping planes are in world space; VTK keeps the side the normal points to.
+            matrix = self.volume.GetMatrix()
+            m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+            x = origin[0] + spacing[0] * np.arange(nx)
+            y = origin[1] + spacing[1] * np.arange(ny)
+            z = origin[2] + spacing[2] * np.arange(nz)
+            world = [m[i, 0] * x[None, None, :] + m[i, 1] * y[None, :, None]
+                     + m[i, 2] * z[:, None, None] + m[i, 3] for i in range(3)]
+            for k in range(clipping.GetNumberOfItems()):
+                plane = clipping.GetItem(k)
+                o, n = plane.GetOrigin(), plane.GetNormal()
+                side = sum((world[i] - o[i]) * n[i] for i in range(3))
+                opacity[np.broadcast_to(side < 0, opacity.shape)] = 0.0
 
     # -- GL helpers for techniques --------------------------------------------------------------
     def bind_texture(self, uniform: str, texture: Any, sampler: str = "sampler3D") -> None:
@@ -534,8 +628,12 @@ class Illuminator:
 
     # -- frame ----------------------------------------------------------------------------------
     def _on_start(self, _renderer: Any, _event: str) -> None:
-        if self._closed:
+        if self._closed or self._unsupported is not None:
             return
+        if not self._check_input(raise_error=False):
+            return
+        if self._follow_renderer:
+            self._lights = self._renderer_lights()
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
         if self._detach_requested and self._technique is not None:
@@ -722,6 +820,8 @@ class Illuminator:
             bool(prop.GetIndependentComponents()),
             bool(mapper.GetCropping()),
             tuple(mapper.GetCroppingRegionPlanes()),
+            int(mapper.GetCroppingRegionFlags()),
+            _clipping_signature(mapper),
             tuple(matrix.GetElement(i, j) for i in range(4) for j in range(4)),
             self._weights_version,
         )
@@ -751,11 +851,43 @@ class Illuminator:
         self.renderer.RemoveObserver(self._start_tag)
         self.volume.GetMapper().RemoveObserver(self._shader_tag)
         self.volume.GetMapper().RemoveObserver(self._error_tag)
+        if self._user_mapper is not None:
+            self.volume.SetMapper(self._user_mapper)
+            self._user_mapper = None
 
 
 #: Uniforms and textures the host sets for itself (not for the technique).
 _MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
 _HOST_TEXTURES = frozenset({"vv_sliceWeights"})
+
+
+def _gpu_mapper_like(smart: vtk.vtkSmartVolumeMapper) -> vtk.vtkOpenGLGPUVolumeRayCastMapper:
+    """A GPU ray-cast mapper with the smart mapper's input, blend mode, cropping, clipping
+    planes and sampling."""
+    gpu = vtk.vtkOpenGLGPUVolumeRayCastMapper()
+    if smart.GetInputAlgorithm() is not None:
+        gpu.SetInputConnection(smart.GetInputConnection(0, 0))
+    else:
+        gpu.SetInputData(smart.GetInput())
+    gpu.SetBlendMode(smart.GetBlendMode())
+    gpu.SetCropping(smart.GetCropping())
+    gpu.SetCroppingRegionPlanes(smart.GetCroppingRegionPlanes())
+    gpu.SetCroppingRegionFlags(smart.GetCroppingRegionFlags())
+    if smart.GetClippingPlanes() is not None:
+        gpu.SetClippingPlanes(smart.GetClippingPlanes())
+    gpu.SetAutoAdjustSampleDistances(smart.GetAutoAdjustSampleDistances())
+    gpu.SetSampleDistance(smart.GetSampleDistance())
+    return gpu
+
+
+def _clipping_signature(mapper: vtk.vtkVolumeMapper) -> tuple:
+    planes = mapper.GetClippingPlanes()
+    if planes is None:
+        return ()
+    return tuple(
+        (tuple(planes.GetItem(k).GetOrigin()), tuple(planes.GetItem(k).GetNormal()))
+        for k in range(planes.GetNumberOfItems())
+    )
 
 
 def _capture_source(illuminator: Illuminator) -> Callable[..., None]:

@@ -1,0 +1,162 @@
+"""What VTK and PyVista users bring to ``vtkvol.illuminate``: cropping modes, clipping planes,
+cell data, the smart mapper, the renderer's own lights (GL)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import vtk
+
+from vtkvol.engine.illuminator import Illuminator
+from vtkvol.engine.offscreen import grab, simple_volume_scene
+
+pytestmark = pytest.mark.gl
+
+
+def test_every_cropping_mode_shapes_the_opacity_techniques_read():
+    rw, ren, volume = simple_volume_scene(np.ones((8, 8, 8), np.float32), size=(32, 32))
+    mapper = volume.GetMapper()
+    il = Illuminator(volume, ren)
+    mapper.CroppingOn()
+    mapper.SetCroppingRegionPlanes(1.5, 5.5, 1.5, 5.5, 1.5, 5.5)
+    mapper.SetCroppingRegionFlagsToSubVolume()
+    sub = il.opacity_volume()
+    assert sub[2:6, 2:6, 2:6].min() > 0 and sub.sum() == pytest.approx(64 * sub.max())
+    mapper.SetCroppingRegionFlags(0x7FFFFFF & ~0x2000)  # every region but the centre
+    inverted = il.opacity_volume()
+    assert inverted[2:6, 2:6, 2:6].max() == 0 and inverted[0, 0, 0] > 0
+    assert np.count_nonzero(inverted) == 8**3 - 64
+    mapper.SetCroppingRegionFlagsToCross()  # the centre and its six face neighbours
+    cross = il.opacity_volume()
+    assert cross[3, 3, 0] > 0 and cross[3, 0, 0] == 0 and cross[0, 0, 0] == 0
+    il.release()
+    rw.Finalize()
+
+
+def test_clipping_planes_remove_what_they_clip_from_the_shadows():
+    rw, ren, volume = simple_volume_scene(np.ones((8, 8, 8), np.float32), size=(32, 32))
+    il = Illuminator(volume, ren)
+    full = il.opacity_volume().copy()
+    plane = vtk.vtkPlane()
+    plane.SetOrigin(3.5, 0.0, 0.0)
+    plane.SetNormal(1.0, 0.0, 0.0)  # VTK keeps x ≥ 3.5
+    volume.GetMapper().AddClippingPlane(plane)
+    clipped = il.opacity_volume()
+    assert clipped[:, :, :4].max() == 0 and np.array_equal(clipped[:, :, 4:], full[:, :, 4:])
+    plane.SetNormal(-1.0, 0.0, 0.0)  # moving the plane is seen too
+    assert il.opacity_volume()[:, :, 4:].max() == 0
+    il.release()
+    rw.Finalize()
+
+
+def image_with(cell_data: bool) -> vtk.vtkImageData:
+    from vtk.util.numpy_support import numpy_to_vtk
+
+    img = vtk.vtkImageData()
+    img.SetDimensions(9, 9, 9)
+    values = np.ones(8**3 if cell_data else 9**3, np.float32)
+    array = numpy_to_vtk(values, deep=True)
+    array.SetName("density")
+    (img.GetCellData() if cell_data else img.GetPointData()).SetScalars(array)
+    return img
+
+
+def plain_scene(mapper: vtk.vtkVolumeMapper, image: vtk.vtkImageData):
+    from vtkvol.engine.offscreen import make_render_window
+
+    mapper.SetInputData(image)
+    prop = vtk.vtkVolumeProperty()
+    otf = vtk.vtkPiecewiseFunction()
+    otf.AddPoint(0.0, 0.0)
+    otf.AddPoint(1.0, 0.8)
+    prop.SetScalarOpacity(otf)
+    ctf = vtk.vtkColorTransferFunction()
+    ctf.AddRGBPoint(0.0, 1.0, 1.0, 1.0)
+    ctf.AddRGBPoint(1.0, 1.0, 1.0, 1.0)
+    prop.SetColor(ctf)
+    volume = vtk.vtkVolume()
+    volume.SetMapper(mapper)
+    volume.SetProperty(prop)
+    rw = make_render_window((48, 48))
+    ren = vtk.vtkRenderer()
+    rw.AddRenderer(ren)
+    ren.AddVolume(volume)
+    ren.ResetCamera()
+    return rw, ren, volume
+
+
+def test_cell_data_is_refused_at_the_call_with_what_to_do():
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(True))
+    with pytest.raises(ValueError, match=r"cell data.*cell_data_to_point_data"):
+        vtkvol.illuminate(volume, ren)
+    rw.Finalize()
+
+
+def test_cell_data_arriving_later_is_reported_once_and_the_view_keeps_rendering():
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    il = Illuminator(volume, ren, method="shadow_volume")
+    errors: list[str] = []
+    il.on_error = errors.append
+    grab(rw)
+    volume.GetMapper().SetInputData(image_with(True))
+    for _ in range(3):
+        image = grab(rw)
+    assert len(errors) == 1 and "cell data" in errors[0]
+    assert image.max() > 30  # VTK's own rendering of the cell data, without our replacements
+    assert il._replacements.installed == {}
+    il.release()
+    rw.Finalize()
+
+
+def test_smart_mapper_is_rendered_through_a_gpu_mapper_and_given_back():
+    import vtkvol
+
+    smart = vtk.vtkSmartVolumeMapper()
+    smart.SetBlendModeToComposite()
+    rw, ren, volume = plain_scene(smart, image_with(False))
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    assert isinstance(volume.GetMapper(), vtk.vtkOpenGLGPUVolumeRayCastMapper)
+    assert volume.GetMapper().GetInput() is smart.GetInput()
+    image = grab(rw)
+    assert image.max() > 30 and il.technique.stats()["recomputes"] == 1
+    il.release()
+    assert volume.GetMapper() is smart
+    rw.Finalize()
+
+
+def test_other_mappers_are_refused_with_what_to_do():
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkFixedPointVolumeRayCastMapper(), image_with(False))
+    with pytest.raises(TypeError, match=r'add_volume\(\.\.\., mapper="gpu"\)'):
+        vtkvol.illuminate(volume, ren)
+    rw.Finalize()
+
+
+def test_illuminate_follows_the_renderers_own_lights():
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    light = vtk.vtkLight()
+    light.SetLightTypeToSceneLight()
+    light.SetPosition(100.0, 4.0, 4.0)
+    light.SetFocalPoint(4.0, 4.0, 4.0)
+    light.SetDiffuseColor(1.0, 0.5, 0.25)
+    light.SetIntensity(0.8)
+    ren.AddLight(light)
+    il = vtkvol.illuminate(volume, ren)
+    grab(rw)
+    (spec,) = il.light_specs()
+    assert spec.kind == "directional"
+    assert spec.vector == pytest.approx((1.0, 0.0, 0.0))
+    assert spec.color == pytest.approx((0.8, 0.4, 0.2))
+    light.SetPosition(4.0, 4.0, 100.0)  # the renderer's light moved: so does ours
+    grab(rw)
+    assert il.light_specs()[0].vector == pytest.approx((0.0, 0.0, 1.0))
+    il.set_lights([vtkvol.Light(direction=(0.0, 1.0, 0.0))])  # explicit lights win from now on
+    grab(rw)
+    assert il.light_specs()[0].vector == pytest.approx((0.0, 1.0, 0.0))
+    il.release()
+    rw.Finalize()
