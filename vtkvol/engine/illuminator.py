@@ -15,11 +15,13 @@ through vtkvol's model or from user code touching the VTK objects directly.
 
 from __future__ import annotations
 
+import contextlib
+import gc
 import logging
 import math
 import re
 import time
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -628,6 +630,10 @@ class Illuminator:
 
     # -- frame ----------------------------------------------------------------------------------
     def _on_start(self, _renderer: Any, _event: str) -> None:
+        with _no_collection():
+            self._start_frame()
+
+    def _start_frame(self) -> None:
         if self._closed or self._unsupported is not None:
             return
         if not self._check_input(raise_error=False):
@@ -832,6 +838,10 @@ class Illuminator:
         observers). Call before the render window is finalised; safe to call twice."""
         if self._closed:
             return
+        with _no_collection():
+            self._release()
+
+    def _release(self) -> None:
         self._closed = True
         if self.render_window is not None:  # GL resources exist only after a first frame
             self.render_window.MakeCurrent()
@@ -859,6 +869,20 @@ class Illuminator:
 #: Uniforms and textures the host sets for itself (not for the technique).
 _MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
 _HOST_TEXTURES = frozenset({"vv_sliceWeights"})
+
+
+@contextlib.contextmanager
+def _no_collection() -> Iterator[None]:
+    """No cyclic garbage collection while we run inside VTK's render: collecting a forgotten
+    render window there finalises it, which leaves *no* GL context current, and every GL call
+    after it (ours, and VTK's for the rest of the frame) silently does nothing."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
 
 
 def _gpu_mapper_like(smart: vtk.vtkSmartVolumeMapper) -> vtk.vtkOpenGLGPUVolumeRayCastMapper:
@@ -898,9 +922,10 @@ def _capture_source(illuminator: Illuminator) -> Callable[..., None]:
     @vtk.calldata_type(vtk.VTK_OBJECT)
     def capture(_mapper: Any, _event: str, program: Any = None) -> None:
         if program is not None:
-            source = program.GetFragmentShader().GetSource()
-            illuminator._fragment_source = source
-            illuminator._check_built_source(source)
+            with _no_collection():
+                source = program.GetFragmentShader().GetSource()
+                illuminator._fragment_source = source
+                illuminator._check_built_source(source)
 
     return capture
 
