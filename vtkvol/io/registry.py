@@ -48,6 +48,8 @@ BUILTIN_READERS: dict[str, str] = {
     "dat": "vtkvol.io.raw:DAT_READER",
     "numpy": "vtkvol.io.numpy_files:NUMPY_READER",
     "vtk": "vtkvol.io.vti:VTK_READER",
+    "nifti": "vtkvol.io.nifti:NIFTI_READER",
+    "mrc": "vtkvol.io.mrc:MRC_READER",
 }
 """Entry-point name → ``"module:attribute"`` of vtkvol's own readers (same as pyproject.toml)."""
 
