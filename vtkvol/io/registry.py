@@ -50,6 +50,7 @@ BUILTIN_READERS: dict[str, str] = {
     "vtk": "vtkvol.io.vti:VTK_READER",
     "nifti": "vtkvol.io.nifti:NIFTI_READER",
     "mrc": "vtkvol.io.mrc:MRC_READER",
+    "imaris": "vtkvol.io.imaris:IMARIS_READER",
 }
 """Entry-point name → ``"module:attribute"`` of vtkvol's own readers (same as pyproject.toml)."""
 
