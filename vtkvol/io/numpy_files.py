@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.limits import check_declared_bytes
 from vtkvol.io.progress import Progress, slabs
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.volume_data import Spacing, VolumeData, default_channel_names, resolve_channels
@@ -75,7 +76,7 @@ def read_npy(
     _check_time(time_index, path)
     try:
         array = np.load(path, mmap_mode="r", allow_pickle=False)
-    except ValueError as exc:
+    except (ValueError, OverflowError, MemoryError) as exc:
         raise VolumeReadError(path, f"not a readable .npy file ({exc})") from exc
     except OSError as exc:
         raise VolumeReadError(path, f"cannot read the file ({exc})") from exc
@@ -125,10 +126,11 @@ def read_npz(
                     f"cannot tell which array is the volume among {keys}; name it 'volume'",
                 )
             progress(0.0, f"loading {key!r}")
+            _check_member_size(npz, key, path)
             array = npz[key]
             voxel = npz["voxel_size_um"] if "voxel_size_um" in keys else None
             names_array = npz["channel_names"] if "channel_names" in keys else None
-    except (ValueError, OSError, zipfile.BadZipFile) as exc:
+    except (ValueError, OSError, zipfile.BadZipFile, OverflowError, MemoryError) as exc:
         if isinstance(exc, VolumeReadError):
             raise
         raise VolumeReadError(path, f"not a readable .npz file ({exc})") from exc
@@ -169,6 +171,18 @@ def read_npz(
         metadata=metadata,
         notes=notes,
     )
+
+
+def _check_member_size(npz: Any, key: str, path: Path) -> None:
+    """Read the member's .npy header and refuse sizes this machine cannot hold, before numpy
+    allocates them."""
+    with npz.zip.open(f"{key}.npy") as member:
+        version = np.lib.format.read_magic(member)
+        read_header = (np.lib.format.read_array_header_1_0 if version == (1, 0)
+                       else np.lib.format.read_array_header_2_0)
+        shape, _fortran, dtype = read_header(member, max_header_size=1 << 20)
+    nbytes = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    check_declared_bytes(path, nbytes, f"an array of shape {shape} {dtype}")
 
 
 def _read_numpy(

@@ -19,6 +19,7 @@ from __future__ import annotations
 import bz2
 import gzip
 import math
+import os
 import re
 import shlex
 from collections.abc import Sequence
@@ -29,6 +30,7 @@ from typing import IO, Any
 import numpy as np
 
 from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.limits import check_declared_bytes, check_inside
 from vtkvol.io.progress import Progress, slabs
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.units import unit_scale_um
@@ -138,6 +140,8 @@ def _check_sizes(layout: RawLayout, source: Path) -> None:
             f"zero-size axis in the descriptor: size {layout.size_xyz} (x, y, z), "
             f"{layout.channels} channel(s)",
         )
+    check_declared_bytes(source, layout.count * layout.dtype.itemsize,
+                         _describe_expected(layout))
 
 
 def _describe_expected(layout: RawLayout) -> str:
@@ -209,8 +213,31 @@ def _to_czyx(
     return out
 
 
+def _check_gzip_size(path: Path, layout: RawLayout, source: Path, expected: int) -> None:
+    """A single-member gzip stream ends with its uncompressed size modulo 2³² (ISIZE): a header
+    that lies about the size is caught before the buffer is allocated."""
+    size = path.stat().st_size - max(layout.header_bytes, 0)
+    if size < 18:  # gzip header (10) + trailer (8)
+        raise VolumeReadError(source, f"the gzip data in {path.name} are truncated ({size} bytes)")
+    with path.open("rb") as fh:
+        fh.seek(max(layout.header_bytes, 0))
+        if fh.read(2) != b"\x1f\x8b":
+            raise VolumeReadError(source, f"{path.name}: the data are not gzip-compressed")
+        fh.seek(-4, os.SEEK_END)
+        isize = int.from_bytes(fh.read(4), "little")
+    if isize != expected % (1 << 32):
+        raise VolumeReadError(
+            source,
+            f"wrong data size for the descriptor: expected {expected} bytes "
+            f"({_describe_expected(layout)}), but the gzip stream in {path.name} holds "
+            f"{isize} bytes (modulo 4 GiB)",
+        )
+
+
 def _read_encoded(layout: RawLayout, source: Path, expected: int, progress: Progress) -> np.ndarray:
     path = layout.file
+    if layout.encoding == "gzip":
+        _check_gzip_size(path, layout, source, expected)
     with path.open("rb") as fh:
         if layout.header_bytes > 0:
             fh.seek(layout.header_bytes)
@@ -526,6 +553,7 @@ def _nrrd_layout(
                 "string) is not supported; concatenate into one file",
             )
         file = (path.parent / data_file).resolve()
+        check_inside(path, file)
         header_bytes = int(fields.get("byte skip", "0"))
         line_skip = int(fields.get("line skip", "0"))
     else:
@@ -537,8 +565,12 @@ def _nrrd_layout(
     if line_skip:
         with file.open("rb") as fh:
             fh.seek(max(header_bytes, 0))
-            for _ in range(line_skip):
-                fh.readline()
+            for skipped in range(line_skip):
+                if not fh.readline():
+                    raise VolumeReadError(
+                        path, f"'line skip: {line_skip}' runs past the end of the data file "
+                              f"after {skipped} lines",
+                    )
             header_bytes = fh.tell()
     axes = "".join(
         "C" if i == channel_axis_nrrd else "XYZ"[spatial.index(i)] for i in range(dimension)
@@ -645,6 +677,7 @@ def parse_dat(path: Path) -> RawLayout:
             raise VolumeReadError(path, f"the descriptor has no {required!r} entry")
     file_name = values["file"].strip().strip("'\"")
     file = (path.parent / file_name).resolve()
+    check_inside(path, file)
     try:
         size = tuple(int(v) for v in values["size"].replace(",", " ").split())
     except ValueError as exc:
@@ -698,13 +731,23 @@ def parse_dat(path: Path) -> RawLayout:
         dtype=dtype,
         channels=channels,
         channel_axis=3 if layout_name == "interleaved" else 0,
-        header_bytes=int(values.get("header_bytes", "0")),
+        header_bytes=_header_bytes(values.get("header_bytes", "0"), path),
         encoding=encoding,
         voxel_size_um=spacing,
         channel_names=names,
         notes=notes,
         metadata=metadata,
     )
+
+
+def _header_bytes(text: str, path: Path) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise VolumeReadError(path, f"header_bytes = {text!r} is not a whole number") from None
+    if value < 0:
+        raise VolumeReadError(path, f"header_bytes = {value} must not be negative")
+    return value
 
 
 def _parse_binary_dat(path: Path) -> RawLayout:

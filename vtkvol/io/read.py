@@ -8,11 +8,15 @@ from pathlib import Path
 
 from vtkvol.io.errors import VolumeReadError
 from vtkvol.io.fit import FIT_STRATEGIES, FitStrategy, fit_volume
+from vtkvol.io.limits import check_path
 from vtkvol.io.progress import CancelCallback, Progress, ProgressCallback
 from vtkvol.io.registry import VoxelSizeArg, available_readers, get_reader
 from vtkvol.io.volume_data import VolumeData
 
-__all__ = ["read_volume"]
+__all__ = ["MAX_CHANNELS", "read_volume"]
+
+#: Channels shown at once: VTK's ray caster renders at most four independent components.
+MAX_CHANNELS = 4
 
 
 def read_volume(
@@ -74,12 +78,19 @@ def read_volume(
     ValueError
         Invalid arguments (voxel size ≤ 0, unknown fit strategy).
     """
+    if "\x00" in str(path):
+        raise VolumeReadError(None, f"the path {str(path)!r} contains a NUL byte")
     p = Path(path).expanduser()
     if fit not in FIT_STRATEGIES:  # checked before a possibly long read
         raise ValueError(f"unknown fit strategy {fit!r}; use one of {FIT_STRATEGIES}")
     prog = Progress(progress, cancel)
-    if not p.exists():
+    try:
+        exists = p.exists()
+    except OSError as exc:  # e.g. a name longer than the file system allows
+        raise VolumeReadError(p, f"cannot use this path ({exc.strerror or exc})") from exc
+    if not exists:
         raise VolumeReadError(p, f"no such file or folder: {p}")
+    check_path(p)
     reader = get_reader(p)
     if reader is None:
         raise VolumeReadError(p, _unknown_type(p))
@@ -97,6 +108,13 @@ def read_volume(
         strategy=fit,
         progress=prog.sub(0.9, 1.0),
     )
+    if data.n_channels > MAX_CHANNELS:
+        raise VolumeReadError(
+            p,
+            f"has {data.n_channels} channels ({', '.join(data.channel_names)}); vtkvol shows up "
+            f"to {MAX_CHANNELS} at once: choose them with channels=[...] (--channels on the "
+            "command line)",
+        )
     prog(1.0, f"loaded {p.name}")
     return data
 

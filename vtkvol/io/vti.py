@@ -7,6 +7,7 @@ VTK (docs/architecture.md). VTK stores no length unit; spacing is taken as µm.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -14,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.limits import check_declared_bytes, check_inside
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.volume_data import Spacing, VolumeData, normalize_volume, resolve_channels
@@ -72,12 +74,20 @@ def _image_to_volume(image: vtkImageData, source: str | None) -> VolumeData:
             scalars.GetComponentName(i) or (f"{name}[{i}]" if name else f"ch{i}")
             for i in range(n_comp)
         ]
-    spacing_raw = [abs(float(v)) for v in image.GetSpacing()]
+    declared = tuple(float(v) for v in image.GetSpacing())
+    spacing_raw = [abs(v) for v in declared]
     for i, v in enumerate(spacing_raw):
         if not np.isfinite(v) or v == 0:
             if dims[2 - i] > 1:
-                raise VolumeReadError(source, f"invalid spacing {tuple(image.GetSpacing())}")
-            spacing_raw[i] = spacing_raw[0] or 1.0
+                raise VolumeReadError(
+                    source, f"invalid spacing {declared}: every axis with more than one voxel "
+                            "needs a finite, non-zero spacing"
+                )
+            spacing_raw[i] = 1.0
+            notes.append(f"spacing {declared[i]} on the single-voxel {'xyz'[i]} axis: using 1 µm")
+    if any(v < 0 for v in declared):
+        notes.append(f"negative spacing {declared}: its magnitude is used (the image is not "
+                     "mirrored)")
     metadata: dict[str, Any] = {
         "format": "vtk-image",
         "origin": tuple(float(v) for v in image.GetOrigin()),
@@ -127,6 +137,56 @@ def _vtk_reader_for(path: Path) -> Any:
     return vtkStructuredPointsReader()
 
 
+def _check_declared_extent(reader: Any, path: Path) -> None:
+    """Refuse a header whose extent alone (one byte per voxel) exceeds this machine's memory:
+    VTK would abort the process allocating it."""
+    from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
+
+    reader.UpdateInformation()
+    extent = reader.GetOutputInformation(0).Get(vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT())
+    if extent is None:
+        return
+    dims = [int(extent[2 * a + 1]) - int(extent[2 * a]) + 1 for a in range(3)]
+    voxels = int(np.prod([max(d, 0) for d in dims], dtype=object))
+    check_declared_bytes(path, voxels, f"a {dims[0]}×{dims[1]}×{dims[2]} grid")
+
+
+_XML_SPACING = re.compile(rb"<ImageData\b[^>]*?\bSpacing\s*=\s*\"([^\"]*)\"", re.DOTALL)
+
+
+def _check_xml_spacing(path: Path) -> None:
+    """VTK's XML reader silently keeps spacing 1 where the file's ``Spacing`` does not parse
+    (``nan``, words): check the attribute as written."""
+    with path.open("rb") as fh:
+        head = fh.read(65536)
+    match = _XML_SPACING.search(head)
+    if match is None:
+        return
+    text = match.group(1).decode("latin-1")
+    try:
+        values = [float(v) for v in text.split()]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(np.isfinite(v) for v in values):
+        raise VolumeReadError(path, f'invalid Spacing="{text}": expected three finite numbers')
+
+
+_ELEMENT_DATA_FILE = re.compile(r"^\s*ElementDataFile\s*=\s*(.+?)\s*$", re.MULTILINE)
+
+
+def _check_metaimage_data_file(path: Path) -> None:
+    """A detached MetaImage header (``.mhd``) may name only data files beside it."""
+    with path.open("rb") as fh:
+        head = fh.read(65536).decode("latin-1")
+    match = _ELEMENT_DATA_FILE.search(head)
+    if match is None:
+        return
+    name = match.group(1)
+    if name.upper() in ("LOCAL",) or name.upper().startswith("LIST"):
+        return
+    check_inside(path, path.parent / name.split()[0])
+
+
 def read_vtk_image_file(
     path: Path,
     *,
@@ -159,6 +219,10 @@ def read_vtk_image_file(
         if not reader.IsFileStructuredPoints():
             raise VolumeReadError(path, "not a legacy VTK structured-points (image) file")
     reader.SetFileName(str(path))
+    if path.suffix.lower() in (".mha", ".mhd"):
+        _check_metaimage_data_file(path)
+    if path.suffix.lower() == ".vti":
+        _check_xml_spacing(path)
     from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
 
     # VTK prints reader errors to the console (output window and logger); collect them for
@@ -169,6 +233,7 @@ def read_vtk_image_file(
     vtkOutputWindow.SetInstance(captured)
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     try:
+        _check_declared_extent(reader, path)
         reader.Update()
     finally:
         vtkOutputWindow.SetInstance(previous)
