@@ -43,7 +43,27 @@ def test_change_events_carry_dotted_paths_and_only_real_changes():
     model.crop.x = (0.0, 10.0)
     model.crop.x = (0.0, 10.0)  # same value: no event
     model.channels[0].tf.opacity = [(0.0, 0.0), (100.0, 0.5)]
-    assert seen == [frozenset({"crop.x"}), frozenset({"channels.tf.opacity"})]
+    assert seen == [frozenset({"crop.x"}), frozenset({"channels[0].tf.opacity"})]
+
+
+def test_list_elements_announce_their_index_and_replacing_the_list_does_not():
+    from vtkvol.model.evented import fields_of, indices, touches
+
+    model = SceneModel(channels=[Channel(name="a"), Channel(name="b"), Channel(name="c")])
+    seen: list[frozenset[str]] = []
+    model.changed.connect(seen.append)
+    model.channels[2].tf.opacity = [(0.0, 0.0), (10.0, 1.0)]
+    model.channels[1].name = "membrane"
+    model.channels = [model.channels[0], model.channels[2]]  # removing "membrane"
+    model.channels[1].visible = False  # what was channels[2] is now index 1
+    assert seen == [frozenset({"channels[2].tf.opacity"}), frozenset({"channels[1].name"}),
+                    frozenset({"channels"}), frozenset({"channels[1].visible"})]
+    assert fields_of("channels[2].tf.opacity") == ["channels", "tf", "opacity"]
+    assert indices(seen[0] | seen[1], "channels") == {1, 2}
+    assert indices(seen[2], "channels") is None
+    assert touches(seen[0], "channels", "tf") and not touches(seen[1], "channels", "tf")
+    assert touches({"channels"}, "channels", "tf")  # a replaced list may contain anything
+    assert not touches({"crop.x"}, "channels")
 
 
 def test_batch_emits_once_with_all_paths():
@@ -54,7 +74,7 @@ def test_batch_emits_once_with_all_paths():
         model.render.jitter = False
         model.lights[0].intensity = 2.0
         model.illumination.method = "shadow_volume"
-    assert seen == [frozenset({"render.jitter", "lights.intensity", "illumination.method"})]
+    assert seen == [frozenset({"render.jitter", "lights[0].intensity", "illumination.method"})]
 
 
 def test_update_keeps_nested_objects_bound():
@@ -177,4 +197,4 @@ def test_equal_but_new_child_objects_still_forward_changes():
     model.lights = [Light()]  # equal to the default list: no event, but a new object
     assert seen == []
     model.lights[0].intensity = 3.0
-    assert seen == [frozenset({"lights.intensity"})]
+    assert seen == [frozenset({"lights[0].intensity"})]

@@ -24,13 +24,12 @@ from typing import Any
 import shiboken6
 from PySide6.QtCore import QObject, QSignalBlocker, SignalInstance
 
-from vtkvol.model.evented import EventedModel
+from vtkvol.model.evented import EventedModel, touches
 
 
 def paths_touch(paths: Iterable[str], name: str) -> bool:
     """Whether a ``changed`` event with ``paths`` concerns field ``name`` (or inside it)."""
-    prefix = name + "."
-    return any(p == name or p.startswith(prefix) for p in paths)
+    return touches(paths, *name.split("."))
 
 
 class _ModelToWidget:

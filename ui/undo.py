@@ -27,7 +27,7 @@ from typing import Any
 from PySide6.QtCore import QObject
 from PySide6.QtGui import QUndoCommand, QUndoStack
 
-from vtkvol.model.evented import EventedModel
+from vtkvol.model.evented import EventedModel, fields_of
 from vtkvol.model.scene import SceneModel
 
 #: Top-level fields whose changes are view state or provenance, not undoable edits.
@@ -57,8 +57,9 @@ _LABELS = (
 
 def describe(paths: frozenset[str]) -> str:
     """A short label for the Edit menu ("Undo Edit opacity") from changed dotted paths."""
+    dotted = [".".join(fields_of(p)) for p in paths]
     for needle, label in _LABELS:
-        if any(needle in p for p in paths):
+        if any(needle in p for p in dotted):
             return label
     return "Edit"
 
@@ -164,7 +165,7 @@ class UndoRecorder(QObject):
 
     # -- recording ------------------------------------------------------------------------------
     def _on_changed(self, paths: frozenset[str]) -> None:
-        tops = {p.split(".", 1)[0] for p in paths}
+        tops = {fields_of(p)[0] for p in paths}
         new_state = self.model.copy_state()
         old_state, self._state = self._state, new_state
         edits = tops - NOT_EDITS
@@ -175,7 +176,7 @@ class UndoRecorder(QObject):
         if before == after:
             return
         gesture = self._gesture_serial if self._gesture_depth else None
-        edit_paths = frozenset(p for p in paths if p.split(".", 1)[0] in edits)
+        edit_paths = frozenset(p for p in paths if fields_of(p)[0] in edits)
         self.stack.push(SnapshotCommand(self, before, after, edit_paths, gesture, self._epoch))
 
     def begin_gesture(self) -> None:

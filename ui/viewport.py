@@ -34,6 +34,7 @@ from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
 from vtkvol.engine.scene import VolumeScene
+from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel
 
 if TYPE_CHECKING:
@@ -376,7 +377,7 @@ class Viewport(QWidget):
         self._gizmo.place(centre, handle, light.color, enabled=light.enabled)
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if any(p == "lights" or p.startswith("lights.") for p in paths):
+        if touches(paths, "lights"):
             self._update_gizmo()
 
     # -- teardown -------------------------------------------------------------------------------

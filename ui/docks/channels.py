@@ -21,6 +21,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from vtkvol.model.evented import touches
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
 from vtkvol.ui.binding import Bindings
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
@@ -272,11 +273,11 @@ class ChannelsDock(ModelDock):
         if "channels" in paths or renamed or len(self.rows) != len(self.model.channels):
             self.refresh()
             return
-        if any(p.startswith("channels.tf") for p in paths):
+        if touches(paths, "channels", "tf"):
             # Any TF may be the one a linked channel follows: update every row's limits.
             for row in self.rows:
                 row.show_limits()
-        if any(p.startswith(("render.", "channels.tf")) for p in paths):
+        if touches(paths, "render") or touches(paths, "channels", "tf"):
             self._refresh_render()
 
     def refresh(self) -> None:

@@ -36,6 +36,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from vtkvol.model.evented import touches
 from vtkvol.model.params import Param
 from vtkvol.model.scene import Light, SceneModel
 from vtkvol.model.techniques import TechniqueSpec, technique_specs
@@ -455,9 +456,9 @@ class LightsDock(ModelDock):
 
     # -- model → widgets ------------------------------------------------------------------------
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if any(p == "lights" or p.startswith("lights.") for p in paths):
+        if touches(paths, "lights"):
             self._show_lights()
-        if any(p.startswith("illumination") for p in paths):
+        if touches(paths, "illumination"):
             self._show_illumination()
 
     def refresh(self) -> None:

@@ -45,6 +45,7 @@ from PySide6.QtWidgets import (
 )
 from superqt import QDoubleRangeSlider
 
+from vtkvol.model.evented import touches
 from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
 from vtkvol.model.scene import SceneModel
 from vtkvol.model.transfer_function import TransferFunction
@@ -373,7 +374,7 @@ class TransferFunctionDock(ModelDock):
         return self.model.channels[self._effective_index()].tf
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if any(p == "channels" or p.startswith("channels.") for p in paths):
+        if touches(paths, "channels"):
             structural = "channels" in paths or any(
                 p.endswith(("tf_linked_to", ".name", ".color")) for p in paths)
             self.refresh(structural=structural)

@@ -1,7 +1,11 @@
 """``VolumeScene``: a :class:`SceneModel` and a :class:`VolumeData` made into a VTK scene.
 
-The scene listens to the model and applies each change to the VTK objects; it never writes the
-model except :meth:`VolumeScene.sync_camera_to_model` (the camera is moved by the interactor).
+The scene listens to the model and applies each change to the VTK objects it concerns, one
+handler per property (napari's ``_on_<x>_change``): a TF edit on channel 1 rebuilds channel 1's
+functions only, and background, jitter, channel names, camera or light colours never make the
+illumination recompute. It writes the model in two places only:
+:meth:`VolumeScene.sync_camera_to_model` (the camera is moved by the interactor) and
+``illumination.method`` when the technique failed and the host fell back to local shading.
 Illumination is delegated to an :class:`~vtkvol.engine.illuminator.Illuminator`, the same host
 that :func:`vtkvol.illuminate` attaches to foreign volumes.
 """
@@ -17,6 +21,7 @@ from vtk.util.numpy_support import numpy_to_vtk
 
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.model.defaults import default_channels
+from vtkvol.model.evented import Signal, fields_of, indices, touches
 from vtkvol.model.scene import Channel, SceneModel
 
 if TYPE_CHECKING:
@@ -31,7 +36,10 @@ _BLEND = {
     "additive": vtk.vtkVolumeMapper.ADDITIVE_BLEND,
     "isosurface": vtk.vtkVolumeMapper.ISOSURFACE_BLEND,
 }
-_EDITOR_ONLY = ("channels.tf.window",)  # also matches channels.tf.window_range
+#: Fields that are editor state only (the TF editor's displayed-value window): no VTK change.
+_EDITOR_ONLY = (("channels", "tf", "window"), ("channels", "tf", "window_range"))
+#: Per-channel fields that change nothing VTK shows (the channel list's name and tint).
+_LABEL_ONLY = ("name", "color")
 #: Weight-table resolution for the slice-contribution functions.
 WEIGHT_SAMPLES = 256
 
@@ -74,6 +82,13 @@ class VolumeScene:
         self._interactive = False
         self._syncing_camera = False
         self.illuminator: Illuminator | None = None
+        #: Emits one user-facing message when the illumination technique failed (the model's
+        #: method has then been set back to what is shown).
+        self.error = Signal()
+        #: Emits (iteration, converged) while a progressive technique refines.
+        self.progress = Signal()
+        self._color_functions: list[vtk.vtkColorTransferFunction] = []
+        self._opacity_functions: list[vtk.vtkPiecewiseFunction] = []
         self.volume = vtk.vtkVolume()
         self.mapper = vtk.vtkOpenGLGPUVolumeRayCastMapper()
         self.mapper.SetAutoAdjustSampleDistances(0)  # quality never changes behind the user's back
@@ -120,6 +135,8 @@ class VolumeScene:
                 lights=self.model.lights,
                 parameters=self.model.illumination.values_for(),
             )
+            self.illuminator.on_error = self._on_illumination_error
+            self.illuminator.on_progress = self._on_illumination_progress
         self._apply_all()
         if self.model.camera.position is None:
             self.reset_camera()
@@ -136,30 +153,74 @@ class VolumeScene:
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if self.data is None:
             return
-        # The TF editor's displayed-value window is editor state: no rebuild, no recompute.
-        paths = frozenset(p for p in paths if not p.startswith(_EDITOR_ONLY))
+        paths = frozenset(p for p in paths if tuple(fields_of(p)[:3]) not in _EDITOR_ONLY)
         if not paths:
             return
-        tops = {p.split(".", 1)[0] for p in paths}
-        if "channels" in tops:
-            self._apply_channels()
-        if "render" in tops:
-            self._apply_render()
-            self._apply_channels()  # unit distance and shading constants are per component
-        if "lights" in tops:
+        if touches(paths, "channels"):
+            self._on_channels_change(paths)
+        if touches(paths, "render"):
+            self._on_render_change({fields_of(p)[1] for p in paths
+                                    if fields_of(p)[0] == "render" and len(fields_of(p)) > 1}
+                                   or None)
+        if touches(paths, "lights"):
             self.illuminator.set_lights(self.model.lights)  # type: ignore[union-attr]
-        if "illumination" in tops:
+        if touches(paths, "illumination"):
             self._apply_illumination()
-        if "crop" in tops:
+        if touches(paths, "crop"):
             self._apply_crop()
-        if "slice_weights" in tops:
+        if touches(paths, "slice_weights"):
             self._apply_slice_weights()
-        if "camera" in tops and not self._syncing_camera:
+        if touches(paths, "camera") and not self._syncing_camera:
             self._apply_camera()
         self.request_render()
 
+    def _on_channels_change(self, paths: frozenset[str]) -> None:
+        changed = indices(paths, "channels")
+        linking = any(fields_of(p)[1:2] == ["tf_linked_to"] for p in paths)
+        if changed is None or linking or len(self._opacity_functions) != len(self.model.channels):
+            self._apply_channels()
+            return
+        fields: dict[int, set[str]] = {}
+        for p in paths:
+            parts = fields_of(p)
+            for c in changed:
+                if p.startswith(f"channels[{c}].") or p == f"channels[{c}]":
+                    fields.setdefault(c, set()).add(parts[1] if len(parts) > 1 else "")
+        for c, names in fields.items():
+            if names <= set(_LABEL_ONLY):
+                continue
+            if "tf" in names or "" in names:
+                # A channel linked to this one follows it.
+                for target, channel in enumerate(self.model.channels):
+                    if target == c or channel.tf_linked_to == c:
+                        self._apply_channel_tf(target)
+                if c == 0 and self.model.render.blend_mode == "isosurface":
+                    self._apply_shading_constants()  # the default isovalue follows channel 0
+            if "visible" in names or "" in names:
+                self._apply_channel_visibility(c)
+
+    def _on_render_change(self, names: set[str] | None) -> None:
+        """Apply the render settings ``names`` changed (None: all of them)."""
+        every = names is None
+        names = names or set()
+        render = self.model.render
+        if every or "background" in names:
+            self.renderer.SetBackground(*render.background)
+        if every or "jitter" in names:
+            self.mapper.SetUseJittering(int(render.jitter))
+        if every or names & {"sample_distance", "interactive_sample_distance",
+                             "interactive_image_factor"}:
+            self._apply_sampling()
+        if every or names & {"blend_mode", "channel_mixing"}:
+            self._apply_blending()
+        if every or names & {"opacity_unit_distance", "shade", "ambient", "diffuse", "specular",
+                             "specular_power", "blend_mode", "isosurface_value"}:
+            self._apply_shading_constants()
+        if every or names & {"albedo", "phase_g"}:
+            self._apply_material()
+
     def _apply_all(self) -> None:
-        self._apply_render()
+        self._on_render_change(None)
         self._apply_channels()
         self._apply_illumination()
         self._apply_crop()
@@ -170,34 +231,63 @@ class VolumeScene:
         self.illuminator.set_lights(self.model.lights)
 
     def _apply_channels(self) -> None:
-        prop, render = self.property, self.model.render
-        channels = self.model.channels
-        n = len(channels)
+        """(Re)build every channel: one colour and one opacity function per channel, kept and
+        edited in place afterwards so that other channels' functions keep their MTime."""
+        prop = self.property
+        n = len(self.model.channels)
         prop.SetIndependentComponents(True)  # one TF per channel, also for a single channel
-        unit = render.opacity_unit_distance or self._min_spacing()
-        for c, channel in enumerate(channels):
-            tf = self._effective_tf(channel)
-            ctf = vtk.vtkColorTransferFunction()
-            for value, r, g, b in tf.colors:
-                ctf.AddRGBPoint(value, r, g, b)
-            otf = vtk.vtkPiecewiseFunction()
+        self._color_functions = [vtk.vtkColorTransferFunction() for _ in range(n)]
+        self._opacity_functions = [vtk.vtkPiecewiseFunction() for _ in range(n)]
+        for c in range(n):
+            prop.SetColor(c, self._color_functions[c])
+            prop.SetScalarOpacity(c, self._opacity_functions[c])
+            self._apply_channel_tf(c)
+            self._apply_channel_visibility(c)
+        self._apply_shading_constants()
+
+    def _apply_channel_tf(self, c: int) -> None:
+        channel = self.model.channels[c]
+        tf = self._effective_tf(channel)
+        ctf, otf = self._color_functions[c], self._opacity_functions[c]
+        ctf.RemoveAllPoints()
+        for value, r, g, b in tf.colors:
+            ctf.AddRGBPoint(value, r, g, b)
+        otf.RemoveAllPoints()
+        if len(self.model.channels) == 1 and not channel.visible:
+            otf.AddPoint(-1e30, 0.0)  # a single channel cannot be weighted away: hide it here
+            otf.AddPoint(1e30, 0.0)
+        else:
             for value, alpha in tf.opacity:
                 otf.AddPoint(value, alpha)
-            prop.SetColor(c, ctf)
-            prop.SetScalarOpacity(c, otf)
-            prop.SetScalarOpacityUnitDistance(c, unit)
-            prop.SetComponentWeight(c, 1.0 if channel.visible else 0.0)
+
+    def _apply_channel_visibility(self, c: int) -> None:
+        channel = self.model.channels[c]
+        if len(self.model.channels) == 1:
+            self._apply_channel_tf(c)
+        else:
+            self.property.SetComponentWeight(c, 1.0 if channel.visible else 0.0)
+
+    def _apply_shading_constants(self) -> None:
+        """Per-component unit distance and shading constants, and the isosurface value."""
+        prop, render = self.property, self.model.render
+        unit = render.opacity_unit_distance or self._min_spacing()
+        for c in range(len(self.model.channels)):
+            if prop.GetScalarOpacityUnitDistance(c) != unit:
+                prop.SetScalarOpacityUnitDistance(c, unit)
             prop.SetShade(c, int(render.shade))
             prop.SetAmbient(c, render.ambient)
             prop.SetDiffuse(c, render.diffuse)
             prop.SetSpecular(c, render.specular)
             prop.SetSpecularPower(c, render.specular_power)
-        if n == 1 and not channels[0].visible:
-            prop.SetScalarOpacity(0, _zero_function())
         if render.blend_mode == "isosurface":
             iso = prop.GetIsoSurfaceValues()
             iso.SetNumberOfContours(1)
             iso.SetValue(0, self._isosurface_value())
+
+    def _apply_material(self) -> None:
+        if self.illuminator is not None:
+            render = self.model.render
+            self.illuminator.set_material(albedo=render.albedo, phase_g=render.phase_g)
 
     def _effective_tf(self, channel: Channel):
         link = channel.tf_linked_to
@@ -213,12 +303,9 @@ class VolumeScene:
         lo, hi = self.model.channels[0].tf.value_span
         return 0.5 * (lo + hi)
 
-    def _apply_render(self) -> None:
+    def _apply_blending(self) -> None:
         render = self.model.render
         self.mapper.SetBlendMode(_BLEND[render.blend_mode])
-        self.mapper.SetUseJittering(int(render.jitter))
-        self._apply_sampling()
-        self.renderer.SetBackground(*render.background)
         mixing = render.channel_mixing == "composite" and len(self.model.channels) > 1
         sp = self.volume.GetShaderProperty()
         if mixing:
@@ -284,6 +371,23 @@ class VolumeScene:
         if self.data is None:
             return 1.0
         return float(min(self.data.voxel_size_um))
+
+    # -- illumination feedback ------------------------------------------------------------------
+    def _on_illumination_error(self, message: str) -> None:
+        """The technique failed and the host shows local shading: make the model say so (the
+        dock then shows the truth, and the next edit does not rebuild the broken shader)."""
+        assert self.illuminator is not None
+        shown = self.illuminator.method
+        if self.model.illumination.method != shown:
+            self.model.illumination.method = shown
+        self.error.emit(message)
+
+    def _on_illumination_progress(self, iteration: int, converged: bool) -> None:
+        self.progress.emit(iteration, converged)
+        # Ask for the next refinement frame; without a scheduler (scripts, render_image) the
+        # caller drives it with Illuminator.converge().
+        if not converged and self._request_render is not None:
+            self._request_render()
 
     # -- camera ---------------------------------------------------------------------------------
     def reset_camera(self, *, azimuth: float = 30.0, elevation: float = 20.0) -> None:
@@ -359,13 +463,6 @@ class VolumeScene:
             self.mapper.ReleaseGraphicsResources(rw)
         self.renderer.RemoveVolume(self.volume)
         self._keepalive = None
-
-
-def _zero_function() -> vtk.vtkPiecewiseFunction:
-    f = vtk.vtkPiecewiseFunction()
-    f.AddPoint(-1e30, 0.0)
-    f.AddPoint(1e30, 0.0)
-    return f
 
 
 def _to_image(data: VolumeData) -> tuple[vtk.vtkImageData, np.ndarray]:

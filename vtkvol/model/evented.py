@@ -2,9 +2,12 @@
 
 An :class:`EventedModel` is a pydantic model whose field assignments are validated and, when
 the value really changed, announced on :attr:`EventedModel.changed` as a set of dotted field
-paths (``{"crop.x"}``, ``{"channels.tf"}``). Changes inside nested models bubble up to the
-parent with the field name prefixed. Several assignments inside :meth:`EventedModel.batch`
-are announced once, together; :meth:`EventedModel.update` applies a mapping that way.
+paths (``{"crop.x"}``). Changes inside nested models bubble up to the parent with the field
+name prefixed; inside a list field, with the element's index (``{"channels[1].tf.opacity"}``,
+``{"lights[0].intensity"}``), while replacing the list is ``{"channels"}``. Listeners use
+:func:`touches` and :func:`indices` rather than parsing strings. Several assignments inside
+:meth:`EventedModel.batch` are announced once, together; :meth:`EventedModel.update` applies a
+mapping that way.
 
 Deliberately small (see docs/architecture.md, "Model"): no bytecode inference of property
 dependencies, no per-field emitter objects. Listeners receive the set of paths and decide.
@@ -13,9 +16,10 @@ dependencies, no per-field emitter objects. Listeners receive the set of paths a
 from __future__ import annotations
 
 import contextlib
+import re
 import types
 import weakref
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import Any
 
 from pydantic import BaseModel, ConfigDict, PrivateAttr
@@ -106,9 +110,12 @@ class EventedModel(BaseModel):
         if not children:
             return
         slots = []
-        for child in children:
-            def slot(paths: Paths, _name: str = name) -> None:
-                self._emit({f"{_name}.{p}" for p in paths})
+        listed = isinstance(value, list)
+        for index, child in enumerate(children):
+            prefix = f"{name}[{index}]" if listed else name
+
+            def slot(paths: Paths, _prefix: str = prefix) -> None:
+                self._emit({f"{_prefix}.{p}" for p in paths})
 
             child.changed.connect(slot)
             slots.append((child, slot))
@@ -155,6 +162,41 @@ class EventedModel(BaseModel):
     def copy_state(self) -> dict[str, Any]:
         """A JSON-ready dict of all fields (what a session file stores)."""
         return self.model_dump(mode="json")
+
+
+_SEGMENT = re.compile(r"\[\d+\]")
+
+
+def fields_of(path: str) -> list[str]:
+    """The field names along ``path``, without list indices: ``"channels[1].tf.opacity"`` →
+    ``["channels", "tf", "opacity"]``."""
+    return _SEGMENT.sub("", path).split(".")
+
+
+def touches(paths: Iterable[str], *names: str) -> bool:
+    """Whether any of ``paths`` is the field ``names`` (e.g. ``"channels", "tf"``) of any list
+    element, or inside it, or replaces a field that contains it."""
+    wanted = list(names)
+    for path in paths:
+        fields = fields_of(path)
+        n = min(len(fields), len(wanted))
+        if fields[:n] == wanted[:n]:
+            return True
+    return False
+
+
+def indices(paths: Iterable[str], list_name: str) -> set[int] | None:
+    """The elements of list field ``list_name`` that changed: a set of indices, or None when
+    the whole list was replaced (every element may have changed)."""
+    found: set[int] = set()
+    pattern = re.compile(rf"^{re.escape(list_name)}\[(\d+)\]")
+    for path in paths:
+        if path == list_name:
+            return None
+        match = pattern.match(path)
+        if match:
+            found.add(int(match.group(1)))
+    return found
 
 
 def _equal(a: Any, b: Any) -> bool:
