@@ -86,3 +86,19 @@ def test_missing_file_and_bad_param(capsys, tmp_path):
     assert "nope.tif" in capsys.readouterr().err
     assert main(["render", "sample", "-o", str(tmp_path / "x.png"), "--param", "novalue"]) == 2
     assert "NAME=VALUE" in capsys.readouterr().err
+
+
+def test_render_with_a_failing_method_says_so_in_one_line_and_writes_local_shading(
+        tmp_path, capsys):
+    from tests_support_techniques import BROKEN_SPEC
+
+    from vtkvol.model.techniques import register
+
+    out = tmp_path / "broken.png"
+    with register(BROKEN_SPEC):
+        assert main(["render", "sample", "-o", str(out), "--size", "64", "64",
+                     "--method", BROKEN_SPEC.name]) == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["vtkvol: The 'Broken' illumination could not be compiled by this OpenGL "
+                   "driver (the driver's message is in the log); showing local shading instead."]
+    assert out.is_file() and out.stat().st_size > 100

@@ -197,3 +197,37 @@ def test_every_menu_entry_does_something(opened_window):
     for action in actions:
         assert action.receivers("2triggered(bool)") > 0 or action.receivers(
             "2toggled(bool)") > 0, action.text()
+
+
+def test_a_failing_illumination_method_is_reported_and_the_dock_shows_local(
+        opened_window, qtbot, dialogs):
+    from tests_support_techniques import BROKEN_SPEC
+
+    from vtkvol.model.techniques import register
+
+    window = opened_window
+    with register(BROKEN_SPEC):
+        window.model.illumination.method = BROKEN_SPEC.name
+        qtbot.waitUntil(lambda: window.model.illumination.method == "local", timeout=20_000)
+        qtbot.waitUntil(lambda: len(dialogs) == 1, timeout=5_000)
+    assert "could not be compiled" in dialogs[0].informativeText()
+    assert "could not be compiled" in window.statusBar().currentMessage()
+    dock = window.lights_dock
+    assert dock.method.itemData(dock.method.currentIndex()) == "local"
+
+
+def test_refinement_progress_shows_in_the_status_bar(opened_window, qtbot):
+    from tests_support_techniques import REFINING_SPEC
+
+    from vtkvol.model.techniques import register
+
+    window = opened_window
+    seen: list[str] = []
+    window.viewport.illuminationProgress.connect(
+        lambda *_: seen.append(window.refine_label.text()))
+    with register(REFINING_SPEC):
+        window.model.illumination.method = REFINING_SPEC.name
+        qtbot.waitUntil(lambda: len(seen) >= 5 and window.refine_label.text() == "",
+                        timeout=30_000)
+        window.model.illumination.method = "local"
+    assert any(text.startswith("Refining lighting — iteration") for text in seen)

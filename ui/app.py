@@ -387,13 +387,29 @@ class MainWindow(QMainWindow):
         self.frame_label.setMinimumWidth(
             self.frame_label.fontMetrics().horizontalAdvance("frame 99999 ms · light 99999 ms"))
         self.frame_label.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
+        self.refine_label = QLabel("")
+        self.refine_label.setObjectName("status_refine")
+        self.refine_label.setToolTip("A progressive illumination method is refining the light; "
+                                     "moving the camera does not restart it")
+        status.addPermanentWidget(self.refine_label)
         status.addPermanentWidget(self.data_label)
         status.addPermanentWidget(self.frame_label)
         self.viewport.frameRendered.connect(self._on_frame)
+        # Both arrive from inside a frame: queued, so dialogs open after the frame is done.
+        queued = Qt.ConnectionType.QueuedConnection
+        self.viewport.illuminationFailed.connect(self._on_illumination_failed, queued)
+        self.viewport.illuminationProgress.connect(self._on_illumination_progress, queued)
 
     # -- status ---------------------------------------------------------------------------------
     def _on_frame(self, frame_ms: float, illumination_ms: float) -> None:
         self.frame_label.setText(f"frame {frame_ms:.0f} ms · light {illumination_ms:.0f} ms")
+
+    def _on_illumination_failed(self, message: str) -> None:
+        self.statusBar().showMessage(message, 15000)
+        errors.show_message(self, "The illumination method failed", message)
+
+    def _on_illumination_progress(self, iteration: int, converged: bool) -> None:
+        self.refine_label.setText("" if converged else f"Refining lighting — iteration {iteration}")
 
     def _show_data_info(self) -> None:
         data = self.data

@@ -83,6 +83,18 @@ def show_error(parent: QWidget | None, exc: BaseException, *, action: str) -> No
     run_dialog(make_error_box(parent, exc, action=action))
 
 
+def show_message(parent: QWidget | None, title: str, message: str) -> None:
+    """A one-line problem the app has already handled (e.g. an illumination method that
+    failed and was replaced by local shading): a warning dialog."""
+    box = QMessageBox(parent)
+    box.setWindowTitle(APP_NAME)
+    box.setIcon(QMessageBox.Icon.Warning)
+    box.setText(title)
+    box.setInformativeText(message)
+    box.setStandardButtons(QMessageBox.StandardButton.Ok)
+    run_dialog(box)
+
+
 def show_warnings(parent: QWidget | None, title: str, lines: list[str]) -> None:
     """Non-fatal notes (a session repaired on load, a converted file): one dialog, listed."""
     if not lines:

@@ -136,9 +136,16 @@ class Viewport(QWidget):
     frameRendered(frame_ms, illumination_ms)
         After every frame: its duration and the illumination technique's last
         precomputation time (``scene.illuminator.last_prepare_ms``).
+    illuminationFailed(message)
+        The illumination technique failed and local shading is shown (the model says so).
+        Emitted from inside a frame: connect with a queued connection to show dialogs.
+    illuminationProgress(iteration, converged)
+        A progressive technique refined (its next frame is already requested).
     """
 
     frameRendered = Signal(float, float)
+    illuminationFailed = Signal(str)
+    illuminationProgress = Signal(int, bool)
 
     def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -229,6 +236,8 @@ class Viewport(QWidget):
         if self.scene is None:
             self.scene = VolumeScene(self.renderer, self.model, data,
                                      request_render=self.request_render)
+            self.scene.error.connect(self.illuminationFailed.emit)
+            self.scene.progress.connect(self.illuminationProgress.emit)
         else:
             self.scene.set_data(data, reset_channels=reset_channels)
         self._update_gizmo()

@@ -106,6 +106,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     image = render_image(
         data, model=model, size=tuple(args.size), method=args.method, preset=args.preset,
         azimuth=args.azimuth, elevation=args.elevation, parameters=params or None,
+        on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
     )
     _write_png(image, out)
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -78,6 +78,7 @@ def render_image(
     elevation: float | None = None,
     parameters: dict[str, Any] | None = None,
     max_seconds: float | None = 300.0,
+    on_error: Callable[[str], None] | None = None,
 ) -> np.ndarray:
     """Render ``data`` offscreen and return an ``(h, w, 3)`` uint8 image.
 
@@ -86,6 +87,8 @@ def render_image(
     model whose camera is set, they orbit from that view; otherwise they place the camera from the
     front view (looking along +y, z up; default 30°/20°, the app's opening view). A progressive
     technique refines until it has converged or ``max_seconds`` have passed (None: no limit).
+    ``on_error`` receives the one-line message when the technique fails (the image then shows
+    local shading).
     """
     model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
     if preset is not None:
@@ -101,6 +104,8 @@ def render_image(
     rw.AddRenderer(renderer)
     has_camera = model.camera.position is not None
     scene = VolumeScene(renderer, model, data, request_render=lambda: None)
+    if on_error is not None:
+        scene.error.connect(on_error)
     try:
         if has_camera:
             if azimuth or elevation:
