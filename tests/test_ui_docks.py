@@ -348,6 +348,34 @@ def test_illumination_method_and_generated_parameters(window):
     assert window.model.illumination.method == "local"
 
 
+def test_light_size_falloff_and_the_medium_material(window):
+    dock = window.lights_dock
+    dock.light_list.setCurrentRow(0)
+    light = window.model.lights[0]
+    assert light.kind == "directional" and dock.size.suffix() == "°"
+    assert dock.falloff.isHidden()  # fall-off is for point lights
+    dock.size.setValue(2.0)
+    assert light.size == 2.0
+    light.kind = "point"
+    try:
+        assert dock.size.suffix() == " µm" and not dock.falloff.isHidden()
+        dock.falloff.setChecked(True)
+        assert light.falloff == "inverse_square"
+    finally:
+        light.update({"kind": "directional", "size": 0.0, "falloff": "none"})
+    assert dock.material_box.isHidden()  # local shading: surface model
+    window.model.illumination.method = "convection_diffusion"
+    try:
+        assert not dock.material_box.isHidden()
+        dock.phase_g.setValue(0.6)
+        assert window.model.render.phase_g == pytest.approx(0.6)
+        window.model.render.albedo = 0.5
+        assert dock.albedo.value() == pytest.approx(0.5)
+    finally:
+        window.model.illumination.method = "local"
+        window.model.render.update({"albedo": 1.0, "phase_g": 0.0})
+
+
 def test_parameters_without_effect_are_hidden(window):
     """cone_traced's view-cone angle applies only in view_cone mode (applies_when)."""
     dock = window.lights_dock

@@ -38,7 +38,7 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.evented import touches
 from vtkvol.model.params import Param
-from vtkvol.model.scene import Light, SceneModel
+from vtkvol.model.scene import MAX_ANGULAR_RADIUS, Light, SceneModel
 from vtkvol.model.techniques import TechniqueSpec, technique_specs
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
@@ -274,6 +274,19 @@ class LightsDock(ModelDock):
         color_row.addWidget(QLabel("Intensity"))
         color_row.addWidget(self.intensity, 1)
         form.addRow("Colour", color_row)
+        self.size = number_box(minimum=0, maximum=MAX_ANGULAR_RADIUS, decimals=2, step=0.25,
+                               suffix="°", object_name="light_size",
+                               tooltip="The light's physical size, which sets how soft its "
+                                       "shadows are: angular radius for a directional light "
+                                       "(the sun: 0.27°), radius for a point light; 0 = ideal")
+        self.falloff = QCheckBox("Inverse-square fall-off")
+        self.falloff.setObjectName("light_falloff")
+        self.falloff.setToolTip("Point light: brightness falls with the squared distance "
+                                "(the intensity is the brightness at the volume's centre)")
+        size_row = QHBoxLayout()
+        size_row.addWidget(self.size, 1)
+        size_row.addWidget(self.falloff)
+        form.addRow("Size", size_row)
         lights_layout.addLayout(form)
         layout.addWidget(lights_box)
 
@@ -288,6 +301,21 @@ class LightsDock(ModelDock):
         method_layout.addWidget(self.method)
         self.description = hint_label("")
         method_layout.addWidget(self.description)
+        # The medium lighting model's material (render settings, shared by medium methods).
+        self.material_box = QWidget()
+        material = QFormLayout(self.material_box)
+        material.setContentsMargins(0, 0, 0, 0)
+        self.albedo = number_box(minimum=0, maximum=1, decimals=2, step=0.05,
+                                 object_name="medium_albedo",
+                                 tooltip="Single-scattering albedo: the share of extinguished "
+                                         "light that is scattered rather than absorbed")
+        self.phase_g = number_box(minimum=-0.99, maximum=0.99, decimals=2, step=0.05,
+                                  object_name="medium_phase_g",
+                                  tooltip="Henyey–Greenstein asymmetry: 0 scatters equally in "
+                                          "all directions, > 0 forwards, < 0 backwards")
+        material.addRow("Scattering albedo", self.albedo)
+        material.addRow("Phase asymmetry g", self.phase_g)
+        method_layout.addWidget(self.material_box)
         self.param_form_host = QWidget()
         self.param_form = QFormLayout(self.param_form_host)
         self.param_form.setContentsMargins(0, 0, 0, 0)
@@ -318,6 +346,13 @@ class LightsDock(ModelDock):
             b.connect_qt(box.valueChanged, self._on_position)
         b.connect_qt(self.color.colorPicked, lambda rgb: self._edit(color=tuple(rgb)))
         b.connect_qt(self.intensity.valueChanged, lambda v: self._edit(intensity=float(v)))
+        b.connect_qt(self.size.valueChanged, lambda v: self._edit(size=float(v)))
+        b.connect_qt(self.falloff.toggled,
+                     lambda on: self._edit(falloff="inverse_square" if on else "none"))
+        b.connect_qt(self.albedo.valueChanged,
+                     lambda v: setattr(self.model.render, "albedo", float(v)))
+        b.connect_qt(self.phase_g.valueChanged,
+                     lambda v: setattr(self.model.render, "phase_g", float(v)))
         b.connect_qt(self.method.currentIndexChanged, self._on_method)
         b.connect_qt(self.reset_params.clicked, self._on_defaults)
 
@@ -460,10 +495,13 @@ class LightsDock(ModelDock):
             self._show_lights()
         if touches(paths, "illumination"):
             self._show_illumination()
+        if touches(paths, "render", "albedo") or touches(paths, "render", "phase_g"):
+            self._show_material()
 
     def refresh(self) -> None:
         self._show_lights()
         self._show_illumination()
+        self._show_material()
 
     def _show_lights(self) -> None:
         lights = self.model.lights
@@ -490,9 +528,16 @@ class LightsDock(ModelDock):
         light = self.light()
         if light is None:
             return
-        widgets = [self.kind, self.azimuth, self.elevation, self.intensity, *self.position_boxes]
+        widgets = [self.kind, self.azimuth, self.elevation, self.intensity, self.size,
+                   self.falloff, *self.position_boxes]
         for w in widgets:
             w.blockSignals(True)
+        point = light.kind == "point"
+        # A point light's size is a radius in µm, a directional light's an angle in degrees.
+        self.size.setSuffix(" µm" if point else "°")
+        self.size.setMaximum(1e6 if point else MAX_ANGULAR_RADIUS)
+        self.size.setValue(light.size)
+        self.falloff.setChecked(light.falloff == "inverse_square")
         self.kind.setCurrentIndex(self.kind.findData(light.kind))
         azimuth, elevation = direction_to_angles(light.direction)
         self.azimuth.setValue(azimuth)
@@ -503,7 +548,7 @@ class LightsDock(ModelDock):
         for w in widgets:
             w.blockSignals(False)
         self.color.set_rgb(light.color)
-        point = light.kind == "point"
+        self.falloff.setVisible(point)
         for w in (self.azimuth, self.elevation, self.azimuth_label, self.elevation_label):
             w.setVisible(not point)
         self.position_row.setVisible(point)
@@ -522,3 +567,12 @@ class LightsDock(ModelDock):
             self._rebuild_params()
         else:
             self._show_params()
+        spec = self.technique()
+        self.material_box.setVisible(spec is not None and spec.lighting == "medium")
+
+    def _show_material(self) -> None:
+        render = self.model.render
+        for box, value in ((self.albedo, render.albedo), (self.phase_g, render.phase_g)):
+            box.blockSignals(True)
+            box.setValue(value)
+            box.blockSignals(False)
