@@ -344,3 +344,35 @@ def test_multichannel_texture_round_trips_and_checks_shapes():
         Texture3D(rw, (3, 4, 5), channels=3)
     tex.release()
     rw.Finalize()
+
+
+@pytest.mark.parametrize("profiling", [False, True])
+def test_gpu_timing_only_when_profiling_and_never_a_stall(profiling, monkeypatch):
+    from vtkvol.engine import gl as gl_module
+
+    created: list[object] = []
+    real = gl_module.GpuTimer
+
+    class Counting(real):  # type: ignore[misc, valid-type]
+        def __init__(self, *args: Any) -> None:
+            super().__init__(*args)
+            created.append(self)
+
+    monkeypatch.setattr(gl_module, "GpuTimer", Counting)
+    finishes: list[int] = []
+    GL = gl_module.gl()
+    monkeypatch.setattr(GL, "glFinish", lambda: finishes.append(1))  # production must not wait
+    rw, ren, volume = scene()
+    il = Illuminator(volume, ren, method="shadow_volume")
+    il.profiling = profiling
+    grab(rw)
+    grab(rw)
+    stats = il.technique.stats()
+    assert stats["recomputes"] == 1 and stats["recompute_ms"] > 0
+    assert finishes == []
+    assert len(created) == (1 if profiling else 0)
+    if profiling:  # read on a later frame, from the timer query
+        assert created[0].result_ms() is not None
+        assert stats["recompute_ms"] == pytest.approx(created[0].result_ms())
+    il.release()
+    rw.Finalize()

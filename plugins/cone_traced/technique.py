@@ -42,7 +42,6 @@ the AO maximum distance is in voxels of the smallest voxel edge (converted to µ
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -725,8 +724,7 @@ class ConeTraced(Technique):
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.recompute_count = 0
-        self.last_recompute_ms = 0.0
+        self.recompute_count = 0  #: pyramid rebuilds so far (stats())
         self.backend: str | None = None  #: backend used by the last recompute
         self.source: Texture3D | None = None  #: opacity pyramid S_L (level 0 = α)
         self.filtered: Texture3D | None = None  #: D_L = −ln(1 − G_σ * S_L)
@@ -736,7 +734,6 @@ class ConeTraced(Technique):
         #: Baked AO (ao_mode = baked_hemisphere): occlusion on the AO grid, and its bookkeeping.
         self.ao: Texture3D | None = None
         self.bake_count = 0
-        self.last_bake_ms = 0.0
         self.bake_backend: str | None = None
         self._baker: GpuAoBaker | None = None
         self._cpu_pyramids: tuple[list[np.ndarray], list[np.ndarray]] | None = None
@@ -755,6 +752,17 @@ class ConeTraced(Technique):
             "VV_CT_AO_SIN": f"{math.sin(math.radians(half_angle)):.8f}",
             "VV_CT_MAX_STEPS": str(MAX_STEPS),
             "VV_CT_TAU_EXIT": f"{TAU_EXIT:.8f}",
+        }
+
+    def stats(self) -> dict[str, Any]:
+        textures = (self.source, self.filtered, self._scratch, self.ao)
+        return {
+            "recomputes": self.recompute_count,
+            "recompute_ms": self.elapsed_ms("recompute"),
+            "backend": self.backend or "",
+            "bakes": self.bake_count,
+            "bake_ms": self.elapsed_ms("bake"),
+            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
         }
 
     def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
@@ -791,9 +799,11 @@ class ConeTraced(Technique):
 
     def recompute(self, values: Mapping[str, Any]) -> None:
         """Rebuild the filtered pyramid from ``host.opacity_volume()`` (context current)."""
-        from vtkvol.engine.gl import gl
+        with self.timed("recompute"):
+            self._recompute(values)
+        self.recompute_count += 1
 
-        t0 = time.perf_counter()
+    def _recompute(self, values: Mapping[str, Any]) -> None:
         opacity = self.host.opacity_volume()
         self._ensure_textures(opacity.shape)
         assert self.source is not None and self.filtered is not None
@@ -816,16 +826,15 @@ class ConeTraced(Technique):
                 self.filtered.upload(d, lev)
             self._cpu_pyramids = (src, filtered)  # reused by a CPU bake
             self.backend = "cpu"
-        gl(self.host.render_window).glFinish()  # honest timing: the work is done, not queued
-        self.recompute_count += 1
-        self.last_recompute_ms = (time.perf_counter() - t0) * 1e3
 
     def bake(self, values: Mapping[str, Any]) -> None:
         """Bake the hemisphere AO on the AO grid from the current pyramids (context current)."""
-        from vtkvol.engine.gl import gl
+        with self.timed("bake"):
+            self._bake(values)
+        self.bake_count += 1
 
+    def _bake(self, values: Mapping[str, Any]) -> None:
         assert self.filtered is not None and self.source is not None
-        t0 = time.perf_counter()
         data_dims = self.host.dims
         grid = ao_grid_dims(data_dims, values["ao_resolution"])
         self._ensure_ao(grid)
@@ -852,9 +861,6 @@ class ConeTraced(Technique):
                 pyramid=filtered, source=src,
             ))
             self.bake_backend = "cpu"
-        gl(self.host.render_window).glFinish()
-        self.bake_count += 1
-        self.last_bake_ms = (time.perf_counter() - t0) * 1e3
 
     def _gpu_baker(self) -> GpuAoBaker | None:
         if self._gpu_filter() is None:
@@ -959,11 +965,7 @@ class ConeTraced(Technique):
         if self._baker is not None:
             self._baker.release()
             self._baker = None
-        fu = self.host.shader_property.GetFragmentCustomUniforms()
-        for name in self.uniforms(self.defaults()):
-            fu.RemoveUniform(name)
-        for p in self.PARAMETERS:  # the host uploads them again if we come back
-            fu.RemoveUniform(f"vv_{self.NAME}_{p.name}")
+        self._release_timers()  # the host removes our uniforms and texture bindings
 
     # -- verification ---------------------------------------------------------------------------
     def light_visibility_cpu(

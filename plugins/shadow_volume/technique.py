@@ -42,7 +42,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -91,8 +90,7 @@ class ShadowVolume(Technique):
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.recompute_count = 0  #: light-volume recomputations so far (tests, benchmark)
-        self.last_recompute_ms = 0.0  #: wall time of the last recomputation (ms, GL finished)
+        self.recompute_count = 0  #: light-volume recomputations so far (stats())
         self.last_backend = ""  #: "gpu" or "cpu": the path of the last recomputation
         self.grid: LightGrid | None = None
         self.light_texture: LightTexture | None = None
@@ -121,8 +119,12 @@ class ShadowVolume(Technique):
         )
         if not needed:
             return
-        gl(self.host.render_window).glFinish()  # earlier GL work is not ours to time
-        t0 = time.perf_counter()
+        with self.timed("recompute"):
+            self._recompute(grid, light_key, specs, gpu, values)
+        self.recompute_count += 1
+
+    def _recompute(self, grid: LightGrid, light_key: tuple, specs: Sequence[LightSpec],
+                   gpu: GpuPropagator | None, values: Mapping[str, Any]) -> None:
         self.grid = grid
         self._light_key = light_key
         channels = 1 if len(specs) <= 1 else (2 if len(specs) == 2 else 4)
@@ -139,9 +141,15 @@ class ShadowVolume(Technique):
             self.last_backend = "cpu"
         assert self.light_texture is not None
         self.host.bind_texture(TEXTURE_UNIFORM, self.light_texture)
-        gl(self.host.render_window).glFinish()  # so the time below is the real cost
-        self.last_recompute_ms = (time.perf_counter() - t0) * 1e3
-        self.recompute_count += 1
+
+    def stats(self) -> dict[str, Any]:
+        textures = [self.light_texture, self._sigma_tex, *self._work_tex.values()]
+        return {
+            "recomputes": self.recompute_count,
+            "recompute_ms": self.elapsed_ms("recompute"),
+            "backend": self.last_backend,
+            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
+        }
 
     def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
         grid = self.grid
@@ -155,10 +163,8 @@ class ShadowVolume(Technique):
         }
 
     def release(self) -> None:
-        self.host.unbind_texture(TEXTURE_UNIFORM)
-        fu = self.host.shader_property.GetFragmentCustomUniforms()
-        for name in ("vv_shadow_volume_dims", "vv_shadow_volume_cellTex"):
-            fu.RemoveUniform(name)
+        # The host removes our uniforms and texture bindings; we release what we created.
+        self._release_timers()
         for tex in (self.light_texture, self._sigma_tex, *self._work_tex.values()):
             if tex is not None:
                 tex.release()

@@ -12,6 +12,7 @@ Every function here expects the render window's context to be current; the techn
 
 from __future__ import annotations
 
+import ctypes
 import os
 from typing import Any, ClassVar
 
@@ -238,6 +239,50 @@ class Texture2D:
             self.tex.Deactivate()
             self.tex.ReleaseGraphicsResources(self.render_window)
             self.tex = None
+
+
+class GpuTimer:
+    """A ``GL_TIME_ELAPSED`` query around GL work, read without stalling the pipeline.
+
+    ``begin()``/``end()`` bracket the work; :meth:`result_ms` returns the GPU time once the
+    driver has it (usually by the next frame), else None. Used only when profiling: production
+    frames never wait for the GPU.
+    """
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        GL = gl(render_window)
+        self._query = int(np.asarray(GL.glGenQueries(1)).ravel()[0])
+        self._ms: float | None = None
+        self._ended = False
+
+    def begin(self) -> None:
+        gl(self.render_window).glBeginQuery(gl(self.render_window).GL_TIME_ELAPSED, self._query)
+
+    def end(self) -> None:
+        GL = gl(self.render_window)
+        GL.glEndQuery(GL.GL_TIME_ELAPSED)
+        self._ended = True
+
+    def result_ms(self) -> float | None:
+        """GPU milliseconds between begin and end, or None while the driver is not done."""
+        if self._ms is None and self._ended and self._query:
+            GL = gl(self.render_window)
+            available = GL.glGetQueryObjectiv(self._query, GL.GL_QUERY_RESULT_AVAILABLE)
+            if int(np.asarray(available).ravel()[0]):
+                # PyOpenGL's wrapper cannot convert 64-bit results: call the raw entry point.
+                from OpenGL.raw.GL.VERSION.GL_3_3 import glGetQueryObjectui64v
+
+                ns = ctypes.c_uint64(0)
+                glGetQueryObjectui64v(self._query, GL.GL_QUERY_RESULT, ctypes.byref(ns))
+                self._ms = ns.value / 1e6
+                self.release()
+        return self._ms
+
+    def release(self) -> None:
+        if self._query:
+            gl(self.render_window).glDeleteQueries(1, [self._query])
+            self._query = 0
 
 
 class ComputeProgram:

@@ -28,9 +28,11 @@ Lifecycle: ``__init__`` → (``prepare`` per frame)* → ``release``.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
+import time
 import warnings
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -65,6 +67,46 @@ class Technique:
         #: the result is final (the host stops asking for frames). Others are always done.
         self.iteration = 0
         self.converged = not self.SPEC.has("progressive")
+        self._cpu_ms: dict[str, float] = {}
+        self._gpu_timers: dict[str, Any] = {}
+
+    # -- timing -------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def timed(self, what: str) -> Iterator[None]:
+        """Time the work inside: the wall time of issuing it, always; its GPU time with a timer
+        query when ``host.profiling`` is on (:meth:`elapsed_ms` reads it without waiting)."""
+        timer = None
+        if getattr(self.host, "profiling", False) and self.host.render_window is not None:
+            from vtkvol.engine.gl import GpuTimer
+
+            timer = GpuTimer(self.host.render_window)
+            timer.begin()
+        t0 = time.perf_counter()
+        try:
+            yield
+        finally:
+            self._cpu_ms[what] = (time.perf_counter() - t0) * 1e3
+            old = self._gpu_timers.pop(what, None)
+            if old is not None:
+                old.release()
+            if timer is not None:
+                timer.end()
+                self._gpu_timers[what] = timer
+
+    def elapsed_ms(self, what: str) -> float:
+        """The last ``timed(what)``: GPU milliseconds when profiled and the driver has them,
+        else the wall time of issuing the work (CPU paths: the whole cost)."""
+        timer = self._gpu_timers.get(what)
+        if timer is not None:
+            gpu = timer.result_ms()
+            if gpu is not None:
+                return gpu
+        return self._cpu_ms.get(what, 0.0)
+
+    def _release_timers(self) -> None:
+        for timer in self._gpu_timers.values():
+            timer.release()
+        self._gpu_timers.clear()
 
     # -- hooks --------------------------------------------------------------------------------
     @classmethod
