@@ -57,19 +57,18 @@ def test_settings_cover_every_installed_technique_with_valid_values():
             assert cones == expected
 
 
-def test_generic_settings_for_an_unknown_technique():
+def test_generic_settings_for_a_technique_that_declares_none():
     from vtkvol.engine.technique import Technique
     from vtkvol.model.params import Param
+    from vtkvol.model.techniques import TechniqueSpec
 
     class Fake(Technique):
-        NAME = "fake"
-        LABEL = "Fake"
-        SHADER = "local_shading.glsl"
-        PARAMETERS = (
+        SPEC = TechniqueSpec(name="fake", label="Fake", engine="x:Fake", parameters=(
             Param("mode", "a", "Mode", "", kind="choice", choices=("a", "b", "c")),
             Param("on", True, "On", "", kind="bool"),
             Param("x", 1.0, "X", "", range=(0.0, 2.0)),
-        )
+        ))
+        SHADER = "local.glsl"
 
     settings = runner.technique_settings("fake", Fake, quick=True)
     assert [s.label for s in settings] == ["default", "mode=b", "mode=c", "on=False"]

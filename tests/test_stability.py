@@ -41,7 +41,8 @@ def _context(methods: list[str]) -> tuple[runner.Context, object]:
     return ctx, errors
 
 
-METHODS = sorted(n for n in installed_techniques() if n != "bench_reference")
+METHODS = sorted(n for n, c in installed_techniques().items()
+                 if n != "bench_reference" and c.SPEC.lighting == "surface")
 
 
 @pytest.mark.parametrize("method", [*METHODS, "vtk_scattering"])

@@ -380,6 +380,7 @@ def precompute_times(
     """
     import vtk
 
+    from vtkvol.engine.gl import gl
     from vtkvol.engine.illuminator import Illuminator
     from vtkvol.engine.offscreen import simple_volume_scene
 
@@ -389,6 +390,7 @@ def precompute_times(
         rw, ren, volume = simple_volume_scene(vol, size=(64, 64))
         il = Illuminator(volume, ren, method="cone_traced",
                          parameters={"shadows": False, "ao_mode": "off"})
+        il.profiling = True  # GPU times from timer queries, read after a glFinish below
         try:
             rw.Render()
             tech = il.technique
@@ -398,7 +400,8 @@ def precompute_times(
             for i in range(repeats):
                 il.invalidate()
                 rw.Render()
-                gpu.append(tech.last_recompute_ms)
+                gl(rw).glFinish()
+                gpu.append(float(tech.stats()["recompute_ms"]))
                 otf.AddPoint(0.5, 0.4 + 0.01 * i)  # a real TF edit: new opacity volume
                 rw.Render()
                 edit.append(il.last_prepare_ms)
@@ -425,7 +428,8 @@ def precompute_times(
                     rw.Render()
                     il.set_parameters(h0=3.0)
                     rw.Render()
-                    bake.append(tech.last_bake_ms)
+                    gl(rw).glFinish()
+                    bake.append(float(tech.stats()["bake_ms"]))
                 row[f"bake_{res}_ms"] = statistics.median(bake)
                 row["bake_backend"] = tech.bake_backend
                 if n <= cpu_bake_max:

@@ -12,7 +12,8 @@ Timing (per configuration): warm-up frames (shader build, uploads, precomputatio
 frames each after a 2° camera azimuth step, each ``Render()`` followed by ``WaitForCompletion()``
 (glFinish) so the GPU work is inside the measured interval. Recompute timing forces the
 precomputation by moving the light a little (``set_lights``) and by ``invalidate()`` (as a
-transfer-function edit would), and reads the technique's own ``last_recompute_ms``.
+transfer-function edit would), and reads the technique's ``stats()["recompute_ms"]`` (GPU time
+from a timer query: the rig turns ``Illuminator.profiling`` on).
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ import numpy as np
 import vtk
 
 from vtkvol.bench.scenes import Scene
+from vtkvol.engine.gl import gl
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import front_view, grab, image_from_array, simple_volume_scene
 from vtkvol.model import Light
@@ -189,8 +191,9 @@ class Rig:
         """
         ill = self.illuminator
         tech = ill.technique
-        if tech is None or not hasattr(tech, "recompute_count"):
+        if tech is None or "recomputes" not in tech.stats():
             return [], []
+        ill.profiling = True
         base = ill.lights
         light_ms: list[float] = []
         tf_ms: list[float] = []
@@ -212,7 +215,7 @@ class Rig:
                 ill.set_lights(lights)
                 if invalidate:
                     ill.invalidate()
-                count = tech.recompute_count
+                count = tech.stats()["recomputes"]
                 # The precomputation runs in the renderer's StartEvent whether or not the
                 # volume is drawn; hiding it makes these frames cost the recompute alone.
                 self.volume.VisibilityOff()
@@ -220,8 +223,10 @@ class Rig:
                     self.rw.Render()
                 finally:
                     self.volume.VisibilityOn()
-                if ill.technique is tech and tech.recompute_count > count:
-                    out.append(float(tech.last_recompute_ms))
+                gl(self.rw).glFinish()  # the bench may wait: the timer's result is then ready
+                stats = tech.stats()
+                if ill.technique is tech and stats["recomputes"] > count:
+                    out.append(float(stats["recompute_ms"]))
         return light_ms, tf_ms if opacity else []
 
     def gpu_volumes(self) -> dict[str, np.ndarray]:
@@ -252,7 +257,11 @@ class Rig:
             return False
         program = self.rw.GetShaderCache().GetLastShaderBound()
         source = program.GetFragmentShader().GetSource() if program is not None else ""
-        return f"vtkvol<{tech.SHADER}>" in (source or self.illuminator.fragment_source)
+        source = source or self.illuminator.fragment_source
+        # A technique that defines no hook (local shading) is the host's lighting alone.
+        own = {s.origin for s in tech.sections(self.illuminator.parameters)}
+        expected = own or {"host_lighting.glsl", "host_medium.glsl"}
+        return any(f"vtkvol<{name}>" in source for name in expected)
 
     def close(self) -> None:
         self.rw.MakeCurrent()

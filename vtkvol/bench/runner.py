@@ -1,8 +1,8 @@
 """``vtkvol bench``: scenes × methods × settings, timed and compared against references.
 
 For every scene (:mod:`vtkvol.bench.scenes`) and every setting of every installed technique
-(``installed_techniques()``, settings from the technique's bench helper or its declared
-``PARAMETERS``), plus VTK's built-in volumetric scattering:
+(``installed_techniques()`` of the surface lighting model, settings from each declaration's
+``bench``/``stability`` lists or its parameters), plus VTK's built-in volumetric scattering:
 
 1. the reference image: the same view rendered by the ``bench_reference`` technique, i.e. the
    same host shading with the CPU reference visibility volumes (:mod:`~vtkvol.bench.references`);
@@ -93,47 +93,6 @@ class Setting:
     short: str
 
 
-#: Chart abbreviations (T = the transmittance model).
-_SHORT = {"transmittance": "T", "seed000": "seed000", "full": "full", "half": "½", "quarter": "¼"}
-
-#: Setting matrices for techniques whose bench helper does not provide ``bench_settings``:
-#: (quick, full) lists of parameter overrides. The shadow volume's "offset 0" settings read
-#: the volume without the self-shadowing offset and without blur, i.e. what the physical
-#: reference computes, to show the offset's own share of the error.
-KNOWN_MATRICES: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {
-    "shadow_volume": (
-        [{"model": m, "resolution": r, "short": f"{_SHORT[m]} {_SHORT[r]}"}
-         for m in ("transmittance", "seed000") for r in ("full", "half", "quarter")]
-        + [{"model": "transmittance", "resolution": "full", "softness": 0.0, "offset": 0.0,
-            "short": "T full, offset 0"}],
-        [{"model": m, "resolution": r, "short": f"{_SHORT[m]} {_SHORT[r]}"}
-         for m in ("transmittance", "seed000") for r in ("full", "half", "quarter")]
-        + [{"model": "transmittance", "resolution": r, "softness": 0.0, "offset": 0.0,
-            "short": f"T {_SHORT[r]}, offset 0"} for r in ("full", "half", "quarter")],
-    ),
-    "cone_traced": (
-        [{"ao_mode": "off", "short": "shadows"},
-         {"ao_mode": "baked_hemisphere", "ao_cones": "6", "short": "AO baked 6"}]
-        + [{"ao_mode": "hemisphere", "ao_cones": c, "short": f"AO {c}"} for c in ("1", "6", "12")],
-        [{"ao_mode": "off", "short": "shadows"}, {"ao_mode": "view_cone", "short": "AO view"},
-         {"ao_mode": "baked_hemisphere", "ao_cones": "6", "short": "AO baked 6"},
-         {"ao_mode": "baked_hemisphere", "ao_cones": "6", "ao_resolution": "half",
-          "short": "AO baked 6 ½"}]
-        + [{"ao_mode": "hemisphere", "ao_cones": c, "short": f"AO {c}"}
-           for c in ("1", "3", "6", "12")],
-    ),
-}
-
-#: Stability settings for techniques whose helper lacks ``stability_settings``: both shadow
-#: models; the cone tracer with shadows only in quick runs (every case then needs only a
-#: transmittance reference) and also with its default AO in full runs.
-KNOWN_STABILITY: dict[str, tuple[list[dict[str, Any]], list[dict[str, Any]]]] = {
-    "shadow_volume": ([{"model": "transmittance"}, {"model": "seed000"}],
-                      [{"model": "transmittance"}, {"model": "seed000"}]),
-    "cone_traced": ([{"ao_mode": "off"}], [{"ao_mode": "off"}, {}]),
-}
-
-
 _LABEL_KEYS = frozenset({"label", "short"})
 
 
@@ -180,25 +139,17 @@ def one_at_a_time(cls: type[Technique]) -> list[dict[str, Any]]:
 
 def technique_settings(name: str, cls: type[Technique], *, quick: bool,
                        stability: bool = False) -> list[Setting]:
-    """The settings a run measures for technique ``name``.
-
-    Order of precedence: the bench helper's ``bench_settings(quick)`` /
-    ``stability_settings(quick)`` (lists of parameter overrides), the built-in matrices above,
-    then defaults + one-at-a-time variations (matrix) or defaults alone (stability).
-    """
-    helper = bench_helper(name)
-    attr = "stability_settings" if stability else "bench_settings"
-    if helper is not None and hasattr(helper, attr):
-        overrides = list(getattr(helper, attr)(quick))
+    """The settings a run measures for technique ``name``: its declaration's ``bench`` (or
+    ``stability``) settings — in a quick run the ones marked ``quick`` —, else the defaults plus
+    one-at-a-time variations (matrix) or the defaults alone (stability)."""
+    declared = cls.SPEC.stability if stability else cls.SPEC.bench
+    chosen = [b for b in declared if b.quick or not quick]
+    if chosen:
+        overrides = [{**b.values, "short": b.label or "default", "label": b.label or "default"}
+                     for b in chosen]
     else:
-        table = KNOWN_STABILITY if stability else KNOWN_MATRICES
-        if name in table:
-            overrides = table[name][0 if quick else 1]
-        else:
-            overrides = [{}] if stability or not cls.PARAMETERS else one_at_a_time(cls)
-    declared = {p.name for p in cls.PARAMETERS}
-    overrides = [o for o in overrides if set(o) - _LABEL_KEYS <= declared]
-    return _settings_from(name, cls, overrides or [{}])
+        overrides = [{}] if stability or not cls.PARAMETERS else one_at_a_time(cls)
+    return _settings_from(name, cls, overrides)
 
 
 def vtk_setting(blending: float, reach: float) -> Setting:
@@ -638,7 +589,11 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
     load_start = _load_average()
     files_start = source_files()
     quick = config.mode == "quick"
-    techniques = {n: c for n, c in installed_techniques().items() if n != REFERENCE}
+    # The bench's references are the surface model's (transmittance, AO); medium techniques
+    # (multiple scattering) need their own reference and are measured by
+    # scripts/scattering-iterations.py until then.
+    techniques = {n: c for n, c in installed_techniques().items()
+                  if n != REFERENCE and c.SPEC.lighting == "surface"}
     if methods is not None:
         techniques = {n: c for n, c in techniques.items() if n in methods}
     use_vtk = methods is None or VTK_METHOD in methods
