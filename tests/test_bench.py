@@ -115,14 +115,29 @@ def test_scenes_are_deterministic_and_in_range():
                       "noise", "outliers"}
 
 
-def test_real_stacks_are_used_when_present_and_skipped_when_not(tmp_path):
-    names = {s.name for s in bench_scenes(24, quick=False, data_dir=tmp_path)}
-    assert names == {"sphere_over_slab", "hollow_sphere", "cells"}
-    shared = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-    if (shared / "platynereis_nuclei_labels_256x256x103.tif").is_file():
-        real = {s.name: s for s in bench_scenes(24, quick=True) if s.kind == "real"}
-        assert set(real) == {"platynereis"}
-        assert max(real["platynereis"].shape) <= 24
+def test_user_files_become_scenes_with_a_fitting_transfer_function(tmp_path):
+    assert {s.name for s in bench_scenes(24, quick=False)} == {
+        "sphere_over_slab", "hollow_sphere", "cells"}
+    labels = np.zeros((20, 40, 40), np.uint16)
+    labels[5:15, 5:15, 5:15] = 3
+    labels[5:15, 20:30, 20:30] = 7
+    np.save(tmp_path / "Nuclei Labels.npy", labels)
+    beads = np.random.default_rng(0).normal(100, 5, (20, 40, 40)).astype(np.float32)
+    beads[10, 20, 20] = 4000
+    np.save(tmp_path / "beads.npy", beads)
+    scenes = {s.name: s for s in bench_scenes(
+        24, quick=False, data=[tmp_path / "Nuclei Labels.npy", tmp_path / "beads.npy"])
+        if s.kind == "real"}
+    assert set(scenes) == {"nuclei_labels", "beads"}
+    assert max(scenes["nuclei_labels"].shape) <= 24
+    mask = scenes["nuclei_labels"].opacity()
+    assert mask.max() > 0.5 and mask[0, 0, 0] == 0.0  # labels as a mask, background clear
+    lo = scenes["beads"].opacity_points[0][0]
+    assert 95 < lo < 105  # the background (median) is transparent
+    quick = [s for s in bench_scenes(24, quick=True, data=[tmp_path / "beads.npy",
+                                                           tmp_path / "Nuclei Labels.npy"])
+             if s.kind == "real"]
+    assert [s.name for s in quick] == ["beads"]
 
 
 def _fake_doc() -> dict:
@@ -164,14 +179,18 @@ def test_merge_keeps_other_renderers_and_modes():
 
 
 def test_source_changes_that_can_affect_a_run_are_told_apart():
-    start = {"vtkvol/engine/offscreen.py": "a", "plugins/shadow_volume.py": "b",
-             "resources/shaders/shadow_volume.glsl": "c", "vtkvol/bench/x_timing.py": "d"}
-    end = {**{k: v + "!" for k, v in start.items()}, "plugins/new.py": "e"}
+    start = {"vtkvol/engine/offscreen.py": "a", "vtkvol/plugins/shadow_volume/__init__.py": "b",
+             "vtkvol/plugins/shadow_volume/shaders/shadow_volume.glsl": "c",
+             "vtkvol/bench/x_timing.py": "d"}
+    end = {**{k: v + "!" for k, v in start.items()}, "vtkvol/plugins/new/__init__.py": "e"}
     loaded = {"vtkvol.engine.offscreen", "vtkvol.plugins.shadow_volume"}
     changed, affecting = runner.affecting_changes(start, end, loaded)
     assert changed == sorted(end)
-    assert affecting == ["plugins/new.py", "resources/shaders/shadow_volume.glsl",
-                         "vtkvol/bench/x_timing.py"]
+    assert affecting == ["vtkvol/bench/x_timing.py", "vtkvol/plugins/new/__init__.py",
+                         "vtkvol/plugins/shadow_volume/shaders/shadow_volume.glsl"]
+    files = runner.source_files()
+    assert "vtkvol/plugins/local/__init__.py" in files
+    assert "vtkvol/resources/shaders/host_lighting.glsl" in files
     assert runner.affecting_changes(start, dict(start), loaded) == ([], [])
 
 

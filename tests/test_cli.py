@@ -102,3 +102,22 @@ def test_render_with_a_failing_method_says_so_in_one_line_and_writes_local_shadi
     assert err == ["vtkvol: The 'Broken' illumination could not be compiled by this OpenGL "
                    "driver (the driver's message is in the log); showing local shading instead."]
     assert out.is_file() and out.stat().st_size > 100
+
+
+def test_bench_needs_an_output_folder_and_readable_data(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["bench", "--quick"])
+    assert exit_info.value.code == 2 and "--output" in capsys.readouterr().err
+    a_file = tmp_path / "results.txt"
+    a_file.write_text("keep me")
+    assert main(["bench", "-o", str(a_file)]) == 1
+    assert "is a file, not a folder" in capsys.readouterr().err
+    assert a_file.read_text() == "keep me"
+    assert main(["bench", "-o", str(tmp_path / "out"), "--data", str(tmp_path / "nope.tif")]) == 1
+    err = capsys.readouterr().err
+    assert "--data" in err and "nope.tif: no such file" in err
+    bad = tmp_path / "bad.tif"
+    bad.write_bytes(b"not a tiff at all")
+    assert main(["bench", "-o", str(tmp_path / "out"), "--data", str(bad)]) == 1
+    assert capsys.readouterr().err.startswith("vtkvol: bad.tif: ")
+    assert not (tmp_path / "out" / "benchmarks.json").exists()

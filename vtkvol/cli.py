@@ -48,9 +48,13 @@ def _parser() -> argparse.ArgumentParser:
     p_info.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
 
     p_bench = sub.add_parser("bench", help="speed against accuracy benchmark")
+    p_bench.add_argument("-o", "--output", required=True, metavar="DIR",
+                         help="folder for benchmarks.{json,csv,md} and charts (created; "
+                              "earlier results there are merged, other files left alone)")
     p_bench.add_argument("--quick", action="store_true", help="a run of a few minutes")
-    p_bench.add_argument("--out", default="docs",
-                         help="folder for benchmarks.{json,csv,md} and charts")
+    p_bench.add_argument("--data", action="append", default=[], metavar="FILE",
+                         help="a volume of yours to measure on, besides the phantoms "
+                              "(repeatable; any format vtkvol reads)")
     p_bench.add_argument("--size", type=int, default=None, help="override the scene size (voxels)")
     return parser
 
@@ -157,7 +161,15 @@ def cmd_open(args: argparse.Namespace) -> int:
 def cmd_bench(args: argparse.Namespace) -> int:
     from vtkvol.bench.runner import main as bench_main
 
-    return bench_main(quick=args.quick, out=args.out, size=args.size)
+    output = Path(args.output)
+    if output.exists() and not output.is_dir():
+        print(f"vtkvol: {output} is a file, not a folder for the results", file=sys.stderr)
+        return 1
+    for file in args.data:
+        if not Path(file).exists():
+            print(f"vtkvol: --data {file}: no such file", file=sys.stderr)
+            return 1
+    return bench_main(quick=args.quick, out=str(output), size=args.size, data=args.data)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -177,12 +177,6 @@ def _ssim(a: np.ndarray, b: np.ndarray) -> float:
                          np.clip(b, 0, 1).astype(np.float64))["ssim"]
 
 
-def default_timings() -> Path | None:
-    """``docs/benchmarks.json`` of a source checkout (editable install), if present."""
-    path = Path(__file__).resolve().parents[2] / "docs" / "benchmarks.json"
-    return path if path.is_file() else None
-
-
 def measured_costs(candidates: Sequence[Candidate], timings: Any, voxels: int,
                    renderer: str | None = None,
                    defaults: Mapping[str, Mapping[str, Any]] | None = None,
@@ -230,7 +224,7 @@ def choose(
     *,
     budget_ssim: float = 0.98,
     candidates: Sequence[Candidate] | None = None,
-    timings: Any = "default",
+    timings: Any = None,
     unit_distance: float | None = None,
     renderer: str | None = None,
 ) -> Choice:
@@ -252,8 +246,9 @@ def choose(
         Settings to consider, cheapest first when no timings are available; default
         :data:`DEFAULT_CANDIDATES` (those whose technique is installed).
     timings
-        Benchmark results for the cost ranking: a path, a document or a list of records;
-        ``"default"`` uses ``docs/benchmarks.json`` of a source checkout; None keeps the order.
+        Benchmark results for the cost ranking: a path (the ``benchmarks.json`` that
+        ``vtkvol bench -o DIR`` wrote, ideally on this machine), a document or a list of
+        records; None keeps the candidates' order.
     unit_distance
         Opacity unit distance (µm); default the smallest voxel edge.
     renderer
@@ -278,7 +273,7 @@ def choose(
     cands = [c for c in (candidates or DEFAULT_CANDIDATES) if c.method in installed]
     if not cands:
         raise ValueError("none of the candidate techniques is installed")
-    source = default_timings() if timings == "default" else timings
+    source = timings
     costs = measured_costs(cands, source, int(opacity.size), renderer,
                            {c.method: installed[c.method].defaults() for c in cands})
     if costs and len(costs) == len(cands):

@@ -674,21 +674,30 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
     return {**run_info, "records": records, "stability": stability, "paths": paths}
 
 
-_SOURCE_FOLDERS = ("plugins", "resources/shaders", "vtkvol/engine", "vtkvol/bench")
+#: Packages whose files can change what a run measures: techniques, shaders, engine, bench.
+_SOURCE_PACKAGES = ("vtkvol.plugins", "vtkvol.resources", "vtkvol.engine", "vtkvol.bench")
 
 
 def source_files() -> dict[str, str]:
-    """Hash (16 hex digits) of every file of the code that renders, by repository path:
-    techniques, shaders, the engine and the bench (its technique helpers included)."""
+    """Hash (16 hex digits) of every file of the code that renders, by package path
+    (``vtkvol/plugins/shadow_volume/technique.py``): read through the installed packages, so
+    it works from a wheel as from a checkout."""
     import hashlib
+    from importlib import resources
 
-    root = Path(__file__).resolve().parents[2]
-    out = {}
-    for folder in _SOURCE_FOLDERS:
-        for path in sorted((root / folder).rglob("*")):
-            if path.is_file() and path.suffix in (".py", ".glsl", ".comp"):
-                out[path.relative_to(root).as_posix()] = hashlib.sha256(
-                    path.read_bytes()).hexdigest()[:16]
+    out: dict[str, str] = {}
+
+    def walk(node: Any, prefix: str) -> None:
+        for child in sorted(node.iterdir(), key=lambda c: c.name):
+            if child.is_dir():
+                if child.name != "__pycache__":
+                    walk(child, f"{prefix}/{child.name}")
+            elif child.name.endswith((".py", ".glsl")):
+                out[f"{prefix}/{child.name}"] = hashlib.sha256(
+                    child.read_bytes()).hexdigest()[:16]
+
+    for package in _SOURCE_PACKAGES:
+        walk(resources.files(package), package.replace(".", "/"))
     return out
 
 
@@ -701,7 +710,7 @@ def source_digest(files: Mapping[str, str]) -> str:
 
 def affecting_changes(start: Mapping[str, str], end: Mapping[str, str],
                       loaded: set[str]) -> tuple[list[str], list[str]]:
-    """``(changed, affecting)`` repository paths between two :func:`source_files` snapshots.
+    """``(changed, affecting)`` package paths between two :func:`source_files` snapshots.
 
     A changed Python module that was already imported when the run started (``loaded``:
     module names) cannot affect it, Python keeps the imported code; shader files are read
@@ -714,8 +723,6 @@ def affecting_changes(start: Mapping[str, str], end: Mapping[str, str],
             parts = path[:-3].split("/")
             if parts[-1] == "__init__":
                 parts = parts[:-1]
-            if parts[0] == "plugins":  # package-dir maps plugins/ to vtkvol.plugins
-                parts = ["vtkvol", *parts]
             module = ".".join(parts)
             if module in loaded:
                 continue
@@ -771,8 +778,10 @@ def _time_load() -> dict[str, Any]:
             "shape_czyx": list(result["shape_czyx"]), "file_bytes": result["file_bytes"]}
 
 
-def main(quick: bool = False, out: str = "docs", size: int | None = None) -> int:
-    """``vtkvol bench [--quick] [--out DIR] [--size N]``: run and write ``DIR/benchmarks.*``.
+def main(quick: bool = False, out: str = "vtkvol-bench", size: int | None = None,
+         data: Sequence[str] = ()) -> int:
+    """``vtkvol bench -o DIR [--quick] [--size N] [--data FILE]…``: run and write
+    ``DIR/benchmarks.*``.
 
     Returns 0 when every setting and stability check passed, 1 when some failed (the results
     are written either way).
@@ -784,8 +793,17 @@ def main(quick: bool = False, out: str = "docs", size: int | None = None) -> int
         config = replace(config, size=int(size), stability_size=min(int(size),
                                                                       config.stability_size))
     command = "vtkvol bench" + (" --quick" if quick else "") + (
-        f" --size {size}" if size is not None else "") + (f" --out {out}" if out != "docs" else "")
-    result = run(config, Path(out), command=command)
+        f" --size {size}" if size is not None else "") + f" -o {out}" + "".join(
+        f" --data {Path(d).name}" for d in data)
+    from vtkvol.io import VolumeReadError
+
+    try:
+        scenes = bench_scenes(config.size, quick=quick, data=data)
+    except VolumeReadError as exc:
+        print(f"vtkvol: {exc}", file=sys.stderr)
+        return 1
+    Path(out).mkdir(parents=True, exist_ok=True)
+    result = run(config, Path(out), scenes=scenes, command=command)
     failed = [r for r in itertools.chain(result["records"], result["stability"])
               if not r.get("ok")]
     paths = result["paths"]

@@ -1,4 +1,4 @@
-"""Benchmark scenes: procedural phantoms with known structure, the real stacks, stability cases.
+"""Benchmark scenes: procedural phantoms with known structure, the user's files, stability cases.
 
 A :class:`Scene` is what the benchmark renders: a scalar volume ``[z, y, x]``, its voxel size
 (x, y, z) in µm, a linear opacity transfer function (``(value, alpha)`` points; alpha is the
@@ -12,8 +12,7 @@ Scene families:
 
 * phantoms (``vtkvol.reference.phantoms`` + :func:`cell_phantom` here): sphere over slab,
   hollow sphere, a confocal-like cell cluster with nuclei and membranes on anisotropic voxels;
-* the real stacks of ``../shared/data`` (``SOURCES.md``), resampled to the benchmark size and
-  skipped when absent (never copied into the repository);
+* the user's files (``vtkvol bench --data FILE``), resampled to the benchmark size;
 * :func:`stability_cases`: the sweeps of the stability suite (light direction, structure
   thickness, opacity scale, anisotropy, illumination-volume resolution, noise, 16-bit outliers).
 """
@@ -39,16 +38,6 @@ DEFAULT_LIGHT: Vec3 = (0.35, -0.25, 0.866)
 #: cast shadows on horizontal receivers are visible.
 DEFAULT_AZIMUTH = 30.0
 DEFAULT_ELEVATION = 25.0
-
-#: The real stacks of ../shared/data (SOURCES.md): file → (voxel size (x, y, z) µm, label).
-REAL_STACKS: dict[str, tuple[Vec3, str]] = {
-    "Bead_Image1_crop.tif": ((0.0225, 0.0225, 0.125), "confocal beads (PSF), z/x 5.6"),
-    "DeconvolutionSampleVerticalGrid1AU-crop.tif": (
-        (0.022, 0.022, 0.125), "confocal vertical grid, values 1–8, z/x 5.7"),
-    "platynereis_nuclei_labels_256x256x103.tif": (
-        (1.0, 1.0, 1.0), "Platynereis nucleus labels (37 cells), isotropic"),
-}
-
 
 @dataclass
 class Scene:
@@ -221,55 +210,51 @@ def _resample(data: np.ndarray, spacing: Vec3, max_size: int) -> tuple[np.ndarra
     return out, (sx / x_f, sy / y_f, sz / z_f)
 
 
-def real_scenes(max_size: int = 64, data_dir: Path | None = None) -> list[Scene]:
-    """The real stacks of ``../shared/data`` resampled to at most ``max_size`` voxels per axis.
+def file_scenes(paths: Sequence[str | Path], max_size: int = 64) -> list[Scene]:
+    """The user's volumes (any file vtkvol reads, first channel) resampled to at most
+    ``max_size`` voxels per axis, each with a transfer function derived from its values:
 
-    Missing files are skipped. Transfer functions map each stack's background to transparent:
-    beads from the 99th percentile, the grid (values 1–8) from 2, the nucleus labels as a mask
-    (label > 0, smoothed by σ = 0.7 voxel so the ray caster has gradients).
+    * label images (integer values, mostly 0, more than two distinct labels) become a mask
+      (label > 0) smoothed by σ = 0.7 voxel, so the ray caster has gradients;
+    * anything else ramps from the median (background) to half-way to the 99.9th percentile.
+
+    Raises :class:`~vtkvol.io.VolumeReadError` for a file that cannot be read.
     """
-    import tifffile
     from scipy.ndimage import gaussian_filter
 
-    folder = data_dir if data_dir is not None else default_data_dir()
+    from vtkvol.io import read_volume
+
     scenes: list[Scene] = []
-    for file, (spacing, label) in REAL_STACKS.items():
-        path = folder / file
-        if not path.is_file():
-            continue
-        raw = tifffile.imread(path)
-        if file.startswith("platynereis"):
+    used: set[str] = set()
+    for path in paths:
+        data = read_volume(path, channels=[0], fit="none", max_texture_size=None)
+        raw = np.asarray(data.array[0])
+        spacing = tuple(data.voxel_size_um)
+        name = "".join(c if c.isalnum() else "_" for c in Path(path).stem.lower())[:40] or "data"
+        while name in used:
+            name += "_"
+        used.add(name)
+        label = f"{Path(path).name} ({' × '.join(str(n) for n in raw.shape[::-1])})"
+        zeros = float(np.mean(raw == 0))
+        if raw.dtype.kind in "iu" and zeros > 0.5 and len(np.unique(raw[::4, ::4, ::4])) > 2:
             mask = gaussian_filter((raw > 0).astype(np.float32), 0.7)
-            data, sp = _resample(mask, spacing, max_size)
-            scenes.append(Scene("platynereis", data.astype(np.float32), sp,
-                                [(0.2, 0.0), (0.6, 0.85), (1.0, 0.85)], label, "real"))
-        elif file.startswith("Bead"):
-            data, sp = _resample(raw, spacing, max_size)
-            lo = float(np.percentile(data, 99.0))
-            hi = float(max(lo + 1.0, data.max()))
-            scenes.append(Scene("beads", data.astype(np.float32), sp,
-                                [(lo, 0.0), (lo + 0.25 * (hi - lo), 0.9), (hi, 0.9)], label,
-                                "real"))
+            values, sp = _resample(mask, spacing, max_size)
+            tf = [(0.2, 0.0), (0.6, 0.85), (1.0, 0.85)]
         else:
-            data, sp = _resample(raw, spacing, max_size)
-            scenes.append(Scene("grid", data.astype(np.float32), sp,
-                                [(2.0, 0.0), (6.0, 0.6), (8.0, 0.6)], label, "real"))
+            values, sp = _resample(raw.astype(np.float32), spacing, max_size)
+            lo = float(np.percentile(values, 50.0))
+            hi = float(max(lo + 1e-6, np.percentile(values, 99.9)))
+            tf = [(lo, 0.0), (lo + 0.5 * (hi - lo), 0.8), (hi, 0.8)]
+        scenes.append(Scene(name, values.astype(np.float32), sp, tf, label, "real"))
     return scenes
 
 
-def default_data_dir() -> Path:
-    """``../shared/data`` beside the repository checkout (the repository root is three levels
-    above this file: vtkvol/bench/scenes.py)."""
-    return Path(__file__).resolve().parents[2].parent / "shared" / "data"
-
-
-def bench_scenes(n: int, *, quick: bool, data_dir: Path | None = None) -> list[Scene]:
-    """The scenes of a benchmark run: every phantom at ``n`` voxels and the real stacks
-    (quick runs keep one real stack, the Platynereis nuclei, to stay within their budget)."""
-    scenes = phantom_scenes(n) + real_scenes(n, data_dir)
-    if quick:
-        scenes = [s for s in scenes if s.kind != "real" or s.name == "platynereis"]
-    return scenes
+def bench_scenes(n: int, *, quick: bool, data: Sequence[str | Path] = ()) -> list[Scene]:
+    """The scenes of a benchmark run: every phantom at ``n`` voxels and the user's files
+    (``vtkvol bench --data FILE``); quick runs keep the first file only, to stay within
+    their budget."""
+    files = list(data)[:1] if quick else list(data)
+    return phantom_scenes(n) + file_scenes(files, n)
 
 
 # ------------------------------------------------------------------------------------------

@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Regenerate the project's docs/benchmarks.* (and charts) from this checkout, with the small real
+# stacks of ../shared/data. `vtkvol bench` itself needs no checkout: users run it with their own
+# output folder and data. Usage: ./scripts/benchmarks.sh [--quick] [--size N]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+DATA=../shared/data
+args=()
+for f in Bead_Image1_crop.tif platynereis_nuclei_labels_256x256x103.tif \
+         DeconvolutionSampleVerticalGrid1AU-crop.tif; do
+  if [ -f "$DATA/$f" ]; then args+=(--data "$DATA/$f"); fi
+done
+exec vtkvol bench -o docs "${args[@]}" "$@"
