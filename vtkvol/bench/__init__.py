@@ -1,12 +1,12 @@
 """``vtkvol bench``: speed against accuracy for every illumination method.
 
 * :mod:`~vtkvol.bench.runner`: the command (scenes × methods × settings, stability sweeps);
-* :mod:`~vtkvol.bench.scenes`: phantoms, the real stacks of ``../shared/data``, sweep cases;
+* :mod:`~vtkvol.bench.scenes`: phantoms, the user's ``--data`` files, sweep cases;
 * :mod:`~vtkvol.bench.references`: which CPU reference each setting is measured against;
 * :mod:`~vtkvol.bench.reference_technique`: the renderer of reference images (same shader,
   reference volumes);
 * :mod:`~vtkvol.bench.measure`: offscreen rigs, timing, checks;
-* :mod:`~vtkvol.bench.report`: ``docs/benchmarks.json`` / ``.csv`` / ``.md`` and charts;
+* :mod:`~vtkvol.bench.report`: ``benchmarks.json`` / ``.csv`` / ``.md`` and charts in the output folder;
 * :mod:`~vtkvol.bench.auto_quality`: :func:`choose`, the cheapest method that meets an error
   budget for a given scene.
 
