@@ -398,13 +398,38 @@ def _penumbra(scene: Scene, angle: float, local: np.ndarray) -> tuple[int, int]:
 @pytest.mark.gl
 def test_soft_shadow_widens_with_cone_angle(scene_factory):
     s = scene_factory(phantom_sphere_over_slab(40), elevation=50.0)
-    local, _ = _render_pair(s, {"ao_mode": "off", "shadows": True})
+    local, _ = _render_pair(s, {"ao_mode": "off", "shadows": True, "shadow_cone": "custom"})
     count = s.tech.recompute_count
     narrow = _penumbra(s, 2.0, local)
     wide = _penumbra(s, 25.0, local)
     assert narrow[1] > 100, "the sphere casts a shadow on the slab"
     assert wide[0] > 1.2 * narrow[0] and wide[1] > narrow[1]
     assert s.tech.recompute_count == count, "the angle is a per-frame uniform"
+
+
+@pytest.mark.gl
+def test_by_default_the_cone_is_the_one_the_light_subtends(scene_factory):
+    s = scene_factory(phantom_sphere_over_slab(40), elevation=50.0)
+    local, _ = _render_pair(s, {"ao_mode": "off", "shadows": True})
+    assert s.il.parameters["shadow_cone"] == "light size"
+
+    def penumbra(size_deg: float) -> tuple[int, int]:
+        s.il.set_lights([Light(direction=(0.0, 0.3, 1.0), size=size_deg)])
+        ratio = _ratio(s.image(), local)
+        return int(np.sum((ratio > 0.3) & (ratio < 0.95))), int(np.sum(ratio < 0.95))
+
+    ideal, sun, lamp = penumbra(0.0), penumbra(0.27), penumbra(25.0)
+    assert ideal[1] > 100 and abs(sun[0] - ideal[0]) <= 0.1 * ideal[0] + 5
+    assert lamp[0] > 1.2 * ideal[0] and lamp[1] > ideal[1]
+    # The CPU path follows the light's size the same way.
+    spec = s.il.light_specs()[0]
+    big = s.tech.light_visibility_cpu(s.il.opacity_volume(), s.il.spacing, spec,
+                                      s.il.parameters)
+    s.il.set_lights([Light(direction=(0.0, 0.3, 1.0), size=0.0)])
+    hard = s.tech.light_visibility_cpu(s.il.opacity_volume(), s.il.spacing,
+                                       s.il.light_specs()[0], s.il.parameters)
+    soft_band = lambda v: int(np.sum((v > 0.1) & (v < 0.9)))  # noqa: E731
+    assert soft_band(big) > 1.1 * soft_band(hard)
 
 
 @pytest.mark.gl

@@ -23,10 +23,20 @@ PARAMETERS: tuple[Param, ...] = (
         kind="bool", invalidates=Invalidates.SHADER, uniform=False,
     ),
     Param(
+        "shadow_cone", "light size", "Shadow cone",
+        "light size: each light's cone is the angle its physical size subtends (the light's "
+        "size in the lights dock: angular radius of a directional light, radius / distance of a "
+        "point light), so the penumbra is the light's own; custom: the angle below for every "
+        "light.",
+        kind="choice", choices=("light size", "custom"), invalidates=Invalidates.SHADER,
+        uniform=False, applies_when=(("shadows", (True,)),),
+    ),
+    Param(
         "shadow_angle", 5.0, "Shadow cone angle",
-        "Half-angle of the cone traced towards each light; larger = softer shadows (thesis 5°).",
+        "Half-angle of the cone traced towards each light (custom cone); larger = softer "
+        "shadows (thesis 5°).",
         range=(0.0, 90.0), step=0.5, unit="°", uniform=False,
-        applies_when=(("shadows", (True,)),),
+        applies_when=(("shadows", (True,)), ("shadow_cone", ("custom",))),
     ),
     Param(
         "shadow_strength", 1.0, "Shadow strength",

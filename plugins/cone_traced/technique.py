@@ -746,6 +746,7 @@ class ConeTraced(Technique):
         dirs = ", ".join(f"vec3({x:.8f}, {y:.8f}, {z:.8f})" for x, y, z in pattern)
         return {
             "VV_CT_SHADOWS": "1" if values["shadows"] else "0",
+            "VV_CT_CONE_FROM_LIGHT": "1" if values["shadow_cone"] == "light size" else "0",
             "VV_CT_AO": str(mode),
             "VV_CT_AO_CONES": str(cones),
             "VV_CT_AO_DIRS": f"vec3[{cones}]({dirs})",
@@ -986,11 +987,24 @@ class ConeTraced(Technique):
         else:
             dirs = np.broadcast_to(np.asarray(light.vector, dtype=np.float64), pts.shape)
             far = _FAR
-        t = cone_trace_cpu(
-            pyramid, spacing, pts, dirs,
-            sin_angle=math.sin(math.radians(values["shadow_angle"])),
-            sigma=values["sigma"], lod_width=values["lod_width"], h=values["h"],
-            h0=values["h0"], max_distance_um=far,
-            unit_distance=self.host.unit_distance,
-        )
+        if values["shadow_cone"] == "custom":
+            sines = np.full(len(pts), math.sin(math.radians(values["shadow_angle"])))
+        elif light.is_point:  # radius / distance, as the shader computes it per sample
+            sines = np.minimum(light.size / np.maximum(np.asarray(far), 1e-6), 1.0)
+        else:
+            sines = np.full(len(pts), math.sin(light.size))
+        # The CPU tracer marches all points in lock step with one cone angle: group the points
+        # by angle (to 1e-3 in sin) and trace each group.
+        t = np.empty(len(pts))
+        keys = np.round(sines, 3)
+        for key in np.unique(keys):
+            group = keys == key
+            t[group] = cone_trace_cpu(
+                pyramid, spacing, pts[group], np.asarray(dirs)[group],
+                sin_angle=float(key),
+                sigma=values["sigma"], lod_width=values["lod_width"], h=values["h"],
+                h0=values["h0"],
+                max_distance_um=far if np.ndim(far) == 0 else np.asarray(far)[group],
+                unit_distance=self.host.unit_distance,
+            )
         return t.reshape(opacity.shape).astype(np.float32)

@@ -99,7 +99,14 @@ float vv_light_visibility(int light, vec3 texPos, vec3 dirDS)
   {
     maxUm = length(vv_lightVector(light) - vv_texToDataset(texPos));
   }
-  float t = vv_ct_trace(texPos, dirDS, vv_cone_traced_shadowSin, maxUm);
+#if VV_CT_CONE_FROM_LIGHT
+  // The cone the light subtends: its angular radius (directional) or radius / distance (point).
+  float size = vv_lightSize(light);
+  float sinAngle = vv_lightIsPoint(light) ? min(size / max(maxUm, 1e-6), 1.0) : sin(size);
+#else
+  float sinAngle = vv_cone_traced_shadowSin;
+#endif
+  float t = vv_ct_trace(texPos, dirDS, sinAngle, maxUm);
   return 1.0 - vv_cone_traced_shadow_strength * (1.0 - t);
 #else
   return 1.0;
