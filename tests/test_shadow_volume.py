@@ -236,10 +236,14 @@ AGREEMENT_CASES = [
     ({}, [Light(direction=(0.3, 0.2, 1.0))]),
     ({"softness": 0.0}, [Light(direction=(1.0, 1.0, 1.0))]),
     ({"model": "seed000"}, [Light(direction=(-1.0, 0.4, -0.2))]),
-    ({"resolution": "half", "softness": 1.3}, [Light(direction=(0.2, -1.0, 0.1))]),
+    ({"resolution": "half", "softness": 1.3, "softness_from": "custom"},
+     [Light(direction=(0.2, -1.0, 0.1))]),
+    ({}, [Light(direction=(0.2, 1.0, 0.5), size=4.0)]),  # softness from the light's size
+    ({"resolution": "half"}, [Light(kind="point", position=(60.0, -10.0, 40.0), size=8.0)]),
     ({"resolution": "quarter"}, [Light(direction=(0.1, 0.1, -1.0))]),
     ({}, [Light(kind="point", position=(60.0, -10.0, 40.0))]),
-    ({"softness": 0.7}, [Light(kind="point", position=(12.3, 7.1, 13.7))]),
+    ({"softness": 0.7, "softness_from": "custom"},
+     [Light(kind="point", position=(12.3, 7.1, 13.7))]),
     ({"model": "seed000"}, [Light(kind="point", position=(12.0, 8.0, 14.0))]),
     ({}, [Light(direction=(0.3, 0.2, 1.0)), Light(kind="point", position=(5.0, 30.0, 9.0))]),
     ({"resolution": "half"}, [Light(direction=(0, 0, 1)), Light(direction=(1, 0, 0)),
@@ -260,11 +264,12 @@ def test_gpu_and_cpu_paths_agree():
             assert tech.last_backend == "gpu", "compute shaders are available on this context"
             gpu = _light_volume(il)
             values = il.parameters
+            grid = sv.LightGrid.for_data(il.dims, il.spacing, values["resolution"])
             for channel, spec in enumerate(il.light_specs()):
                 cpu = sv.light_volume_cpu(
                     il.opacity_volume(), il.spacing, spec, unit_distance=il.unit_distance,
                     model=values["model"], resolution=values["resolution"],
-                    softness=values["softness"],
+                    softness=sv.light_softness(spec, grid, values),
                 )
                 np.testing.assert_allclose(gpu[..., channel], cpu, atol=1e-4,
                                            err_msg=f"{params} {lights[channel]}")
@@ -305,7 +310,7 @@ def _shadow_centroid(spacing, direction, size=(128, 128)):
     lights = [Light(direction=direction)]
     il = Illuminator(volume, ren, method="local", lights=lights)
     lit = grab(rw).astype(float).mean(axis=2)
-    il.set_method("shadow_volume", {"softness": 0.0})
+    il.set_method("shadow_volume", {"softness": 0.0, "softness_from": "custom"})
     shadowed = grab(rw).astype(float).mean(axis=2)
     il.release()
     # The cast shadow: the largest blob darkened by more than half the strongest darkening
@@ -572,3 +577,24 @@ def test_light_visibility_cpu_hook_returns_data_resolution():
             assert vis[2, 10, 10] < 0.2  # under the sphere and inside the slab
     finally:
         il.release()
+
+
+def test_softness_follows_the_light_size_geometrically():
+    grid = sv.LightGrid.for_data((40, 40, 40), (1.0, 1.0, 1.0), "full")
+    values = {**sv.ShadowVolume.defaults()}
+    assert values["softness_from"] == "light size"
+    from vtkvol.engine.illuminator import LightSpec
+
+    ideal = LightSpec("directional", (0.0, 0.0, 1.0), (1.0, 1.0, 1.0), size=0.0)
+    sun = LightSpec("directional", (0.0, 0.0, 1.0), (1.0, 1.0, 1.0), size=np.radians(2.0))
+    # Penumbra half-width half-way down (20 slices): 20·tan 2° = 0.70 cells = √20·σ.
+    assert sv.light_softness(ideal, grid, values) == 0.0
+    assert sv.light_softness(sun, grid, values) == pytest.approx(
+        np.sqrt(20) * np.tan(np.radians(2.0)), rel=1e-6)
+    wide = LightSpec("directional", (0.0, 0.0, 1.0), (1.0, 1.0, 1.0), size=np.radians(45.0))
+    assert sv.light_softness(wide, grid, values) == 4.0  # clamped to the declared range
+    lamp = LightSpec("point", (20.0, 20.0, 120.0), (1.0, 1.0, 1.0), size=10.0)
+    assert sv.light_softness(lamp, grid, values) == pytest.approx(np.sqrt(20) * 10.0 / 100.5,
+                                                                  rel=1e-3)
+    custom = {**values, "softness_from": "custom", "softness": 1.5}
+    assert sv.light_softness(sun, grid, custom) == 1.5

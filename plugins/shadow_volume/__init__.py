@@ -30,12 +30,20 @@ PARAMETERS: tuple[Param, ...] = (
         kind="choice", choices=tuple(RESOLUTIONS), invalidates=_ILLUM, uniform=False,
     ),
     Param(
+        "softness_from", "light size", "Softness from",
+        "light size: each light's penumbra follows its physical size (lights dock), matched to "
+        "the geometric penumbra half-way through the volume (docs/shadow-volume.md); custom: "
+        "the softness below for every light.",
+        kind="choice", choices=("light size", "custom"), invalidates=_ILLUM, uniform=False,
+        applies_when=(("model", ("transmittance",)),),
+    ),
+    Param(
         "softness", 0.0, "Softness",
         "Standard deviation of the Gaussian blur applied per slice, in light-volume cells "
         "(transmittance model): penumbrae widen with the square root of the distance to "
         "the occluder. 0 = hard shadows (bilinear interpolation only).",
         range=(0.0, 4.0), step=0.1, unit="voxel", invalidates=_ILLUM, uniform=False,
-        applies_when=(("model", ("transmittance",)),),
+        applies_when=(("model", ("transmittance",)), ("softness_from", ("custom",))),
     ),
     Param(
         "strength", 1.0, "Strength",

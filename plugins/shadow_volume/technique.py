@@ -105,7 +105,8 @@ class ShadowVolume(Technique):
     # -- hooks --------------------------------------------------------------------------------
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
         specs = self.host.light_specs()
-        light_key = tuple((s.kind, s.vector) for s in specs)  # colour changes need no recompute
+        # Colour changes need no recompute; a size changes the penumbra.
+        light_key = tuple((s.kind, s.vector, s.size) for s in specs)
         grid = LightGrid.for_data(self.host.dims, self.host.spacing, values["resolution"])
         if changes.first or changes.opacity or grid != self.grid:
             self._sigma_valid = {"gpu": False, "cpu": False}
@@ -189,7 +190,8 @@ class ShadowVolume(Technique):
         vis = light_volume_cpu(
             opacity, spacing, light, unit_distance=self.host.unit_distance,
             model=merged["model"], resolution=merged["resolution"],
-            softness=merged["softness"], origin=self._origin(), direction=self._direction(),
+            softness=light_softness(light, grid, merged), origin=self._origin(),
+            direction=self._direction(),
         )
         return grid.to_data(vis)
 
@@ -256,7 +258,7 @@ class ShadowVolume(Technique):
             kind, vec = grid.light(spec, self._origin(), self._direction())
             gpu.propagate(
                 self._sigma_tex, self._work_tex, self.light_texture, grid, kind, vec,
-                model=values["model"], softness=values["softness"],
+                model=values["model"], softness=light_softness(spec, grid, values),
                 unit_distance=self.host.unit_distance, channel=channel,
             )
 
@@ -272,7 +274,8 @@ class ShadowVolume(Technique):
             kind, vec = grid.light(spec, self._origin(), self._direction())
             packed[..., channel] = propagate_cpu(
                 self._sigma_cpu, grid, kind, vec, model=values["model"],
-                softness=values["softness"], unit_distance=self.host.unit_distance,
+                softness=light_softness(spec, grid, values),
+                unit_distance=self.host.unit_distance,
             )
         self.light_texture.upload(packed)
 
@@ -410,6 +413,37 @@ def _pyramid_meets_slice(dims: Sequence[int], axis: int, pos: np.ndarray, k: int
 def in_plane_axes(axis: int) -> tuple[int, int]:
     """The (u, v) axes of a slice across ``axis`` (0 = x): the other two, in increasing order."""
     return (1, 2) if axis == 0 else ((0, 2) if axis == 1 else (0, 1))
+
+
+def light_softness(spec: LightSpec, grid: LightGrid, values: Mapping[str, Any]) -> float:
+    """The per-slice blur σ (light-grid cells) for ``spec``: the declared ``softness``, or, with
+    ``softness_from = "light size"``, the σ whose penumbra equals the light's geometric one
+    half-way through the grid along the light.
+
+    A light of angular radius r casts a penumbra of half-width d·tan r at distance d; the
+    per-slice Gaussian blur widens it as √k·σ after k slices. Matching both at k = n/2 slices
+    (n along the dominant axis) gives σ = √k·(Δ_axis/Δ_plane)·tan r, clamped to the declared
+    range (4 cells). Nearer occluders get a slightly too wide penumbra, farther ones a too
+    narrow one (√k against k): the limit of a slice-by-slice blur (docs/shadow-volume.md).
+    """
+    if values.get("softness_from", "custom") == "custom" or values.get("model") == "seed000":
+        return float(values["softness"])
+    cell = np.asarray(grid.cell_um, float)
+    if spec.is_point:
+        centre = np.array([(n - 1) * c / 2.0 for n, c in zip(grid.dims, cell, strict=True)])
+        to_centre = centre - np.asarray(spec.vector, float)
+        distance = float(np.linalg.norm(to_centre))
+        tan_r = spec.size / max(distance, 1e-9)
+        direction = to_centre
+    else:
+        tan_r = math.tan(spec.size)
+        direction = np.asarray(spec.vector, float)
+    if tan_r <= 0:
+        return 0.0
+    axis = int(np.argmax(np.abs(direction / cell)))
+    k = max(grid.dims[axis] / 2.0, 1.0)
+    plane = float(np.mean([cell[a] for a in range(3) if a != axis]))
+    return float(min(math.sqrt(k) * cell[axis] / plane * tan_r, 4.0))
 
 
 def gauss_taps(softness: float) -> tuple[int, np.ndarray]:
