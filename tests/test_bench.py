@@ -324,6 +324,10 @@ def test_runner_writes_json_csv_markdown_and_charts(tmp_path):
         assert r["frame_ms"] > 0 and 0 < r["ssim"] <= 1 and r["rmse"] >= 0
         assert isinstance(r["pareto_frame"], bool) and isinstance(r["pareto_recompute"], bool)
         assert r["renderer"] == run["renderer"] and r["date"] == run["date"]
+    # One physical truth per scene: every method is measured against the same reference, the
+    # scene's light (its size) with ambient occlusion.
+    assert {r["reference"] for r in records} == {
+        f"T(cone {scene.light_size_deg:g}°) + AO({24 * min(scene.spacing):g} µm)"}
     local = next(r for r in records if r["method"] == "local")
     assert local["frame_ratio_vs_local"] == 1.0 and local["recompute_ms"] == 0.0
     assert any(r["pareto_frame"] for r in records)

@@ -6,7 +6,8 @@
 * :mod:`~vtkvol.bench.reference_technique`: the renderer of reference images (same shader,
   reference volumes);
 * :mod:`~vtkvol.bench.measure`: offscreen rigs, timing, checks;
-* :mod:`~vtkvol.bench.report`: ``benchmarks.json`` / ``.csv`` / ``.md`` and charts in the output folder;
+* :mod:`~vtkvol.bench.report`: ``benchmarks.json``, ``.csv``, ``.md`` and charts in the output
+  folder;
 * :mod:`~vtkvol.bench.auto_quality`: :func:`choose`, the cheapest method that meets an error
   budget for a given scene.
 

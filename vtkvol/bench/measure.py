@@ -147,7 +147,8 @@ class Rig:
     def load(self, scene: Scene) -> None:
         """Show ``scene`` (data, transfer function, lights, view)."""
         _load_volume(self.volume, scene)
-        self.illuminator.set_lights([Light(direction=d) for d in scene.lights])
+        self.illuminator.set_lights([Light(direction=d, size=scene.light_size_deg)
+                                     for d in scene.lights])
         self.scene = scene
         self.reset_view()
 

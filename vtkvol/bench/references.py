@@ -1,8 +1,11 @@
-"""Which reference each technique setting is measured against, and computing it (numpy).
+"""What each scene is measured against, and computing it (numpy).
 
-A technique setting approximates some illumination; :class:`ReferenceSpec` names that
-illumination in physical terms (:func:`reference_spec`), and :class:`ReferenceCache` computes it
-with the independent CPU references of :mod:`vtkvol.reference`:
+Every surface technique of a scene is measured against one physical truth,
+:func:`scene_reference`: the light the scene has (its size) and ambient occlusion within a
+fixed distance. :class:`ReferenceSpec` names an illumination in physical terms and
+:class:`ReferenceCache` computes it with the independent CPU references of
+:mod:`vtkvol.reference`. (:func:`reference_spec` still maps a setting to the illumination it
+*means* to compute, which :func:`~vtkvol.bench.auto_quality.choose` uses to predict errors.)
 
 * light visibility: the transmittance towards each light (``transmittance``), or, when the
   setting models an area light seen under a cone half-angle, the mean transmittance over that
@@ -177,6 +180,17 @@ def reference_spec(
     return ReferenceSpec(cone_angle_deg=cone, ao_distance_um=ao, light_offset=h0,
                          offset_cell_um=sp, ao_offset_um=h0 * min(sp) if ao else 0.0,
                          volume_has_offset=h0 > 0)
+
+
+def scene_reference(scene: Scene) -> ReferenceSpec:
+    """The one physical truth of ``scene`` that every surface technique is measured against:
+    the exact transmittance averaged over the light's extent (a cone of the lights' angular
+    radius; hard for an ideal light) plus Monte-Carlo ambient occlusion within the scene's AO
+    distance, with no self-shadowing offset."""
+    return ReferenceSpec(
+        cone_angle_deg=float(scene.light_size_deg),
+        ao_distance_um=float(scene.ao_distance_voxels) * min(scene.spacing),
+    )
 
 
 def outward_normals(opacity: np.ndarray, spacing: Sequence[float]) -> np.ndarray:

@@ -40,7 +40,7 @@ from vtkvol.bench.references import (
     ReferenceCache,
     ReferenceSpec,
     bench_helper,
-    reference_spec,
+    scene_reference,
 )
 from vtkvol.bench.scenes import Scene, StabilityCase, bench_scenes, stability_cases
 from vtkvol.engine.technique import Technique, installed_techniques
@@ -326,7 +326,7 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
                     first_of_method: bool) -> dict[str, Any]:
     """One record: timing, image metrics and per-voxel metrics of ``setting`` on ``scene``."""
     cfg = ctx.config
-    spec = reference_spec(setting.method, setting.values, scene.spacing, scene.shape)
+    spec = scene_reference(scene)
     record = _base_record(ctx, scene, setting, spec)
     try:
         ref_img = _reference_image(ctx, scene, spec)
@@ -360,9 +360,9 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
 
 
 def measure_vtk(ctx: Context, scene: Scene, setting: Setting) -> dict[str, Any]:
-    """One record for VTK's built-in scattering, compared with the hard-shadow reference."""
+    """One record for VTK's built-in scattering, compared with the scene's reference."""
     cfg = ctx.config
-    spec = ReferenceSpec()
+    spec = scene_reference(scene)
     record = _base_record(ctx, scene, setting, spec)
     try:
         ref_img = _reference_image(ctx, scene, spec)
@@ -391,9 +391,7 @@ def run_scene(ctx: Context, scene: Scene, settings: Sequence[Setting],
     opacity = scene.opacity()
     ctx.rig.load(scene)
     records = []
-    specs = list(dict.fromkeys(
-        [ReferenceSpec()]
-        + [reference_spec(s.method, s.values, scene.spacing, scene.shape) for s in settings]))
+    specs = [scene_reference(scene)]
     for spec in specs:
         ctx.progress.step(f"{scene.name}: reference {spec.label}")
         try:
@@ -455,7 +453,7 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             values[pname] = choice
         ctx.progress.step(f"stability {case.sweep}={case.value_label}: {setting.method} "
                           f"{label}")
-        spec = reference_spec(setting.method, values, scene.spacing, scene.shape)
+        spec = scene_reference(scene)
         rec: dict[str, Any] = {
             "sweep": case.sweep, "value": case.value, "value_label": case.value_label,
             "unit": case.unit, "scene": scene.name, "method": setting.method,
@@ -509,14 +507,15 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
 
 
 def measure_vtk_image(ctx: Context, scene: Scene, setting: Setting) -> dict[str, Any]:
-    """Image metrics (no timing) of VTK's scattering against the hard-shadow reference."""
+    """Image metrics (no timing) of VTK's scattering against the scene's reference."""
     from vtkvol.bench.measure import image_ok
 
+    spec = scene_reference(scene)
     rec: dict[str, Any] = {"method": VTK_METHOD, "setting": setting.label,
-                           "reference": ReferenceSpec().label, "vol_rmse": None,
+                           "reference": spec.label, "vol_rmse": None,
                            "vol_max_abs": None, "volumes_ok": True}
     try:
-        ref_img = _reference_image(ctx, scene, ReferenceSpec())
+        ref_img = _reference_image(ctx, scene, spec)
         ctx.vtk_rig.set_setting(setting.values["blending"], setting.values["reach"])
         image = ctx.vtk_rig.image()
         problem = ctx.errors.new_errors()
@@ -606,9 +605,7 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
                  else stability_cases(config.stability_size, quick=quick))
     stab_settings = stability_settings({n: techniques[n] for n in order}, quick=quick)
     stab_vtk = vtk_settings[:1]
-    total = sum(len({ReferenceSpec(), *(reference_spec(s.method, s.values, sc.spacing, sc.shape)
-                                        for s in settings)})
-                for sc in scene_list)
+    total = len(scene_list)  # one reference per scene
     total += len(scene_list) * (len(settings) + len(vtk_settings))
     for case in case_list:
         if case.parameter_sweep is None:

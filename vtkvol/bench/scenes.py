@@ -34,6 +34,11 @@ Vec3 = tuple[float, float, float]
 #: shadows fall visibly onto the receivers below (world direction towards the light).
 DEFAULT_LIGHT: Vec3 = (0.35, -0.25, 0.866)
 
+#: Physical size of the benchmark's lights: angular radius (°), a small lamp's softness.
+DEFAULT_LIGHT_SIZE_DEG = 2.0
+#: AO distance of the scenes' reference (voxels of the smallest edge).
+DEFAULT_AO_DISTANCE_VOXELS = 24.0
+
 #: Camera orbit of the comparison images (degrees): looking down onto the scene a little, so
 #: cast shadows on horizontal receivers are visible.
 DEFAULT_AZIMUTH = 30.0
@@ -70,6 +75,13 @@ class Scene:
     description: str = ""
     kind: str = "phantom"
     lights: list[Vec3] = field(default_factory=lambda: [DEFAULT_LIGHT])
+    #: The lights' physical size: angular radius (°) of every directional light. Every surface
+    #: technique approximates this light, and the scene's one reference averages the exact
+    #: transmittance over it.
+    light_size_deg: float = DEFAULT_LIGHT_SIZE_DEG
+    #: Ambient occlusion of the reference counts absorbers within this many voxels of the
+    #: smallest edge (the cone tracer's default AO distance).
+    ao_distance_voxels: float = DEFAULT_AO_DISTANCE_VOXELS
     azimuth: float = DEFAULT_AZIMUTH
     elevation: float = DEFAULT_ELEVATION
 
