@@ -571,23 +571,21 @@ class GpuFilter:
 
     def __init__(self, render_window: Any) -> None:
         from vtkvol.engine.gl import gl
-        from vtkvol.engine.shaders import read_resource
 
         self.render_window = render_window
         self._gl = gl(render_window)
-        self._source = read_resource("filter.comp.glsl", __package__)
         self.down = self._build(0, 0)
         self._blur: dict[int, ComputeProgram] = {}
 
     def _build(self, pass_id: int, radius: int) -> ComputeProgram:
         from vtkvol.engine.gl import ComputeProgram
+        from vtkvol.engine.shaders import compute_source
 
-        head = (
-            f"#version 430\n#define VV_PASS {pass_id}\n#define VV_RADIUS {radius}\n"
-            f"#define VV_MAX_OPACITY {MAX_OPACITY!r}\n"
-        )
+        defines = {"VV_PASS": str(pass_id), "VV_RADIUS": str(radius),
+                   "VV_MAX_OPACITY": repr(MAX_OPACITY)}
         name = "cone_traced.down" if pass_id == 0 else f"cone_traced.blur{radius}"
-        return ComputeProgram(self.render_window, head + self._source, name)
+        return ComputeProgram(self.render_window,
+                              compute_source("filter.comp.glsl", defines, __package__), name)
 
     def blur(self, radius: int) -> ComputeProgram:
         if radius not in self._blur:
@@ -649,10 +647,7 @@ class GpuAoBaker:
     one program per cone count (the pattern is compiled in)."""
 
     def __init__(self, render_window: Any) -> None:
-        from vtkvol.engine.shaders import read_resource
-
         self.render_window = render_window
-        self._source = read_resource("bake_ao.comp.glsl", __package__)
         self._programs: dict[tuple[int, int], ComputeProgram] = {}
         self.program(6, 1)  # compile now: a context without compute shaders fails here
 
@@ -663,17 +658,19 @@ class GpuAoBaker:
         if key not in self._programs:
             pattern, half_angle = hemisphere_pattern(cones)
             dirs = ", ".join(f"vec3({x:.8f}, {y:.8f}, {z:.8f})" for x, y, z in pattern)
-            head = (
-                f"#version 430\n#define VV_CONES {cones}\n#define VV_DIRS vec3[{cones}]({dirs})\n"
-                f"#define VV_SIN {math.sin(math.radians(half_angle)):.8f}\n"
-                f"#define VV_MAX_STEPS {MAX_STEPS}\n#define VV_TAU_EXIT {TAU_EXIT:.8f}\n"
-                f"#define VV_NORMAL_EPS {NORMAL_EPS!r}\n"
-                f"#define VV_FRAME_A {_glsl_unit(_FRAME_A)}\n"
-                f"#define VV_FRAME_B {_glsl_unit(_FRAME_B)}\n"
-                f"#define VV_GATE_TAPS {gate_taps}\n"
-            )
+            from vtkvol.engine.shaders import compute_source
+
+            defines = {
+                "VV_CONES": str(cones), "VV_DIRS": f"vec3[{cones}]({dirs})",
+                "VV_SIN": f"{math.sin(math.radians(half_angle)):.8f}",
+                "VV_MAX_STEPS": str(MAX_STEPS), "VV_TAU_EXIT": f"{TAU_EXIT:.8f}",
+                "VV_NORMAL_EPS": repr(NORMAL_EPS),
+                "VV_FRAME_A": _glsl_unit(_FRAME_A), "VV_FRAME_B": _glsl_unit(_FRAME_B),
+                "VV_GATE_TAPS": str(gate_taps),
+            }
             self._programs[key] = ComputeProgram(
-                self.render_window, head + self._source, f"cone_traced.bake_ao{cones}_{gate_taps}"
+                self.render_window, compute_source("bake_ao.comp.glsl", defines, __package__),
+                f"cone_traced.bake_ao{cones}_{gate_taps}",
             )
         return self._programs[key]
 

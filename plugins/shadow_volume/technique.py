@@ -56,7 +56,7 @@ from vtkvol.engine.gl import (
     compute_supported,
     gl,
 )
-from vtkvol.engine.shaders import read_resource
+from vtkvol.engine.shaders import compute_source
 from vtkvol.engine.technique import Technique
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import RESOLUTIONS, TECHNIQUE
@@ -798,7 +798,6 @@ class GpuPropagator:
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
-        self._source = read_resource(COMPUTE_SOURCE, __package__)
         self._programs: dict[tuple, ComputeProgram] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self.program(("convert",))  # fail now, not mid-frame, when compute cannot work
@@ -816,9 +815,9 @@ class GpuPropagator:
                     "VV_RADIUS": key[3], "VV_BLOCK": key[4], "VV_GROUP_X": GROUP[0],
                     "VV_GROUP_Y": GROUP[1],
                 }
-            head, _, body = self._source.partition("\n")
-            lines = "".join(f"#define {k} {v}\n" for k, v in defines.items())
-            prog = ComputeProgram(self.render_window, f"{head}\n{lines}{body}", f"shadow {key}")
+            source = compute_source(COMPUTE_SOURCE, {k: str(v) for k, v in defines.items()},
+                                    __package__)
+            prog = ComputeProgram(self.render_window, source, f"shadow {key}")
             self._programs[key] = prog
         return prog
 

@@ -1,9 +1,10 @@
+#version 430
 // vtkvol technique "cone_traced": compute shader that bakes the hemisphere ambient occlusion at
 // every point of the AO grid (ao_mode = baked_hemisphere). Compiled by
-// vtkvol.plugins.cone_traced.GpuAoBaker ("#version 430" and the VV_* defines are prepended
-// there: VV_CONES, VV_DIRS, VV_SIN, VV_MAX_STEPS, VV_TAU_EXIT, VV_NORMAL_EPS, VV_FRAME_A,
+// vtkvol.plugins.cone_traced.technique.GpuAoBaker (the loader inserts the VV_* defines after
+// #version: VV_CONES, VV_DIRS, VV_SIN, VV_MAX_STEPS, VV_TAU_EXIT, VV_NORMAL_EPS, VV_FRAME_A,
 // VV_FRAME_B, VV_GATE_TAPS), dispatched with PyOpenGL. The CPU twin is baked_ao_cpu() in
-// plugins/cone_traced.py. Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
+// plugins/cone_traced/technique.py. Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
 // Spaces: the AO grid has gridDims points (x, y, z) spanning the data's point bounds (first to
 // last voxel centre), point g at data voxel index g * gridStep (gridStep = (n-1)/(m-1)). The

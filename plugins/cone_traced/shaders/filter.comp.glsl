@@ -1,6 +1,7 @@
+#version 430
 // vtkvol technique "cone_traced": compute shaders that build the filtered-opacity mip chain.
 // Compiled by vtkvol.plugins.cone_traced.GpuFilter (one program per VV_PASS value and blur
-// radius; "#version 430" and the VV_* defines are prepended there), dispatched with PyOpenGL.
+// radius; the loader inserts the VV_* defines after #version), dispatched with PyOpenGL.
 // Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
 // Spaces: integer texel coordinates of one mip level, (x, y, z). Every pass reads a level
