@@ -8,7 +8,7 @@ decisions the paper leaves open are in docs/multiple-scattering.md. This module 
 
 from __future__ import annotations
 
-from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
 _RESTART = Invalidates.ACCUMULATION
@@ -43,12 +43,7 @@ PARAMETERS: tuple[Param, ...] = (
         "assume; paper: by the absorbed part (1 − albedo)·σ_t only (seed 003's eq. 8).",
         kind="choice", choices=("total", "paper"), invalidates=_RESTART, uniform=False,
     ),
-    Param(
-        "backend", "auto", "Compute on",
-        "auto: compute shaders when the OpenGL context has them, else numpy; cpu: always numpy "
-        "(verification).",
-        kind="choice", choices=("auto", "cpu"), invalidates=_RESTART, uniform=False,
-    ),
+    backend_param(_RESTART),
 )
 
 TECHNIQUE = TechniqueSpec(

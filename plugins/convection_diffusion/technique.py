@@ -8,7 +8,6 @@ parameter marked ACCUMULATION changes (``Changes.reset_accumulation``), never fo
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -16,15 +15,13 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, compute_supported, gl
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import Technique
+from vtkvol.engine.technique import ComputePath, Technique
 from vtkvol.plugins.convection_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
-
-log = logging.getLogger(__name__)
 
 DIRECT_UNIFORM = "vv_convection_diffusion_direct"
 SCATTERED_UNIFORM = "vv_convection_diffusion_scattered"
@@ -46,13 +43,16 @@ class ConvectionDiffusion(Technique):
         super().__init__(host)
         self.setup: Setup | None = None
         self._transport: cpu.Transport | None = None  # numpy path state
-        self._gpu: GpuTransport | None = None
-        self._gpu_failed = False
+        self._compute = ComputePath(self.NAME, GpuTransport)
         self._direct: Texture3D | None = None  # numpy path: what the shader samples
         self._scattered: Texture3D | None = None
         self._restarts = 0
         self._backend = ""
         self._last_ms = 0.0
+
+    @property
+    def _gpu(self) -> GpuTransport | None:
+        return self._compute.driver
 
     # -- hooks --------------------------------------------------------------------------------
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
@@ -98,9 +98,7 @@ class ConvectionDiffusion(Technique):
             if tex is not None:
                 tex.release()
         self._direct = self._scattered = None
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
+        self._compute.release()
         self._transport = None
         self.setup = None
 
@@ -132,42 +130,17 @@ class ConvectionDiffusion(Technique):
         self.iteration = 0
         self.converged = False
         self._restarts += 1
-        gpu = self._gpu_path(values)
+        gpu = self._compute.get(self.host, values["backend"])
         if gpu is not None:
             try:
                 gpu.reset(self.setup)
                 self._backend = "gpu"
                 return
             except GLUnavailableError as exc:
-                self._disable_gpu(exc)
+                self._compute.disable(exc)
         self._transport = self.setup.transport(values["diffusion_steps"])
         self._backend = "cpu"
         self._upload_cpu_state()
-
-    def _gpu_path(self, values: Mapping[str, Any]) -> GpuTransport | None:
-        if values["backend"] == "cpu" or self._gpu_failed:
-            if self._gpu is not None:
-                self._gpu.release()
-                self._gpu = None
-            return None
-        if self._gpu is None:
-            rw = self.host.render_window
-            try:
-                if rw is None or not compute_supported(rw):
-                    raise GLUnavailableError("this OpenGL context has no compute shaders")
-                self._gpu = GpuTransport(rw)
-            except GLUnavailableError as exc:
-                self._disable_gpu(exc)
-                return None
-        return self._gpu
-
-    def _disable_gpu(self, exc: Exception) -> None:
-        if not self._gpu_failed:
-            log.warning("convection_diffusion: compute path unavailable, using numpy (%s)", exc)
-        self._gpu_failed = True
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
 
     def _upload_cpu_state(self) -> None:
         transport = self._transport

@@ -8,7 +8,7 @@ memory does not grow with the number of lights. Engine part :mod:`.technique`, n
 
 from __future__ import annotations
 
-from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
 _RESTART = Invalidates.ACCUMULATION
@@ -45,12 +45,7 @@ PARAMETERS: tuple[Param, ...] = (
         "seed", 0, "Seed", "Random seed of the sample streams.",
         kind="int", range=(0, 2**31 - 1), step=1, invalidates=_RESTART, uniform=False,
     ),
-    Param(
-        "backend", "auto", "Compute on",
-        "auto: compute shaders when the OpenGL context has them, else numpy; cpu: always numpy "
-        "(verification).",
-        kind="choice", choices=("auto", "cpu"), invalidates=_RESTART, uniform=False,
-    ),
+    backend_param(_RESTART),
 )
 
 TECHNIQUE = TechniqueSpec(

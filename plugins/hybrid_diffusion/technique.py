@@ -9,7 +9,6 @@ extinction, diffusion rate and diffusion step (:mod:`vtkvol.plugins.convection_d
 
 from __future__ import annotations
 
-import logging
 import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -17,9 +16,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, compute_supported, gl
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import Technique
+from vtkvol.engine.technique import ComputePath, Technique
 from vtkvol.plugins.convection_diffusion import cpu as kd
 from vtkvol.plugins.convection_diffusion.technique import (
     GROUP,
@@ -31,8 +30,6 @@ from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
-
-log = logging.getLogger(__name__)
 
 DIRECT_UNIFORM = "vv_hybrid_diffusion_direct"
 SCATTERED_UNIFORM = "vv_hybrid_diffusion_scattered"
@@ -70,8 +67,7 @@ class HybridDiffusion(Technique):
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
         self.setup: Setup | None = None
-        self._gpu: GpuHybrid | None = None
-        self._gpu_failed = False
+        self._compute = ComputePath(self.NAME, GpuHybrid)
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
         self._direct: Texture3D | None = None  # numpy path: what the shader samples
@@ -79,6 +75,10 @@ class HybridDiffusion(Technique):
         self._restarts = 0
         self._backend = ""
         self._last_ms = 0.0
+
+    @property
+    def _gpu(self) -> GpuHybrid | None:
+        return self._compute.driver
 
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
         if changes.reset_accumulation or self.setup is None:
@@ -119,9 +119,7 @@ class HybridDiffusion(Technique):
             if tex is not None:
                 tex.release()
         self._direct = self._scattered = None
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
+        self._compute.release()
         self.setup = self._rho_d = self._rho_s = None
 
     def light_visibility_cpu(
@@ -154,14 +152,14 @@ class HybridDiffusion(Technique):
         self.iteration = 0
         self.converged = False
         self._restarts += 1
-        gpu = self._gpu_path(values)
+        gpu = self._compute.get(self.host, values["backend"])
         if gpu is not None:
             try:
                 gpu.reset(self.setup, values)
                 self._backend = "gpu"
                 return
             except GLUnavailableError as exc:
-                self._disable_gpu(exc)
+                self._compute.disable(exc)
         self._rho_d = np.zeros((*grid.shape_zyx, 3), np.float32)
         self._rho_s = np.zeros((*grid.shape_zyx, 3), np.float32)
         self._backend = "cpu"
@@ -183,31 +181,6 @@ class HybridDiffusion(Technique):
         for _ in range(int(values["diffusion_steps"])):
             self._rho_s = kd.diffusion_step(self._rho_d + self._rho_s, self._rho_s, setup.lam,
                                             setup.grid)
-
-    def _gpu_path(self, values: Mapping[str, Any]) -> GpuHybrid | None:
-        if values["backend"] == "cpu" or self._gpu_failed:
-            if self._gpu is not None:
-                self._gpu.release()
-                self._gpu = None
-            return None
-        if self._gpu is None:
-            rw = self.host.render_window
-            try:
-                if rw is None or not compute_supported(rw):
-                    raise GLUnavailableError("this OpenGL context has no compute shaders")
-                self._gpu = GpuHybrid(rw)
-            except GLUnavailableError as exc:
-                self._disable_gpu(exc)
-                return None
-        return self._gpu
-
-    def _disable_gpu(self, exc: Exception) -> None:
-        if not self._gpu_failed:
-            log.warning("hybrid_diffusion: compute path unavailable, using numpy (%s)", exc)
-        self._gpu_failed = True
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
 
     def _upload_cpu_state(self) -> None:
         assert self._rho_d is not None and self._rho_s is not None

@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib
+import logging
 import time
 import warnings
 from collections.abc import Iterator, Mapping
@@ -43,6 +44,8 @@ from vtkvol.model.techniques import TechniqueSpec, get_spec, technique_specs
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
+
+logger = logging.getLogger(__name__)
 
 
 class Technique:
@@ -152,6 +155,46 @@ class Technique:
     @classmethod
     def defaults(cls) -> dict[str, Any]:
         return cls.SPEC.defaults()
+
+
+class ComputePath:
+    """The GPU half of a technique that also has a numpy path: the driver ``factory(window)``
+    is made on first use when the ``backend`` parameter allows it and the context runs compute
+    shaders; after a failure the technique stays on numpy (warned once)."""
+
+    def __init__(self, name: str, factory: Any) -> None:
+        self.name = name
+        self.factory = factory
+        self.driver: Any = None
+        self.failed = False
+
+    def get(self, host: Illuminator, backend: str) -> Any:
+        """The driver, or None for the numpy path."""
+        if backend == "cpu" or self.failed:
+            self.release()
+            return None
+        if self.driver is None:
+            from vtkvol.engine.gl import GLUnavailableError, compute_supported
+
+            window = host.render_window
+            try:
+                if window is None or not compute_supported(window):
+                    raise GLUnavailableError("this OpenGL context has no compute shaders")
+                self.driver = self.factory(window)
+            except GLUnavailableError as exc:
+                self.disable(exc)
+        return self.driver
+
+    def disable(self, exc: Exception) -> None:
+        if not self.failed:
+            logger.warning("%s: compute path unavailable, using numpy (%s)", self.name, exc)
+        self.failed = True
+        self.release()
+
+    def release(self) -> None:
+        if self.driver is not None:
+            self.driver.release()
+            self.driver = None
 
 
 def technique_class(name: str | TechniqueSpec) -> type[Technique]:

@@ -86,6 +86,16 @@ class Param:
         return number
 
 
+def backend_param(invalidates: Invalidates) -> Param:
+    """The ``backend`` parameter of a technique with a GPU and a numpy path."""
+    return Param(
+        "backend", "auto", "Compute on",
+        "auto: compute shaders when the OpenGL context has them, else numpy; cpu: always numpy "
+        "(verification).",
+        kind="choice", choices=("auto", "cpu"), invalidates=invalidates, uniform=False,
+    )
+
+
 def defaults(params: Iterable[Param]) -> dict[str, Any]:
     return {p.name: p.default for p in params}
 

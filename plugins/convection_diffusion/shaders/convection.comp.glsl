@@ -10,13 +10,7 @@
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 
-#if VV_CHANNELS == 1
-#define VV_FORMAT r32f
-#elif VV_CHANNELS == 2
-#define VV_FORMAT rg32f
-#else
-#define VV_FORMAT rgba32f
-#endif
+//@include light_format.glsl
 
 layout(VV_FORMAT) uniform readonly image3D vv_rhoIn;
 layout(VV_FORMAT) uniform writeonly image3D vv_rhoOut;
