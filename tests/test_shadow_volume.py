@@ -11,13 +11,15 @@ import pytest
 import vtk
 from scipy import ndimage
 
+from vtkvol.engine import gl as vgl
 from vtkvol.engine.gl import gl
 from vtkvol.engine.illuminator import Illuminator, LightSpec
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
 from vtkvol.model.techniques import get_spec
-from vtkvol.plugins.shadow_volume import technique as sv
+from vtkvol.plugins.shadow_volume import cpu as sv
+from vtkvol.plugins.shadow_volume.technique import ShadowVolume
 from vtkvol.reference import (
     DirectionalLight,
     phantom_slab,
@@ -59,7 +61,8 @@ class _VtkLog:
 def _light_volume(il: Illuminator) -> np.ndarray:
     """The GPU light volume, (nz, ny, nx, channels)."""
     il.render_window.MakeCurrent()
-    return il.technique.light_texture.download()
+    out = il.technique.light_texture.download()
+    return out[..., None] if out.ndim == 3 else out
 
 
 # ------------------------------------------------------------------------------------------------
@@ -70,7 +73,7 @@ def test_registered_with_documented_parameters():
         "vtkvol.plugins.shadow_volume.technique:ShadowVolume"
     )
     cls = technique_class("shadow_volume")
-    assert cls is sv.ShadowVolume
+    assert cls is ShadowVolume
     assert cls.NAME == "shadow_volume" and cls.SHADER == "shadow_volume.glsl"
     names = {p.name for p in cls.PARAMETERS}
     assert {"model", "resolution", "softness", "strength", "offset", "backend"} <= names
@@ -257,7 +260,7 @@ def test_gpu_and_cpu_paths_agree():
     il = Illuminator(volume, ren, method="shadow_volume")
     try:
         for params, lights in AGREEMENT_CASES:
-            il.set_parameters(**{**sv.ShadowVolume.defaults(), **params})
+            il.set_parameters(**{**ShadowVolume.defaults(), **params})
             il.set_lights(lights)
             rw.Render()
             tech = il.technique
@@ -439,14 +442,14 @@ def test_no_gl_leak_over_200_rebuilds():
     il.release()
     rw.Render()
     created: list[int] = []
-    original_init = sv.Texture3D.__init__
+    original_init = vgl.Texture3D.__init__
 
     def counting_init(self, *args, **kwargs):
         original_init(self, *args, **kwargs)
         created.append(self.handle)
 
     # Handles are only counted, not changed; LightTexture has its own __init__.
-    sv.Texture3D.__init__ = counting_init  # type: ignore[method-assign]
+    vgl.Texture3D.__init__ = counting_init  # type: ignore[method-assign]
     try:
         il = Illuminator(volume, ren, method="shadow_volume", lights=[Light()])
         rw.Render()
@@ -471,7 +474,7 @@ def test_no_gl_leak_over_200_rebuilds():
         textures, programs = _live_gl_objects(rw, upto + 4096)
         assert textures < baseline[0] and programs < baseline[1]
     finally:
-        sv.Texture3D.__init__ = original_init  # type: ignore[method-assign]
+        vgl.Texture3D.__init__ = original_init  # type: ignore[method-assign]
     assert len(created) > 400  # the rebuilds really did create textures
     assert max(created) < upto + 4096  # and every one was inside the range counted
 
@@ -581,7 +584,7 @@ def test_light_visibility_cpu_hook_returns_data_resolution():
 
 def test_softness_follows_the_light_size_geometrically():
     grid = sv.LightGrid.for_data((40, 40, 40), (1.0, 1.0, 1.0), "full")
-    values = {**sv.ShadowVolume.defaults()}
+    values = {**ShadowVolume.defaults()}
     assert values["softness_from"] == "light size"
     from vtkvol.engine.illuminator import LightSpec
 

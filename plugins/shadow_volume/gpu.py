@@ -1,0 +1,184 @@
+"""Shadow volumes on the GPU: the light texture and the drivers of shaders/propagate.comp.glsl
+(one dispatch per slice; docs/shadow-volume.md). Expects VTK's context to be current.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import vtk
+
+from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
+from vtkvol.engine.shaders import compute_source
+from vtkvol.plugins.shadow_volume.cpu import (
+    SEED000_RADIUS,
+    LightGrid,
+    gauss_taps,
+    in_plane_axes,
+    plan_passes,
+)
+
+#: Work-group size (u, v) of the propagation kernel.
+GROUP = (8, 8)
+#: Cells along u per invocation for directional lights (they share taps; see the kernel).
+BLOCK = 4
+COMPUTE_SOURCE = "propagate.comp.glsl"
+
+
+class LightTexture(Texture3D):
+    """The light volume: one light per channel (1, 2 or 4 float channels), ``shape`` (nz, ny,
+    nx) in light-grid cells, created filled with 1 (unshadowed). Linear filtering, clamped to a
+    border of 1, so lookups that the offset pushes out of the volume see no shadow."""
+
+    def __init__(
+        self, render_window: vtk.vtkRenderWindow, shape_zyx: tuple[int, int, int], channels: int
+    ) -> None:
+        ones = np.ones((*shape_zyx, channels) if channels > 1 else shape_zyx, np.float32)
+        super().__init__(render_window, shape_zyx, data=ones, border=1.0, channels=channels)
+
+
+class GpuPropagator:
+    """Compute programs of shadow_volume_propagate.comp and their dispatch (GL context current).
+
+    Programs are compiled on first use per variant (prefilter; propagate × model × channels ×
+    filter radius × cells per invocation) and kept until :meth:`release`.
+    """
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[tuple, ComputeProgram] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+        self.program(("convert",))  # fail now, not mid-frame, when compute cannot work
+
+    def program(self, key: tuple) -> ComputeProgram:
+        prog = self._programs.get(key)
+        if prog is None:
+            if key[0] == "convert":
+                defines = {"VV_PASS": 0}
+            elif key[0] == "reduce":
+                defines = {"VV_PASS": 2}
+            else:
+                defines = {
+                    "VV_PASS": 1, "VV_SEED000": int(key[1]), "VV_CHANNELS": key[2],
+                    "VV_RADIUS": key[3], "VV_BLOCK": key[4], "VV_GROUP_X": GROUP[0],
+                    "VV_GROUP_Y": GROUP[1],
+                }
+            source = compute_source(COMPUTE_SOURCE, {k: str(v) for k, v in defines.items()},
+                                    __package__)
+            prog = ComputeProgram(self.render_window, source, f"shadow {key}")
+            self._programs[key] = prog
+        return prog
+
+    def _set(self, prog: ComputeProgram, name: str, *values: float, integer: bool = True) -> None:
+        GL = gl(self.render_window)
+        handle = int(prog.prog.GetHandle())
+        loc = self._locations.get((handle, name))
+        if loc is None:
+            loc = int(GL.glGetUniformLocation(handle, name))
+            self._locations[(handle, name)] = loc
+        if loc < 0:
+            return  # optimised away
+        fn = {1: "glUniform1", 2: "glUniform2", 3: "glUniform3"}[len(values)]
+        getattr(GL, fn + ("i" if integer else "f"))(loc, *values)
+
+    def prefilter(self, alpha: np.ndarray, sigma: Texture3D, grid: LightGrid) -> None:
+        """TF opacity ``alpha`` (data resolution, ``[z, y, x]``) -> s on the light grid.
+
+        Full resolution: uploaded into ``sigma`` itself and converted in place (no extra
+        memory). Coarser grids: a temporary data-resolution texture, converted in place, then
+        reduced by box averaging into ``sigma``.
+        """
+        GL = gl(self.render_window)
+        full = grid.dims == grid.data_dims
+        data = sigma if full else Texture3D(self.render_window, alpha.shape)
+        try:
+            data.upload(alpha)
+            data.tex.Deactivate()  # upload() bound it to a unit; image units are separate
+            prog = self.program(("convert",))
+            prog.use()
+            self._set(prog, "vv_volume", 0)
+            self._set(prog, "vv_dataDims", *grid.data_dims)
+            data.bind_image(0, "readwrite")
+            nx, ny, nz = grid.data_dims
+            prog.dispatch((-(-nx // 8), -(-ny // 8), -(-nz // 4)))
+            if not full:
+                prog = self.program(("reduce",))
+                prog.use()
+                self._set(prog, "vv_sigmaData", 0)
+                self._set(prog, "vv_sigmaOut", 1)
+                self._set(prog, "vv_dataDims", *grid.data_dims)
+                self._set(prog, "vv_gridDims", *grid.dims)
+                self._set(prog, "vv_gridStep", *grid.step, integer=False)
+                data.bind_image(0, "read")
+                sigma.bind_image(1, "write")
+                mx, my, mz = grid.dims
+                prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
+            self._unbind_images(GL, 2)
+            prog.done()
+        finally:
+            if not full:
+                data.release()
+
+    def propagate(
+        self, sigma: Texture3D, work: Mapping[int, Texture3D], out: LightTexture,
+        grid: LightGrid, kind: str, vec: np.ndarray, *, model: str, softness: float,
+        unit_distance: float, channel: int,
+    ) -> None:
+        """All passes of one light into channel ``channel`` of ``out``; ``work`` holds one
+        2-layer slice texture per propagation axis."""
+        GL = gl(self.render_window)
+        seed = model == "seed000"
+        radius, g = (SEED000_RADIUS, np.ones(1)) if seed else gauss_taps(softness)
+        block = 1 if kind == "point" else BLOCK
+        prog = self.program(("propagate", seed, out.channels, radius, block))
+        program = prog.use()
+        self._set(prog, "vv_sigma", 0)
+        self._set(prog, "vv_work", 1)
+        self._set(prog, "vv_out", 2)
+        self._set(prog, "vv_dims", *grid.dims)
+        self._set(prog, "vv_point", int(kind == "point"))
+        self._set(prog, "vv_light", *(float(c) for c in vec), integer=False)
+        self._set(prog, "vv_cellUm", *grid.cell_um, integer=False)
+        self._set(prog, "vv_invUnit", 1.0 / unit_distance, integer=False)
+        self._set(prog, "vv_radius", radius)
+        self._set(prog, "vv_channel", channel)
+        program.SetUniform1fv("vv_gauss", radius + 1, [float(x) for x in g])
+        sigma.bind_image(0, "read")
+        out.bind_image(2, "write" if out.channels == 1 else "readwrite")
+        barrier = GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
+        slice_loc = self._location(prog, "vv_slice")
+        first_loc = self._location(prog, "vv_first")
+        for p in plan_passes(grid.dims, kind, vec):
+            a = p.axis
+            ua, va = in_plane_axes(a)
+            columns = -(-grid.dims[ua] // block)
+            groups = (-(-columns // GROUP[0]), -(-grid.dims[va] // GROUP[1]), 1)
+            work[a].bind_image(1, "readwrite")
+            self._set(prog, "vv_axis", a)
+            self._set(prog, "vv_sweep", p.sweep)
+            self._set(prog, "vv_restrict", int(p.restrict))
+            for index, k in enumerate(p.slices):
+                GL.glUniform1i(slice_loc, k)
+                GL.glUniform1i(first_loc, int(index == 0))
+                GL.glDispatchCompute(*groups)
+                GL.glMemoryBarrier(barrier)
+        GL.glMemoryBarrier(GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        self._unbind_images(GL, 3)
+        prog.done()
+
+    def _location(self, prog: ComputeProgram, name: str) -> int:
+        self._set(prog, name, 0)  # caches the location
+        return self._locations[(int(prog.prog.GetHandle()), name)]
+
+    @staticmethod
+    def _unbind_images(GL: Any, count: int) -> None:
+        for unit in range(count):
+            GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
+
+    def release(self) -> None:
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._locations.clear()
