@@ -16,7 +16,9 @@ from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
 from vtkvol.model.params import Invalidates
 from vtkvol.model.techniques import get_spec
-from vtkvol.plugins.cone_traced import technique as ct
+from vtkvol.plugins.cone_traced import AO_MODES
+from vtkvol.plugins.cone_traced import cpu as ct
+from vtkvol.plugins.cone_traced.technique import ConeTraced
 from vtkvol.reference import (
     DirectionalLight,
     ambient_occlusion_mc,
@@ -37,7 +39,7 @@ SIZE = (96, 96)
 def test_registered_with_documented_parameters():
     assert get_spec("cone_traced").engine == "vtkvol.plugins.cone_traced.technique:ConeTraced"
     cls = technique_class("cone_traced")
-    assert cls is ct.ConeTraced
+    assert cls is ConeTraced
     names = {p.name for p in cls.PARAMETERS}
     assert {"sigma", "span", "shadow_angle", "ao_mode", "ao_cones", "ao_angle", "h", "h0",
             "max_distance", "shadow_strength", "ao_strength", "shadows",
@@ -57,7 +59,7 @@ def test_registered_with_documented_parameters():
             defines = cls(None).shader_defines({**cls.defaults(), "ao_mode": mode,
                                                  "ao_cones": cones})
             assert defines["VV_CT_AO_CONES"] == cones
-        assert defines["VV_CT_AO"] == str(ct.AO_MODES.index(mode))
+        assert defines["VV_CT_AO"] == str(AO_MODES.index(mode))
 
 
 @pytest.mark.parametrize("cones", [1, 3, 6, 12])
@@ -315,9 +317,9 @@ class Scene:
         return grab(self.rw).astype(np.float64).mean(axis=2)
 
     @property
-    def tech(self) -> ct.ConeTraced:
+    def tech(self) -> ConeTraced:
         tech = self.il.technique
-        assert isinstance(tech, ct.ConeTraced)
+        assert isinstance(tech, ConeTraced)
         return tech
 
     def close(self) -> None:
@@ -459,7 +461,7 @@ def test_cpu_backend_renders_like_gpu(scene_factory, monkeypatch):
     gpu = scene_factory(vol, elevation=40.0)
     gpu.image()
     gpu_image = gpu.image()
-    monkeypatch.setattr(ct.ConeTraced, "BACKEND", "cpu")
+    monkeypatch.setattr(ConeTraced, "BACKEND", "cpu")
     cpu = scene_factory(vol, elevation=40.0)
     cpu.image()
     cpu_image = cpu.image()
