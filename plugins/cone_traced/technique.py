@@ -55,8 +55,8 @@ class ConeTraced(Technique):
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.recompute_count = 0  #: pyramid rebuilds so far (stats())
-        self.backend: str | None = None  #: backend used by the last recompute
+        self._recomputes = 0
+        self._backend = ""  # "gpu" or "cpu": the path of the last pyramid rebuild
         self.source: Texture3D | None = None  #: opacity pyramid S_L (level 0 = α)
         self.filtered: Texture3D | None = None  #: D_L = −ln(1 − G_σ * S_L)
         self._scratch: Texture3D | None = None
@@ -64,8 +64,8 @@ class ConeTraced(Technique):
         self._gpu_failed = False
         #: Baked AO (ao_mode = baked_hemisphere): occlusion on the AO grid, and its bookkeeping.
         self.ao: Texture3D | None = None
-        self.bake_count = 0
-        self.bake_backend: str | None = None
+        self._bakes = 0
+        self._bake_backend = ""
         self._baker: GpuAoBaker | None = None
         self._cpu_pyramids: tuple[list[np.ndarray], list[np.ndarray]] | None = None
 
@@ -87,13 +87,18 @@ class ConeTraced(Technique):
         }
 
     def stats(self) -> dict[str, Any]:
+        """``recomputes``/``bakes`` (counts), ``recompute_ms``/``bake_ms`` (GPU milliseconds of
+        the last one when ``host.profiling``, else the wall time of issuing it; on the numpy
+        path its whole cost), ``backend``/``bake_backend`` ("gpu" or "cpu") and
+        ``texture_bytes`` (all textures held, mip levels included)."""
         textures = (self.source, self.filtered, self._scratch, self.ao)
         return {
-            "recomputes": self.recompute_count,
+            "recomputes": self._recomputes,
             "recompute_ms": self.elapsed_ms("recompute"),
-            "backend": self.backend or "",
-            "bakes": self.bake_count,
+            "backend": self._backend,
+            "bakes": self._bakes,
             "bake_ms": self.elapsed_ms("bake"),
+            "bake_backend": self._bake_backend,
             "texture_bytes": sum(t.nbytes for t in textures if t is not None),
         }
 
@@ -133,7 +138,7 @@ class ConeTraced(Technique):
         """Rebuild the filtered pyramid from ``host.opacity_volume()`` (context current)."""
         with self.timed("recompute"):
             self._recompute(values)
-        self.recompute_count += 1
+        self._recomputes += 1
 
     def _recompute(self, values: Mapping[str, Any]) -> None:
         opacity = self.host.opacity_volume()
@@ -146,7 +151,7 @@ class ConeTraced(Technique):
         if gpu is not None:
             assert self._scratch is not None
             gpu.run(self.source, self.filtered, self._scratch, weights)
-            self.backend = "gpu"
+            self._backend = "gpu"
         else:
             levels = self.filtered.mip_levels
             src = source_pyramid(opacity, levels)
@@ -157,13 +162,13 @@ class ConeTraced(Technique):
             for lev, d in enumerate(filtered):
                 self.filtered.upload(d, lev)
             self._cpu_pyramids = (src, filtered)  # reused by a CPU bake
-            self.backend = "cpu"
+            self._backend = "cpu"
 
     def bake(self, values: Mapping[str, Any]) -> None:
         """Bake the hemisphere AO on the AO grid from the current pyramids (context current)."""
         with self.timed("bake"):
             self._bake(values)
-        self.bake_count += 1
+        self._bakes += 1
 
     def _bake(self, values: Mapping[str, Any]) -> None:
         assert self.filtered is not None and self.source is not None
@@ -180,7 +185,7 @@ class ConeTraced(Technique):
                           values=values)
             finally:
                 self._source_mips(False)
-            self.bake_backend = "gpu"
+            self._bake_backend = "gpu"
         else:
             opacity = self.host.opacity_volume()
             src, filtered = self._cpu_pyramids or (None, None)
@@ -192,7 +197,7 @@ class ConeTraced(Technique):
                 h=values["h"], h0=values["h0"], unit_distance=self.host.unit_distance,
                 pyramid=filtered, source=src,
             ))
-            self.bake_backend = "cpu"
+            self._bake_backend = "cpu"
 
     def _gpu_baker(self) -> GpuAoBaker | None:
         if self._gpu_filter() is None:
@@ -215,8 +220,11 @@ class ConeTraced(Technique):
         self.ao = Texture3D(self.host.render_window, shape)  # linear, clamp to edge
         self.host.bind_texture("vv_cone_traced_ao", self.ao)
 
-    def _release_ao(self) -> None:
-        self.host.unbind_texture("vv_cone_traced_ao")
+    def _release_ao(self, unbind: bool = True) -> None:
+        # Unbind only when the AO goes away while we stay active (ao_mode changed); on
+        # release() the host removes every binding it made for us.
+        if unbind:
+            self.host.unbind_texture("vv_cone_traced_ao")
         if self.ao is not None:
             self.ao.release()
             self.ao = None
@@ -269,8 +277,8 @@ class ConeTraced(Technique):
         self.host.bind_texture("vv_cone_traced_opacity", self.source)
 
     def _release_textures(self) -> None:
-        for name in ("vv_cone_traced_filtered", "vv_cone_traced_opacity"):
-            self.host.unbind_texture(name)
+        # Rebinding a new texture to the same uniform replaces the old binding, and release()
+        # leaves the bindings to the host: nothing to unbind here.
         for tex in (self.source, self.filtered, self._scratch):
             if tex is not None:
                 tex.release()
@@ -278,14 +286,14 @@ class ConeTraced(Technique):
 
     def release(self) -> None:
         self._release_textures()
-        self._release_ao()
+        self._release_ao(unbind=False)
         if self._gpu is not None:
             self._gpu.release()
             self._gpu = None
         if self._baker is not None:
             self._baker.release()
             self._baker = None
-        self._release_timers()  # the host removes our uniforms and texture bindings
+        self._release_timers()
 
     # -- verification ---------------------------------------------------------------------------
     def light_visibility_cpu(

@@ -46,8 +46,8 @@ class ShadowVolume(Technique):
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.recompute_count = 0  #: light-volume recomputations so far (stats())
-        self.last_backend = ""  #: "gpu" or "cpu": the path of the last recomputation
+        self._recomputes = 0
+        self._backend = ""  # "gpu" or "cpu": the path of the last recomputation
         self.grid: LightGrid | None = None
         self.light_texture: LightTexture | None = None
         self._gpu: GpuPropagator | None = None
@@ -78,7 +78,7 @@ class ShadowVolume(Technique):
             return
         with self.timed("recompute"):
             self._recompute(grid, light_key, specs, gpu, values)
-        self.recompute_count += 1
+        self._recomputes += 1
 
     def _recompute(self, grid: LightGrid, light_key: tuple, specs: Sequence[LightSpec],
                    gpu: GpuPropagator | None, values: Mapping[str, Any]) -> None:
@@ -89,22 +89,26 @@ class ShadowVolume(Technique):
         if gpu is not None:
             try:
                 self._recompute_gpu(gpu, grid, specs, values)
-                self.last_backend = "gpu"
+                self._backend = "gpu"
             except GLUnavailableError as exc:
                 self._disable_gpu(exc)
                 gpu = None
         if gpu is None:
             self._recompute_cpu(grid, specs, values)
-            self.last_backend = "cpu"
+            self._backend = "cpu"
         assert self.light_texture is not None
         self.host.bind_texture(TEXTURE_UNIFORM, self.light_texture)
 
     def stats(self) -> dict[str, Any]:
+        """``recomputes`` (count), ``recompute_ms`` (GPU milliseconds of the last one when
+        ``host.profiling``, else the wall time of issuing it; on the numpy path its whole cost),
+        ``backend`` ("gpu" or "cpu") and ``texture_bytes`` (light, extinction and work
+        textures)."""
         textures = [self.light_texture, self._sigma_tex, *self._work_tex.values()]
         return {
-            "recomputes": self.recompute_count,
+            "recomputes": self._recomputes,
             "recompute_ms": self.elapsed_ms("recompute"),
-            "backend": self.last_backend,
+            "backend": self._backend,
             "texture_bytes": sum(t.nbytes for t in textures if t is not None),
         }
 
