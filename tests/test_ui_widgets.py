@@ -17,7 +17,7 @@ from vtkvol.io import VolumeReadError
 from vtkvol.model import Invalidates, Param, SceneModel, TransferFunction
 from vtkvol.model.session import MissingDataError
 from vtkvol.ui import compat, errors
-from vtkvol.ui.binding import Bindings
+from vtkvol.ui.binding import Bindings, signals_blocked
 from vtkvol.ui.docks.function_editor import (
     Curve,
     FunctionEditor,
@@ -357,3 +357,22 @@ def test_none_survives_many_void_calls(qtbot):
         assert sys.getrefcount(None) > compat.MARGIN // 2  # protected: far from zero
     else:
         assert abs(sys.getrefcount(None) - before) < 1000
+
+
+def test_signals_blocked_silences_pushes_and_restores_each_widgets_previous_state(qtbot):
+    first, second = QSpinBox(), QSpinBox()
+    qtbot.addWidget(first)
+    qtbot.addWidget(second)
+    seen: list[int] = []
+    first.valueChanged.connect(seen.append)
+    second.valueChanged.connect(seen.append)
+    second.blockSignals(True)  # already blocked by an outer push: must stay blocked after
+    with signals_blocked(first, second):
+        with signals_blocked(first):
+            first.setValue(3)
+        first.setValue(4)  # the inner block ended; the outer one still holds
+        second.setValue(5)
+    assert seen == []
+    assert not first.signalsBlocked() and second.signalsBlocked()
+    first.setValue(6)
+    assert seen == [6]

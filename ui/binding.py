@@ -18,13 +18,26 @@ from __future__ import annotations
 import contextlib
 import warnings
 import weakref
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
 import shiboken6
 from PySide6.QtCore import QObject, QSignalBlocker, SignalInstance
 
 from vtkvol.model.evented import EventedModel, touches
+
+
+@contextlib.contextmanager
+def signals_blocked(*widgets: QObject) -> Iterator[None]:
+    """Block the signals of ``widgets`` while a view pushes model values into them, so the
+    push never echoes back into the model. Each widget's previous blocking state is restored
+    (``QSignalBlocker``), so nested pushes do not unblock a widget too early."""
+    blockers = [QSignalBlocker(w) for w in widgets]
+    try:
+        yield
+    finally:
+        for blocker in reversed(blockers):
+            blocker.unblock()
 
 
 def paths_touch(paths: Iterable[str], name: str) -> bool:
@@ -62,12 +75,8 @@ class _ModelToWidget:
         value = getattr(model, self.name)
         if self._convert is not None:
             value = self._convert(value)
-        blockers = [QSignalBlocker(w) for w in widgets]
-        try:
+        with signals_blocked(*widgets):
             self._setter(value)
-        finally:
-            for blocker in blockers:
-                blocker.unblock()
 
 
 class _WidgetToModel:

@@ -23,7 +23,7 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
-from vtkvol.ui.binding import Bindings
+from vtkvol.ui.binding import Bindings, signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
 #: Percentiles (0…100) that "Auto" contrast uses: the default TF's, robust to hot pixels.
@@ -151,12 +151,11 @@ class ChannelRow(QFrame):
 
     def _show_limits(self) -> None:
         lo, hi = self._tf().value_span
-        for box, value in ((self.minimum, lo), (self.maximum, hi)):
-            box.blockSignals(True)
-            box.setMinimum(min(box.minimum(), value))
-            box.setMaximum(max(box.maximum(), value))
-            box.setValue(value)
-            box.blockSignals(False)
+        with signals_blocked(self.minimum, self.maximum):
+            for box, value in ((self.minimum, lo), (self.maximum, hi)):
+                box.setMinimum(min(box.minimum(), value))
+                box.setMaximum(max(box.maximum(), value))
+                box.setValue(value)
 
     def _set_limits(self, lo: float | None, hi: float | None) -> None:
         tf = self._tf()
@@ -304,9 +303,8 @@ class ChannelsDock(ModelDock):
         if value is None:
             lo, hi = self.model.channels[0].tf.value_span
             value = 0.5 * (lo + hi)
-        self.iso.blockSignals(True)
-        self.iso.setValue(value)
-        self.iso.blockSignals(False)
+        with signals_blocked(self.iso):
+            self.iso.setValue(value)
 
     def _on_iso(self, value: float) -> None:
         self.model.render.isosurface_value = float(value)

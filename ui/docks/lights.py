@@ -40,6 +40,7 @@ from vtkvol.model.evented import touches
 from vtkvol.model.params import Param
 from vtkvol.model.scene import MAX_ANGULAR_RADIUS, Light, SceneModel
 from vtkvol.model.techniques import TechniqueSpec, technique_specs
+from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
 MAX_LIGHTS = 4
@@ -129,24 +130,19 @@ class FloatParamWidget(QWidget):
 
     def _from_slider(self, position: int) -> None:
         value = self._snap(self._from_t(position / SLIDER_STEPS))
-        self.spin.blockSignals(True)
-        self.spin.setValue(value)
-        self.spin.blockSignals(False)
+        with signals_blocked(self.spin):
+            self.spin.setValue(value)
         self.valueChanged.emit(self.spin.value())
 
     def _from_spin(self, value: float) -> None:
-        self.slider.blockSignals(True)
-        self.slider.setValue(self._to_slider(value))
-        self.slider.blockSignals(False)
+        with signals_blocked(self.slider):
+            self.slider.setValue(self._to_slider(value))
         self.valueChanged.emit(float(value))
 
     def setValue(self, value: float) -> None:  # Qt-style name: used like a spin box
-        for widget in (self.spin, self.slider):
-            widget.blockSignals(True)
-        self.spin.setValue(float(value))
-        self.slider.setValue(self._to_slider(float(value)))
-        for widget in (self.spin, self.slider):
-            widget.blockSignals(False)
+        with signals_blocked(self.spin, self.slider):
+            self.spin.setValue(float(value))
+            self.slider.setValue(self._to_slider(float(value)))
 
     def value(self) -> float:
         return float(self.spin.value())
@@ -481,11 +477,8 @@ class LightsDock(ModelDock):
             widget = self._param_widgets.get(param.name)
             if widget is None:
                 continue
-            widget.blockSignals(True)
-            try:
+            with signals_blocked(widget):
                 self._param_setters[param.name](values[param.name])
-            finally:
-                widget.blockSignals(False)
             # A parameter without effect under the other values (applies_when) is hidden.
             self.param_form.setRowVisible(widget, param.applies(values))
 
@@ -506,15 +499,16 @@ class LightsDock(ModelDock):
     def _show_lights(self) -> None:
         lights = self.model.lights
         self._current = min(max(self._current, 0), len(lights) - 1)
-        self.light_list.blockSignals(True)
-        self.light_list.clear()
-        for i, light in enumerate(lights):
-            item = QListWidgetItem(f"Light {i + 1} — {light.kind}, intensity {light.intensity:g}")
-            item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
-            item.setCheckState(Qt.CheckState.Checked if light.enabled else Qt.CheckState.Unchecked)
-            self.light_list.addItem(item)
-        self.light_list.setCurrentRow(self._current)
-        self.light_list.blockSignals(False)
+        with signals_blocked(self.light_list):
+            self.light_list.clear()
+            for i, light in enumerate(lights):
+                item = QListWidgetItem(
+                    f"Light {i + 1} — {light.kind}, intensity {light.intensity:g}")
+                item.setFlags(item.flags() | Qt.ItemFlag.ItemIsUserCheckable)
+                item.setCheckState(
+                    Qt.CheckState.Checked if light.enabled else Qt.CheckState.Unchecked)
+                self.light_list.addItem(item)
+            self.light_list.setCurrentRow(self._current)
         # As tall as its rows: the parameters below need the room more than empty list space.
         row = max(self.light_list.sizeHintForRow(0), self.fontMetrics().height() + 4)
         frame = 2 * self.light_list.frameWidth() + 2
@@ -530,23 +524,20 @@ class LightsDock(ModelDock):
             return
         widgets = [self.kind, self.azimuth, self.elevation, self.intensity, self.size,
                    self.falloff, *self.position_boxes]
-        for w in widgets:
-            w.blockSignals(True)
         point = light.kind == "point"
-        # A point light's size is a radius in µm, a directional light's an angle in degrees.
-        self.size.setSuffix(" µm" if point else "°")
-        self.size.setMaximum(1e6 if point else MAX_ANGULAR_RADIUS)
-        self.size.setValue(light.size)
-        self.falloff.setChecked(light.falloff == "inverse_square")
-        self.kind.setCurrentIndex(self.kind.findData(light.kind))
-        azimuth, elevation = direction_to_angles(light.direction)
-        self.azimuth.setValue(azimuth)
-        self.elevation.setValue(elevation)
-        for box, value in zip(self.position_boxes, light.position, strict=True):
-            box.setValue(value)
-        self.intensity.setValue(light.intensity)
-        for w in widgets:
-            w.blockSignals(False)
+        with signals_blocked(*widgets):
+            # A point light's size is a radius in µm, a directional light's an angle in °.
+            self.size.setSuffix(" µm" if point else "°")
+            self.size.setMaximum(1e6 if point else MAX_ANGULAR_RADIUS)
+            self.size.setValue(light.size)
+            self.falloff.setChecked(light.falloff == "inverse_square")
+            self.kind.setCurrentIndex(self.kind.findData(light.kind))
+            azimuth, elevation = direction_to_angles(light.direction)
+            self.azimuth.setValue(azimuth)
+            self.elevation.setValue(elevation)
+            for box, value in zip(self.position_boxes, light.position, strict=True):
+                box.setValue(value)
+            self.intensity.setValue(light.intensity)
         self.color.set_rgb(light.color)
         self.falloff.setVisible(point)
         for w in (self.azimuth, self.elevation, self.azimuth_label, self.elevation_label):
@@ -557,12 +548,11 @@ class LightsDock(ModelDock):
     def _show_illumination(self) -> None:
         method = self.model.illumination.method
         index = self.method.findData(method)
-        self.method.blockSignals(True)
-        if index < 0:  # a session's method that is not installed: show it, disabled
-            self.method.addItem(f"{method} (not installed)", method)
-            index = self.method.count() - 1
-        self.method.setCurrentIndex(index)
-        self.method.blockSignals(False)
+        with signals_blocked(self.method):
+            if index < 0:  # a session's method that is not installed: show it, disabled
+                self.method.addItem(f"{method} (not installed)", method)
+                index = self.method.count() - 1
+            self.method.setCurrentIndex(index)
         if method != self._shown_method:
             self._rebuild_params()
         else:
@@ -572,7 +562,6 @@ class LightsDock(ModelDock):
 
     def _show_material(self) -> None:
         render = self.model.render
-        for box, value in ((self.albedo, render.albedo), (self.phase_g, render.phase_g)):
-            box.blockSignals(True)
-            box.setValue(value)
-            box.blockSignals(False)
+        with signals_blocked(self.albedo, self.phase_g):
+            for box, value in ((self.albedo, render.albedo), (self.phase_g, render.phase_g)):
+                box.setValue(value)

@@ -20,6 +20,7 @@ from PySide6.QtWidgets import (
 from superqt import QDoubleRangeSlider
 
 from vtkvol.model.scene import SceneModel
+from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
 
 AXES = ("x", "y", "z")
@@ -119,20 +120,18 @@ class RangesDock(ModelDock):
             current = self._current(axis)
             step = self._step(axis)
             slider, lo_box, hi_box = self.sliders[axis], self.lo_boxes[axis], self.hi_boxes[axis]
-            for widget in (slider, lo_box, hi_box):
-                widget.blockSignals(True)
-                widget.setEnabled(usable)
-            slider.setRange(lo, max(hi, lo + step))
-            slider.setSingleStep(step)
-            slider.setValue(current)
-            decimals = 2 if step >= 0.01 else 3
-            for box, value in ((lo_box, current[0]), (hi_box, current[1])):
-                box.setDecimals(decimals)
-                box.setRange(lo, max(hi, lo + step))
-                box.setSingleStep(step)
-                box.setValue(value)
-            for widget in (slider, lo_box, hi_box):
-                widget.blockSignals(False)
+            with signals_blocked(slider, lo_box, hi_box):
+                for widget in (slider, lo_box, hi_box):
+                    widget.setEnabled(usable)
+                slider.setRange(lo, max(hi, lo + step))
+                slider.setSingleStep(step)
+                slider.setValue(current)
+                decimals = 2 if step >= 0.01 else 3
+                for box, value in ((lo_box, current[0]), (hi_box, current[1])):
+                    box.setDecimals(decimals)
+                    box.setRange(lo, max(hi, lo + step))
+                    box.setSingleStep(step)
+                    box.setValue(value)
 
     # -- widgets → model ------------------------------------------------------------------------
     def _set_range(self, axis: str, lo: float, hi: float) -> None:

@@ -50,6 +50,7 @@ from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_n
 from vtkvol.model.scene import SceneModel
 from vtkvol.model.transfer_function import TransferFunction
 from vtkvol.ui import errors
+from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks import base as dock_base
 from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
 from vtkvol.ui.docks.function_editor import ColorBar, Curve, FunctionEditor, format_value
@@ -384,12 +385,11 @@ class TransferFunctionDock(ModelDock):
         self._channel = min(self._channel, len(channels) - 1)
         if structural:
             combo = self.channel_combo
-            combo.blockSignals(True)
-            combo.clear()
-            for c in channels:
-                combo.addItem(c.name)
-            combo.setCurrentIndex(self._channel)
-            combo.blockSignals(False)
+            with signals_blocked(combo):
+                combo.clear()
+                for c in channels:
+                    combo.addItem(c.name)
+                combo.setCurrentIndex(self._channel)
             combo.setEnabled(len(channels) > 1)
             effective = self._effective_index()
             self.link_label.setVisible(effective != self._channel)
@@ -414,17 +414,14 @@ class TransferFunctionDock(ModelDock):
         integer = self.data is not None and self.data.array.dtype.kind in "ui"
         decimals = 0 if integer else 3
         rlo, rhi = tf.window_range
-        for box, value in ((self.window_min, lo), (self.window_max, hi)):
-            box.blockSignals(True)
-            box.setDecimals(decimals)
-            box.setRange(rlo, rhi)
-            box.setSingleStep(max(10.0 ** -decimals, (rhi - rlo) / 100))
-            box.setValue(value)
-            box.blockSignals(False)
-        self.window_slider.blockSignals(True)
-        self.window_slider.setRange(rlo, rhi)
-        self.window_slider.setValue((lo, hi))
-        self.window_slider.blockSignals(False)
+        with signals_blocked(self.window_min, self.window_max, self.window_slider):
+            for box, value in ((self.window_min, lo), (self.window_max, hi)):
+                box.setDecimals(decimals)
+                box.setRange(rlo, rhi)
+                box.setSingleStep(max(10.0 ** -decimals, (rhi - rlo) / 100))
+                box.setValue(value)
+            self.window_slider.setRange(rlo, rhi)
+            self.window_slider.setValue((lo, hi))
         self.editor.set_x_formatter(format_value)
         self._update_histogram()
 
