@@ -66,8 +66,8 @@ class GpuFilter:
             prog = self.down.use()
             for lev in range(1, len(shapes)):
                 nz, ny, nx = shapes[lev]
-                prog.SetUniform1iv("srcSize", 3, list(shapes[lev - 1][::-1]))
-                prog.SetUniform1iv("dstSize", 3, [nx, ny, nz])
+                prog.SetUniform1iv("vv_srcSize", 3, list(shapes[lev - 1][::-1]))
+                prog.SetUniform1iv("vv_dstSize", 3, [nx, ny, nz])
                 source.bind_image(0, "read", lev - 1)
                 source.bind_image(1, "write", lev)
                 self.down.dispatch(((nx + 15) // 16, ny, 1))
@@ -75,15 +75,15 @@ class GpuFilter:
         radius = (len(weights) - 1) // 2
         blur = self.blur(radius)
         prog = blur.use()
-        prog.SetUniform1fv("weights", len(weights), [float(w) for w in weights])
+        prog.SetUniform1fv("vv_weights", len(weights), [float(w) for w in weights])
         # x: source → filtered, y: filtered → scratch, z: scratch → filtered (+ −ln(1 − F)).
         passes = ((source, filtered, 0), (filtered, scratch, 1), (scratch, filtered, 2))
         for lev, shape in enumerate(shapes):
             nz, ny, nx = shape
-            prog.SetUniform1iv("size", 3, [nx, ny, nz])
+            prog.SetUniform1iv("vv_size", 3, [nx, ny, nz])
             for src, dst, axis in passes:
-                prog.SetUniformi("axis", axis)
-                prog.SetUniformi("convert", 1 if axis == 2 else 0)
+                prog.SetUniformi("vv_axis", axis)
+                prog.SetUniformi("vv_convert", 1 if axis == 2 else 0)
                 src.bind_image(0, "read", lev)
                 dst.bind_image(1, "write", lev)
                 lanes, rows = {0: (ny, nz), 1: (nx, nz), 2: (nx, ny)}[axis]
@@ -103,7 +103,7 @@ def _glsl_unit(v: Sequence[float]) -> str:
 
 
 class GpuAoBaker:
-    """The compute shader that bakes the hemisphere AO (``cone_traced_bake_ao.comp.glsl``),
+    """The compute shader that bakes the hemisphere AO (``bake_ao.comp.glsl``),
     one program per cone count (the pattern is compiled in)."""
 
     def __init__(self, render_window: Any) -> None:
@@ -119,7 +119,7 @@ class GpuAoBaker:
             defines = {
                 "VV_CONES": str(cones), "VV_DIRS": f"vec3[{cones}]({dirs})",
                 "VV_SIN": f"{math.sin(math.radians(half_angle)):.8f}",
-                "VV_MAX_STEPS": str(MAX_STEPS), "VV_TAU_EXIT": f"{TAU_EXIT:.8f}",
+                "VV_CONE_MAX_STEPS": str(MAX_STEPS), "VV_CONE_TAU_EXIT": f"{TAU_EXIT:.8f}",
                 "VV_NORMAL_EPS": repr(NORMAL_EPS),
                 "VV_FRAME_A": _glsl_unit(_FRAME_A), "VV_FRAME_B": _glsl_unit(_FRAME_B),
                 "VV_GATE_TAPS": str(gate_taps),
@@ -140,20 +140,20 @@ class GpuAoBaker:
         gate_level, gate_offset = ao_gate(values["ao_resolution"])
         program = self.program(int(values["ao_cones"]), 1 if gate_offset == 0 else 8)
         prog = program.use()
-        prog.SetUniformi("filtered", filtered.activate())
-        prog.SetUniformi("opacity", source.activate())
-        prog.SetUniform1iv("gridDims", 3, [int(m) for m in grid])
-        prog.SetUniform3f("gridStep", [float(v) for v in ao_grid_step(data_dims, grid)])
-        prog.SetUniform3f("dims", [float(n) for n in data_dims])
-        prog.SetUniform3f("spacing", [float(v) for v in spacing])
-        prog.SetUniformf("unit", float(unit_distance))
-        prog.SetUniformf("maxLod", float(filtered.mip_levels - 1))
-        prog.SetUniformf("gateLod", float(min(gate_level, filtered.mip_levels - 1)))
-        prog.SetUniformf("gateOffset", float(gate_offset))
-        prog.SetUniformf("lodWidth", float(values["lod_width"] * values["sigma"]))
-        prog.SetUniformf("h", float(values["h"]))
-        prog.SetUniformf("h0", float(values["h0"]))
-        prog.SetUniformf("maxDistUm", float(values["max_distance"]) * min(spacing))
+        prog.SetUniformi("vv_filtered", filtered.activate())
+        prog.SetUniformi("vv_opacity", source.activate())
+        prog.SetUniform1iv("vv_gridDims", 3, [int(m) for m in grid])
+        prog.SetUniform3f("vv_gridStep", [float(v) for v in ao_grid_step(data_dims, grid)])
+        prog.SetUniform3f("vv_dims", [float(n) for n in data_dims])
+        prog.SetUniform3f("vv_spacing", [float(v) for v in spacing])
+        prog.SetUniformf("vv_unit", float(unit_distance))
+        prog.SetUniformf("vv_maxLod", float(filtered.mip_levels - 1))
+        prog.SetUniformf("vv_gateLod", float(min(gate_level, filtered.mip_levels - 1)))
+        prog.SetUniformf("vv_gateOffset", float(gate_offset))
+        prog.SetUniformf("vv_lodWidth", float(values["lod_width"] * values["sigma"]))
+        prog.SetUniformf("vv_h", float(values["h"]))
+        prog.SetUniformf("vv_h0", float(values["h0"]))
+        prog.SetUniformf("vv_maxDistUm", float(values["max_distance"]) * min(spacing))
         ao.bind_image(0, "write", 0)
         program.dispatch(((grid[0] + 15) // 16, grid[1], grid[2]))
         program.done()

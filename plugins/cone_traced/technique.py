@@ -82,8 +82,8 @@ class ConeTraced(Technique):
             "VV_CT_AO_CONES": str(cones),
             "VV_CT_AO_DIRS": f"vec3[{cones}]({dirs})",
             "VV_CT_AO_SIN": f"{math.sin(math.radians(half_angle)):.8f}",
-            "VV_CT_MAX_STEPS": str(MAX_STEPS),
-            "VV_CT_TAU_EXIT": f"{TAU_EXIT:.8f}",
+            "VV_CONE_MAX_STEPS": str(MAX_STEPS),
+            "VV_CONE_TAU_EXIT": f"{TAU_EXIT:.8f}",
         }
 
     def stats(self) -> dict[str, Any]:

@@ -1,6 +1,6 @@
 // vtkvol technique "cone_traced": soft shadows and ambient occlusion by cone tracing through a
 // Gaussian-filtered opacity mip chain (seed 000's method 1, thesis §6.2, with its unit bug
-// fixed). Python side and the precomputation: plugins/cone_traced.py. Tested with VTK 9.7.1.
+// fixed). Python side: plugins/cone_traced/technique.py. Tested with VTK 9.7.1.
 //
 // Spaces: texPos = VTK's g_dataPos (0..1 over the data texture, voxel centres at (i+0.5)/N);
 // the cone is marched in voxel space (index units), so the LOD rule and the steps are in voxels
@@ -12,7 +12,7 @@
 //                            Gaussian-filtered mean opacity F_L of mip level L (border 0)
 //   vv_cone_traced_opacity   TF opacity per unit distance (level 0 = the host's opacity volume)
 //   vv_cone_traced_ao        baked AO (VV_CT_AO 3 only): occlusion 0..1 on the AO grid, which
-//                            spans the data's point bounds (cone_traced_bake_ao.comp.glsl)
+//                            spans the data's point bounds (bake_ao.comp.glsl)
 // Uniforms (custom, set by the host every frame):
 //   vec3  vv_cone_traced_dims           data dimensions (x, y, z) voxels
 //   float vv_cone_traced_maxLod         coarsest level
@@ -28,7 +28,8 @@
 // Compile-time variants (llvmpipe: a branch on a uniform costs as much as all its branches):
 //   VV_CT_SHADOWS 0|1, VV_CT_AO 0 off | 1 view cone | 2 hemisphere | 3 baked hemisphere,
 //   VV_CT_AO_CONES,
-//   VV_CT_AO_DIRS (cone axes in the normal's frame), VV_CT_AO_SIN, VV_CT_MAX_STEPS, VV_CT_TAU_EXIT.
+//   VV_CT_AO_DIRS (cone axes in the normal's frame), VV_CT_AO_SIN, and for the march
+//   (cone_march.glsl) VV_CONE_MAX_STEPS, VV_CONE_TAU_EXIT.
 //
 // Shading (host_lighting.glsl): ambient × A, diffuse and specular of light i × V_i, with
 //   V_i = 1 - shadow_strength * (1 - T_cone(light i)),   A = 1 - ao_strength * AO,
@@ -38,41 +39,16 @@
 //@inject //VTK::ComputeLighting::Dec pre before
 const vec3 vv_ct_aoDirs[VV_CT_AO_CONES] = VV_CT_AO_DIRS;
 
+//@include cone_march.glsl
+
 // Transmittance (0..1] of one cone from texPos along the unit dataset-space direction dirDS.
-// One ray: front-to-back accumulation of optical depth (tau += D * ds / u, i.e. per step
-// alpha = 1 - (1 - F)^(ds/u), independent of h), midpoint of each segment, starting at h0.
-// The level rises (and the step doubles) while the cone's half-width b*sin(angle) exceeds
-// lod_width·σ·2^L voxels (the thesis rule has lod_width = 2; all in voxels of the data grid).
 float vv_ct_trace(vec3 texPos, vec3 dirDS, float sinAngle, float maxDistUm)
 {
   vec3 dVox = vv_datasetDirToTex(dirDS) * vv_cone_traced_dims;  // voxels per µm, per axis
-  float perUm = length(dVox);
-  if (!(perUm > 0.0)) return 1.0;
-  vec3 stepTex = dVox / (perUm * vv_cone_traced_dims);           // texture coords per voxel
-  float depthPerVoxel = 1.0 / (perUm * vv_cone_traced_unit);     // unit distances per voxel
-  float tauExit = VV_CT_TAU_EXIT / depthPerVoxel;
-  float bMax = maxDistUm * perUm;
-  float width = vv_cone_traced_lod_width * vv_cone_traced_sigma;
-  float lod = 0.0;
-  float scale = 1.0;
-  float b = vv_cone_traced_h0;
-  float tau = 0.0;
-  for (int i = 0; i < VV_CT_MAX_STEPS; ++i)
-  {
-    for (int j = 0; j < 16 && b * sinAngle > width * scale && lod < vv_cone_traced_maxLod; ++j)
-    {
-      lod += 1.0;
-      scale *= 2.0;
-    }
-    float s = min(vv_cone_traced_h * scale, bMax - b);
-    if (!(s > 0.0)) break;
-    vec3 tc = texPos + (b + 0.5 * s) * stepTex;
-    if (any(lessThan(tc, vec3(0.0))) || any(greaterThan(tc, vec3(1.0)))) break;
-    tau += textureLod(vv_cone_traced_filtered, tc, lod).r * s;
-    if (tau > tauExit) break;
-    b += s;
-  }
-  return exp(-tau * depthPerVoxel);
+  return vv_cone_march(vv_cone_traced_filtered, texPos, dVox, vv_cone_traced_dims,
+                       vv_cone_traced_unit, maxDistUm, sinAngle,
+                       vv_cone_traced_lod_width * vv_cone_traced_sigma, vv_cone_traced_h,
+                       vv_cone_traced_h0, vv_cone_traced_maxLod);
 }
 
 // The opacity gate, evaluated once per sample (the host asks AO first, then every light at the
