@@ -3,6 +3,8 @@ updates the model) and a rendered pixel change for each. Needs X (pytest-xvfb) a
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, Qt
@@ -10,6 +12,7 @@ from PySide6.QtCore import QPoint, Qt
 from vtkvol.io import VolumeData, confocal_phantom
 from vtkvol.ui.docks import base as dock_base
 from vtkvol.ui.docks.lights import angles_to_direction
+from vtkvol.ui.undo import apply_state
 
 pytestmark = pytest.mark.gui
 
@@ -38,14 +41,25 @@ def stroke_along_bottom(qtbot, editor, curve: str) -> None:
     qtbot.mouseRelease(editor, Qt.MouseButton.LeftButton, pos=at(editor, hi, 0.0, curve))
 
 
+@pytest.fixture(scope="module")
+def pristine() -> dict[str, Any]:
+    """The model state every test starts from, taken when the module's window first shows
+    the data (filled by ``window``)."""
+    return {}
+
+
 @pytest.fixture
-def window(opened_window, qtbot):
-    """The opened window with a clean undo history; every test undoes what it did."""
+def window(opened_window, pristine):
+    """The opened window in the same model state before every test, with a clean undo
+    history. The state is set rather than undone, so a test that failed half-way, or a
+    change the undo stack does not record, cannot leak into the tests after it: the outcome
+    does not depend on test order (the window itself is shared because opening is slow)."""
+    model = opened_window.model
+    if not pristine:
+        pristine.update(model.copy_state())
+    apply_state(model, pristine)
     opened_window.recorder.reset()
     yield opened_window
-    stack = opened_window.recorder.stack
-    while stack.canUndo():
-        stack.undo()
     opened_window.recorder.reset()
 
 
