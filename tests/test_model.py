@@ -66,6 +66,37 @@ def test_list_elements_announce_their_index_and_replacing_the_list_does_not():
     assert not touches({"crop.x"}, "channels")
 
 
+def test_an_appended_element_announces_its_own_index_and_a_removed_one_is_silent():
+    from vtkvol.model.evented import element_fields, subfields
+
+    model = SceneModel(channels=[Channel(name="a"), Channel(name="b")])
+    removed = model.channels[1]
+    seen: list[frozenset[str]] = []
+    model.changed.connect(seen.append)
+    model.channels = [*model.channels, Channel(name="c")]
+    model.channels[2].tf.opacity = [(0.0, 0.0), (10.0, 1.0)]
+    model.lights = [*model.lights, Light(direction=(0.0, 0.0, 1.0))]
+    model.lights[1].intensity = 0.5
+    model.channels = [model.channels[0], model.channels[2]]
+    removed.name = "gone"  # no longer in the model: nothing to announce
+    model.channels[1].tf.opacity = [(0.0, 0.0), (20.0, 1.0)]
+    assert seen == [frozenset({"channels"}), frozenset({"channels[2].tf.opacity"}),
+                    frozenset({"lights"}), frozenset({"lights[1].intensity"}),
+                    frozenset({"channels"}), frozenset({"channels[1].tf.opacity"})]
+    with model.batch():
+        model.channels[0].name = "first"
+        model.channels[1].tf.opacity = [(0.0, 0.0), (30.0, 1.0)]
+        model.channels[1].visible = False
+        model.render.jitter = not model.render.jitter
+    assert seen[-1] == {"channels[0].name", "channels[1].tf.opacity", "channels[1].visible",
+                        "render.jitter"}
+    assert element_fields(seen[-1], "channels") == {0: {"name"}, 1: {"tf", "visible"}}
+    assert element_fields(seen[0], "channels") is None
+    assert element_fields(seen[-1], "lights") == {}
+    assert subfields(seen[-1], "render") == {"jitter"}
+    assert subfields({"render"}, "render") is None
+
+
 def test_batch_emits_once_with_all_paths():
     model = SceneModel()
     seen: list[frozenset[str]] = []

@@ -268,7 +268,8 @@ class ChannelsDock(ModelDock):
         return lo, hi if hi > lo else lo + 1.0
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        renamed = any(p.endswith(".name") for p in paths)
+        # A new list or a renamed channel changes the rows themselves, not just their values.
+        renamed = touches(paths, "channels", "name")
         if "channels" in paths or renamed or len(self.rows) != len(self.model.channels):
             self.refresh()
             return

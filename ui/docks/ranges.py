@@ -19,6 +19,7 @@ from PySide6.QtWidgets import (
 )
 from superqt import QDoubleRangeSlider
 
+from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
@@ -110,7 +111,7 @@ class RangesDock(ModelDock):
 
     # -- model → widgets ------------------------------------------------------------------------
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if any(p == "crop" or p.startswith("crop.") for p in paths):
+        if touches(paths, "crop"):
             self.refresh()
 
     def refresh(self) -> None:

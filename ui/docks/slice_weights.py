@@ -22,6 +22,7 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel, SliceWeights
 from vtkvol.ui.docks.base import ModelDock, hint_label
 from vtkvol.ui.docks.function_editor import Curve, FunctionEditor
@@ -124,7 +125,7 @@ class SliceWeightsDock(ModelDock):
         return f"{t * extent:.3g} µm"
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if any(p == "slice_weights" or p.startswith("slice_weights.") for p in paths):
+        if touches(paths, "slice_weights"):
             self.refresh()
 
     def refresh(self) -> None:

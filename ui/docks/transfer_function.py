@@ -376,8 +376,9 @@ class TransferFunctionDock(ModelDock):
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if touches(paths, "channels"):
-            structural = "channels" in paths or any(
-                p.endswith(("tf_linked_to", ".name", ".color")) for p in paths)
+            # The channel list, names, tints and links change the combo box and link label.
+            structural = any(touches(paths, "channels", name)
+                             for name in ("tf_linked_to", "name", "color"))
             self.refresh(structural=structural)
 
     def refresh(self, *, structural: bool = True) -> None:

@@ -21,7 +21,7 @@ from vtk.util.numpy_support import numpy_to_vtk
 
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.model.defaults import default_channels
-from vtkvol.model.evented import Signal, fields_of, indices, touches
+from vtkvol.model.evented import Signal, element_fields, fields_of, subfields, touches
 from vtkvol.model.scene import Channel, SceneModel
 
 if TYPE_CHECKING:
@@ -159,9 +159,7 @@ class VolumeScene:
         if touches(paths, "channels"):
             self._on_channels_change(paths)
         if touches(paths, "render"):
-            self._on_render_change({fields_of(p)[1] for p in paths
-                                    if fields_of(p)[0] == "render" and len(fields_of(p)) > 1}
-                                   or None)
+            self._on_render_change(subfields(paths, "render"))
         if touches(paths, "lights"):
             self.illuminator.set_lights(self.model.lights)  # type: ignore[union-attr]
         if touches(paths, "illumination"):
@@ -175,18 +173,13 @@ class VolumeScene:
         self.request_render()
 
     def _on_channels_change(self, paths: frozenset[str]) -> None:
-        changed = indices(paths, "channels")
-        linking = any(fields_of(p)[1:2] == ["tf_linked_to"] for p in paths)
-        if changed is None or linking or len(self._opacity_functions) != len(self.model.channels):
+        changed = element_fields(paths, "channels")
+        if (changed is None or any("tf_linked_to" in names for names in changed.values())
+                or len(self._opacity_functions) != len(self.model.channels)):
+            # A new channel list or a new link: which function follows which has changed.
             self._apply_channels()
             return
-        fields: dict[int, set[str]] = {}
-        for p in paths:
-            parts = fields_of(p)
-            for c in changed:
-                if p.startswith(f"channels[{c}].") or p == f"channels[{c}]":
-                    fields.setdefault(c, set()).add(parts[1] if len(parts) > 1 else "")
-        for c, names in fields.items():
+        for c, names in changed.items():
             if names <= set(_LABEL_ONLY):
                 continue
             if "tf" in names or "" in names:

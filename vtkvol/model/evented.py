@@ -5,7 +5,8 @@ the value really changed, announced on :attr:`EventedModel.changed` as a set of 
 paths (``{"crop.x"}``). Changes inside nested models bubble up to the parent with the field
 name prefixed; inside a list field, with the element's index (``{"channels[1].tf.opacity"}``,
 ``{"lights[0].intensity"}``), while replacing the list is ``{"channels"}``. Listeners use
-:func:`touches` and :func:`indices` rather than parsing strings. Several assignments inside
+:func:`touches`, :func:`indices`, :func:`element_fields` and :func:`subfields` rather than
+parsing strings. Several assignments inside
 :meth:`EventedModel.batch` are announced once, together; :meth:`EventedModel.update` applies a
 mapping that way.
 
@@ -196,6 +197,35 @@ def indices(paths: Iterable[str], list_name: str) -> set[int] | None:
         match = pattern.match(path)
         if match:
             found.add(int(match.group(1)))
+    return found
+
+
+def element_fields(paths: Iterable[str], list_name: str) -> dict[int, set[str]] | None:
+    """For list field ``list_name``: each changed element's index → the names of its own
+    fields that changed (``{"channels[1].tf.opacity"}`` → ``{1: {"tf"}}``), or None when the
+    whole list was replaced (every element may have changed)."""
+    found: dict[int, set[str]] = {}
+    pattern = re.compile(rf"^{re.escape(list_name)}\[(\d+)\](?:\.(\w+))?")
+    for path in paths:
+        if path == list_name:
+            return None
+        match = pattern.match(path)
+        if match:
+            found.setdefault(int(match.group(1)), set()).add(match.group(2) or "")
+    return found
+
+
+def subfields(paths: Iterable[str], name: str) -> set[str] | None:
+    """The fields of model field ``name`` that changed (``{"render.jitter"}`` → ``{"jitter"}``),
+    or None when ``name`` itself was replaced (every field may have changed)."""
+    found: set[str] = set()
+    for path in paths:
+        fields = fields_of(path)
+        if fields[0] != name:
+            continue
+        if len(fields) == 1:
+            return None
+        found.add(fields[1])
     return found
 
 
