@@ -271,11 +271,36 @@ def test_ao_accuracy_against_monte_carlo():
     assert rmse["hollow", "hemisphere"] < rmse["hollow", "view_cone"]
 
 
+def shaded_sample_points(
+    alpha: np.ndarray, spacing: tuple[float, float, float], n_points: int, threshold: float,
+    seed: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Up to ``n_points`` random off-grid positions (voxel coordinates x, y, z; seeded) where
+    the trilinear opacity exceeds ``threshold`` and its gradient is defined, with the outward
+    normals there: where the ray caster's shaded samples land."""
+    from scipy.ndimage import map_coordinates
+
+    rng = np.random.default_rng(seed)
+    hi = np.array(alpha.shape[::-1], dtype=np.float64) - 1.0
+    pts_out: list[np.ndarray] = []
+    nrm_out: list[np.ndarray] = []
+    found = 0
+    for _ in range(64):
+        cand = rng.random((20 * n_points, 3)) * hi
+        a = map_coordinates(alpha, cand[:, ::-1].T, order=1)
+        nrm, defined = ct.gradient_normals(ct.optical_depth(alpha), spacing, cand)
+        keep = np.nonzero((a > threshold) & defined)[0][: n_points - found]
+        pts_out.append(cand[keep])
+        nrm_out.append(nrm[keep])
+        found += keep.size
+        if found >= n_points:
+            break
+    return np.concatenate(pts_out), np.concatenate(nrm_out)
+
+
 def test_baked_ao_accuracy_at_off_grid_samples():
     # Where ray samples land (between voxel centres), baked AO is interpolated: it must stay
     # about as close to the reference as the per-sample hemisphere (docs: within ~0.02).
-    from vtkvol.bench.cone_traced_timing import shaded_sample_points
-
     spacing = (1.0, 1.0, 1.0)
     for name, alpha in (("groove", phantom_groove(32)), ("hollow", phantom_hollow_sphere(32, 3))):
         pts, nrm = shaded_sample_points(alpha, spacing, 300, 0.05, seed=0)
@@ -626,3 +651,74 @@ def test_light_visibility_cpu_hook(scene_factory):
     # Under the sphere (slab top, centre) vs the slab's open corner.
     top = int(np.argwhere(vol[:, 2, 2] > 0.3).max())
     assert vis[top, 9, 12] < 0.3 < 0.8 < vis[top, 2, 2]
+
+
+@pytest.mark.gl
+def test_no_gl_leak_over_rebuilds(monkeypatch):
+    # Every texture and compute program the technique creates (tracked by handle) is released
+    # by the time it is, also the ones replaced while it was alive (AO grid size, AO mode).
+    from tests_support_gl import GlObjects
+
+    objects = GlObjects(monkeypatch)
+    rw, ren, volume = simple_volume_scene(phantom_sphere_over_slab(12), size=(16, 16))
+    variants = [
+        {"ao_mode": "baked_hemisphere", "ao_resolution": "half"},
+        {"ao_mode": "baked_hemisphere", "ao_resolution": "full", "ao_cones": "3"},
+        {"ao_mode": "hemisphere", "sigma": 2.0},
+        {"ao_mode": "baked_hemisphere", "sigma": 1.0},
+    ]
+    try:
+        for cycle in range(3):
+            il = Illuminator(volume, ren, method="cone_traced", lights=[Light()])
+            rw.Render()
+            for params in variants[cycle:] + variants[:cycle]:
+                il.set_parameters(**params)
+                rw.Render()
+            held = objects.held()
+            assert {c.kind for c in held} == {"texture", "program"}
+            il.release()
+            assert objects.held() == []
+            assert objects.alive_in_gl(rw, held) == []  # before anything can reuse the names
+            rw.Render()
+        assert len(objects.created) > 3 * len(held), "the rebuilds replaced GL objects"
+    finally:
+        rw.Finalize()
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("profiling", [False, True])
+def test_recompute_times_come_from_timer_queries_only_when_profiling(profiling, monkeypatch):
+    from vtkvol.engine import gl as vgl
+
+    GL = vgl.gl()
+    queries: list[int] = []
+    gen_queries = GL.glGenQueries
+    monkeypatch.setattr(GL, "glGenQueries", lambda n: queries.append(n) or gen_queries(n))
+    finishes: list[int] = []
+    monkeypatch.setattr(GL, "glFinish", lambda: finishes.append(1))
+    rw, ren, volume = simple_volume_scene(phantom_sphere_over_slab(16), size=(16, 16))
+    il = Illuminator(volume, ren, method="cone_traced", lights=[Light()],
+                     parameters={"ao_mode": "baked_hemisphere"})
+    il.profiling = profiling
+    try:
+        rw.Render()
+        tech = il.technique
+        assert isinstance(tech, ConeTraced)
+        issued = dict(tech._cpu_ms)  # wall time of issuing the work, always measured
+        rw.Render()  # the query results are read on a later frame, never waited for
+        stats = tech.stats()
+        assert stats["recomputes"] == 1 and stats["bakes"] == 1
+        assert finishes == [], "production frames never wait for the GPU"
+        if profiling:
+            assert len(queries) == 2  # one query per timed recompute/bake
+            for what in ("recompute", "bake"):
+                gpu_ms = tech._gpu_timers[what].result_ms()
+                assert gpu_ms is not None and gpu_ms > 0
+                assert stats[f"{what}_ms"] == gpu_ms
+        else:
+            assert queries == [], "no query objects without profiling"
+            assert stats["recompute_ms"] == issued["recompute"] > 0
+            assert stats["bake_ms"] == issued["bake"] > 0
+    finally:
+        il.release()
+        rw.Finalize()
