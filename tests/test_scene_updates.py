@@ -91,6 +91,26 @@ def test_a_tf_edit_on_channel_1_rebuilds_channel_1_only(two_channel_scene):
     assert prop.GetScalarOpacity(1).GetValue(255.0) == pytest.approx(0.9)
 
 
+def test_a_linked_channel_follows_its_source_and_leaves_when_unlinked(two_channel_scene):
+    rw, scene, model = two_channel_scene
+    prop = scene.property
+    model.channels[1].tf_linked_to = 0
+    rw.Render()
+    assert prop.GetScalarOpacity(1).GetValue(200.0) == pytest.approx(
+        prop.GetScalarOpacity(0).GetValue(200.0))
+    mtime = prop.GetScalarOpacity(1).GetMTime()
+    before = recomputes(scene)
+    model.channels[0].tf.opacity = [(0.0, 0.0), (255.0, 0.7)]
+    rw.Render()
+    assert prop.GetScalarOpacity(1).GetMTime() > mtime  # the follower was rebuilt as well
+    assert prop.GetScalarOpacity(1).GetValue(255.0) == pytest.approx(0.7)
+    assert recomputes(scene) == before + 1  # both functions changed: still one recompute
+    model.channels[1].tf_linked_to = None
+    rw.Render()
+    assert prop.GetScalarOpacity(1).GetValue(255.0) == pytest.approx(
+        model.channels[1].tf.opacity[-1][1])
+
+
 def test_light_geometry_and_visibility_edits_do_recompute(two_channel_scene):
     rw, scene, model = two_channel_scene
     before = recomputes(scene)
