@@ -13,7 +13,12 @@ import numpy as np
 import pytest
 
 from vtkvol.bench import report, runner
-from vtkvol.bench.references import ReferenceSpec, reference_spec
+from vtkvol.bench.references import (
+    LIGHTING_REFERENCES,
+    ReferenceSpec,
+    SurfaceReference,
+    reference_for,
+)
 from vtkvol.bench.scenes import (
     bench_scenes,
     cell_phantom,
@@ -34,27 +39,25 @@ def test_pareto_flags_mark_the_non_dominated_points():
     assert report.pareto_flags(pts) == [True, True, False, False, True, False]
 
 
-def test_settings_cover_every_installed_technique_with_valid_values():
-    techniques = installed_techniques()
-    for quick in (True, False):
-        for name, cls in techniques.items():
-            settings = runner.technique_settings(name, cls, quick=quick)
-            assert settings, name
-            labels = [s.label for s in settings]
-            assert len(set(labels)) == len(labels), f"{name}: duplicate labels {labels}"
-            declared = {p.name for p in cls.PARAMETERS}
-            for s in settings:
-                assert set(s.values) == declared
-    if "shadow_volume" in techniques:
-        sv = runner.technique_settings("shadow_volume", techniques["shadow_volume"], quick=True)
-        combos = {(s.values["model"], s.values["resolution"]) for s in sv}
-        assert combos == {(m, r) for m in ("transmittance", "seed000")
-                          for r in ("full", "half", "quarter")}
-    if "cone_traced" in techniques:
-        for quick, expected in ((True, {"1", "6", "12"}), (False, {"1", "3", "6", "12"})):
-            ct = runner.technique_settings("cone_traced", techniques["cone_traced"], quick=quick)
-            cones = {s.values["ao_cones"] for s in ct if s.values["ao_mode"] == "hemisphere"}
-            assert cones == expected
+def test_settings_come_from_each_declaration():
+    # Every technique's bench (and stability) settings are its declaration's, with the
+    # declared labels; a quick run takes exactly the ones marked quick.
+    for name, cls in installed_techniques().items():
+        for stability in (False, True):
+            declared = cls.SPEC.stability if stability else cls.SPEC.bench
+            for quick in (True, False):
+                settings = runner.technique_settings(name, cls, quick=quick,
+                                                     stability=stability)
+                assert settings, name
+                labels = [s.label for s in settings]
+                assert len(set(labels)) == len(labels), f"{name}: duplicate labels {labels}"
+                chosen = [b for b in declared if b.quick or not quick]
+                if not chosen:
+                    continue
+                assert labels == [b.label or "default" for b in chosen]
+                for setting, b in zip(settings, chosen, strict=True):
+                    assert set(setting.values) == {p.name for p in cls.PARAMETERS}
+                    assert {k: setting.values[k] for k in b.values} == dict(b.values)
 
 
 def test_generic_settings_for_a_technique_that_declares_none():
@@ -74,30 +77,87 @@ def test_generic_settings_for_a_technique_that_declares_none():
     assert [s.label for s in settings] == ["default", "mode=b", "mode=c", "on=False"]
 
 
-def test_reference_spec_follows_what_the_setting_models():
-    assert reference_spec("local", {}, (1, 1, 1)) == ReferenceSpec()
-    techniques = installed_techniques()
-    if "cone_traced" in techniques:
-        cls = techniques["cone_traced"]
-        values = {**cls.defaults(), "ao_mode": "hemisphere", "max_distance": 8.0, "h0": 2.0}
-        spec = reference_spec("cone_traced", values, (0.5, 0.5, 2.0), (8, 8, 8))
-        assert spec.ao_distance_um == pytest.approx(4.0)
-        assert spec.ao_offset_um == pytest.approx(1.0)
-        assert spec.cone_angle_deg == values["shadow_angle"]
-        assert spec.volume_has_offset  # the cone starts at h0: its CPU volume skips it
-        assert spec.light_min_distance((0, 0, 1)) == pytest.approx(4.0)  # 2 voxels of 2 µm
-        off = reference_spec("cone_traced", {**values, "ao_mode": "off"}, (1, 1, 1))
-        assert off.ao_distance_um is None
-    if "shadow_volume" in techniques:
-        cls = techniques["shadow_volume"]
-        values = {**cls.defaults(), "offset": 1.0, "resolution": "half"}
-        spec = reference_spec("shadow_volume", values, (1.0, 1.0, 1.0), (33, 33, 33))
-        assert not spec.volume_has_offset  # a lookup shift in the shader
-        assert spec.light_min_distance((1, 0, 0)) == pytest.approx(2.0)  # one 2-voxel cell
-        zero = reference_spec("shadow_volume", {**values, "offset": 0.0}, (1, 1, 1), (9, 9, 9))
-        assert zero.light_min_distance((0, 0, 1)) == 0.0
-    assert ReferenceSpec(5.0, 24.0).label == "T(cone 5°) + AO(24 µm)"
-    assert ReferenceSpec(0.0, None, 1.25).label == "T(offset 1.25 µm)"
+def test_one_reference_per_scene_and_lighting_model():
+    scene = phantom_scenes(24)[0]
+    spec = SurfaceReference().spec(scene)
+    # The scene's light has a physical size; AO within the scene's fixed distance (µm).
+    assert scene.light_size_deg > 0
+    assert spec == ReferenceSpec(scene.light_size_deg,
+                                 scene.ao_distance_voxels * min(scene.spacing))
+    assert spec.label == f"T({scene.light_size_deg:g}°) + AO({spec.ao_distance_um:g} µm)"
+    assert ReferenceSpec().label == "T" and ReferenceSpec(0.0, 12.0).label == "T + AO(12 µm)"
+    assert reference_for("surface").lighting == "surface"
+    with pytest.raises(KeyError, match="no reference for the 'medium' lighting model"):
+        reference_for("medium")
+
+
+def test_a_lighting_model_plugs_in_by_adding_its_reference(monkeypatch):
+    # A medium technique is measured against its model's reference, without a switch table:
+    # the runner asks LIGHTING_REFERENCES for the technique's declared lighting model.
+    class MediumReference(SurfaceReference):
+        lighting: str = "medium"
+
+    medium = MediumReference(lighting="medium")
+    monkeypatch.setitem(LIGHTING_REFERENCES, "medium", medium)
+
+    class Spec:
+        lighting = "medium"
+
+    class Medium:
+        SPEC = Spec()
+
+    ctx = runner.Context(runner.QUICK, None, None, None, None, {"ms": Medium},  # type: ignore[dict-item]
+                         runner.Progress(1, enabled=False))
+    assert runner._lighting_reference(ctx, "ms") is medium
+    assert runner._lighting_reference(ctx, runner.VTK_METHOD).lighting == "surface"
+    settings = [runner.Setting("ms", {}, "default", "default")]
+    assert [r.lighting for r in runner._references_of(ctx, settings)] == ["surface", "medium"]
+
+
+def test_the_library_bench_imports_no_concrete_technique():
+    # The bench knows techniques only through the contract: importing it (and asking for the
+    # default auto-quality candidates, which come from the declarations) loads no plugin's
+    # implementation module.
+    import subprocess
+    import sys
+
+    code = ("import sys; import vtkvol.bench.runner, vtkvol.bench.auto_quality, "
+            "vtkvol.bench.report, vtkvol.bench.references; "
+            "print(sorted(m for m in sys.modules if m.startswith('vtkvol.plugins.') "
+            "and m.count('.') > 2))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True).stdout.strip()
+    assert out == "[]"
+    bench = Path(runner.__file__).parent
+    for path in bench.glob("*.py"):
+        text = path.read_text(encoding="utf-8")
+        assert "vtkvol.plugins." not in text, path.name
+        for name in ("shadow_volume", "cone_traced"):
+            assert name not in text, f"{path.name} names the {name} technique"
+
+
+def test_colours_follow_the_method_order():
+    colors = report.method_colors(["local", "a", "local", "b", "vtk_scattering"])
+    assert list(colors) == ["local", "a", "b", "vtk_scattering"]
+    assert len(set(colors.values())) == 4
+    assert report.method_colors(["x", "y"])["y"] == colors["a"]  # by position, not by name
+
+
+def test_pareto_fronts_are_per_lighting_model():
+    base = {f: None for f in report.RECORD_FIELDS}
+    rows = [{**base, "scene": "s", "renderer": "r", "mode": "quick", "method": m,
+             "setting": "d", "lighting": light, "frame_ms": ms, "recompute_ms": 0.0,
+             "rmse": err, "ok": True}
+            for m, light, ms, err in (("local", "surface", 10.0, 5.0),
+                                      ("shadows", "surface", 20.0, 1.0),
+                                      ("scatter", "medium", 50.0, 3.0))]
+    report.add_derived(rows)
+    by = {r["method"]: r for r in rows}
+    # Slower and less accurate than the shadows, but measured against another reference:
+    # it is on its own model's front.
+    assert by["scatter"]["pareto_frame"]
+    assert by["local"]["pareto_frame"] and by["shadows"]["pareto_frame"]
+    assert by["scatter"]["frame_ratio_vs_local"] == pytest.approx(5.0)
 
 
 def test_scenes_are_deterministic_and_in_range():
@@ -226,11 +286,22 @@ needs_shadow_volume = pytest.mark.skipif(
     "shadow_volume" not in installed_techniques(), reason="shadow_volume not installed")
 
 
+def _ladder() -> list:
+    """Candidates cheapest first, as a caller without a results file orders them: no shadows,
+    then light volumes from coarse to fine."""
+    from vtkvol.bench.auto_quality import Candidate
+
+    return [Candidate("local")] + [
+        Candidate("shadow_volume", {"model": "transmittance", "resolution": r})
+        for r in ("quarter", "half", "full")]
+
+
 @needs_shadow_volume
 def test_auto_picks_a_coarse_light_volume_for_a_smooth_scene():
     from vtkvol.bench import choose
 
-    choice = choose(_soft_blob(), (1.0, 1.0, 1.0), [(0.35, -0.25, 0.866)], timings=None)
+    choice = choose(_soft_blob(), (1.0, 1.0, 1.0), [(0.35, -0.25, 0.866)],
+                    candidates=_ladder())
     assert choice.method == "shadow_volume"
     assert choice.parameters["resolution"] in ("quarter", "half")
     assert choice.predicted_ssim >= 0.98
@@ -245,10 +316,11 @@ def test_auto_picks_a_full_light_volume_for_thin_structures():
 
     plate = thin_occluder(40, 1)
     light = [(0.17, 0.17, 0.97)]
-    strict = choose(plate, (1.0, 1.0, 1.0), light, timings=None)
+    strict = choose(plate, (1.0, 1.0, 1.0), light, candidates=_ladder())
     assert strict.method == "shadow_volume" and strict.parameters["resolution"] == "full"
-    relaxed = choose(plate, (1.0, 1.0, 1.0), light, budget_ssim=0.9, timings=None)
-    coarse = choose(_soft_blob(), (1.0, 1.0, 1.0), light, budget_ssim=0.9, timings=None)
+    relaxed = choose(plate, (1.0, 1.0, 1.0), light, budget_ssim=0.9, candidates=_ladder())
+    coarse = choose(_soft_blob(), (1.0, 1.0, 1.0), light, budget_ssim=0.9,
+                    candidates=_ladder())
     order = {"quarter": 0, "half": 1, "full": 2}
     assert order[relaxed.parameters["resolution"]] > order[coarse.parameters["resolution"]]
 
@@ -322,12 +394,16 @@ def test_runner_writes_json_csv_markdown_and_charts(tmp_path):
             assert f in r, f
         assert r["ok"], r["error"]
         assert r["frame_ms"] > 0 and 0 < r["ssim"] <= 1 and r["rmse"] >= 0
+        # the metrics agree with each other: PSNR is 20·log10(255/RMSE)
+        if r["rmse"] > 0:
+            assert r["psnr"] == pytest.approx(20 * math.log10(255 / r["rmse"]), rel=1e-6)
         assert isinstance(r["pareto_frame"], bool) and isinstance(r["pareto_recompute"], bool)
         assert r["renderer"] == run["renderer"] and r["date"] == run["date"]
     # One physical truth per scene: every method is measured against the same reference, the
     # scene's light (its size) with ambient occlusion.
     assert {r["reference"] for r in records} == {
-        f"T(cone {scene.light_size_deg:g}°) + AO({24 * min(scene.spacing):g} µm)"}
+        f"T({scene.light_size_deg:g}°) + AO({24 * min(scene.spacing):g} µm)"}
+    assert {r["lighting"] for r in records} == {"surface"}
     local = next(r for r in records if r["method"] == "local")
     assert local["frame_ratio_vs_local"] == 1.0 and local["recompute_ms"] == 0.0
     assert any(r["pareto_frame"] for r in records)
@@ -355,3 +431,47 @@ def test_runner_writes_json_csv_markdown_and_charts(tmp_path):
         data = (tmp_path / rel).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
         assert rel in md
+
+
+def test_auto_candidates_come_from_the_declarations():
+    from vtkvol.bench.auto_quality import Candidate, spec_candidates
+
+    expected = []
+    for name, cls in sorted(installed_techniques().items()):
+        if cls.SPEC.lighting != "surface":
+            continue  # the proxy rendering is the surface model's shading
+        quick = [Candidate(name, dict(b.values)) for b in cls.SPEC.bench if b.quick]
+        expected += quick or [Candidate(name)]
+    got = spec_candidates()
+    assert [(c.method, dict(c.parameters)) for c in got] == [
+        (c.method, dict(c.parameters)) for c in expected]
+    assert all(installed_techniques()[c.method].SPEC.lighting == "surface" for c in got)
+
+
+@needs_shadow_volume
+def test_auto_ranks_the_declared_settings_by_a_results_file(tmp_path):
+    from vtkvol.bench import choose
+    from vtkvol.bench.auto_quality import spec_candidates
+
+    blob = _soft_blob()
+    with pytest.raises(ValueError, match=r"pass timings= a benchmarks\.json"):
+        choose(blob, (1.0, 1.0, 1.0), [(0.35, -0.25, 0.866)])
+    # Measured costs (ms at 40³): quarter and half light volumes cheap, everything else
+    # expensive, so they are tried right after local shading, and one serves this smooth scene.
+    installed = installed_techniques()
+    cost = {"quarter": 20.0, "half": 30.0}
+    records = []
+    for cand in spec_candidates():
+        params = {**installed[cand.method].defaults(), **cand.parameters}
+        ms = 10.0 if cand.method == "local" else cost.get(params.get("resolution"), 500.0)
+        records.append({"method": cand.method, "parameters": params, "ok": True,
+                        "frame_ms": ms, "recompute_ms": 0.0, "size": "40x40x40",
+                        "renderer": "r"})
+    path = tmp_path / "benchmarks.json"
+    path.write_text(json.dumps({"records": records}))
+    choice = choose(blob, (1.0, 1.0, 1.0), [(0.35, -0.25, 0.866)], timings=path)
+    assert [c["cost_ms"] for c in choice.considered] == sorted(
+        c["cost_ms"] for c in choice.considered)
+    assert choice.considered[0]["label"] == "local"
+    assert choice.method == "shadow_volume" and choice.parameters["resolution"] in cost
+    assert choice.cost_ms == cost[choice.parameters["resolution"]]

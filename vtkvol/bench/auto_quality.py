@@ -11,17 +11,23 @@ reference), saying what it picked and why::
     illuminator.set_method(choice.method, choice.parameters)
     print(choice.reason)
 
-Cost comes from the measured chart: for each candidate, the median over the benchmark's scenes
-(``docs/benchmarks.json``, this machine's renderer preferred) of frame time + recompute time,
-i.e. the time to the first correct frame after a light or transfer-function change, with the
-recompute part scaled by the scene's voxel count. Candidates are tried in order of cost; costs
-within about 15 % of each other count as equal and keep the listed order (cheapest first by
-construction), as do all candidates when there are no measurements (``cost_ms`` is then NaN).
+Candidates come from the techniques' declarations (:func:`spec_candidates`): every installed
+``surface`` technique's ``bench`` settings marked ``quick`` (its defaults when it declares
+none). Cost comes from a results file the caller names (``timings``: the ``benchmarks.json``
+that ``vtkvol bench -o DIR`` wrote, this machine's renderer preferred): for each candidate the
+median over the benchmark's scenes of frame time + recompute time, i.e. the time to the first
+correct frame after a light or transfer-function change, with the recompute part scaled by the
+scene's voxel count. Candidates are tried in order of cost; costs within about 15 % of each
+other count as equal and keep the listed order. Without measurements for every candidate an
+explicit ``candidates`` list is tried in its own order (``cost_ms`` is then NaN); the declared
+settings carry no cost order of their own, so choosing among them needs a results file (the
+CPU light paths are no proxy: at small sizes their times are equal within noise).
 
 Predicted error comes from cheap CPU measurements on the scene itself, no GPU needed:
 
-1. the reference transmittance towards each light (:func:`vtkvol.reference.transmittance`;
-   skipping the candidate's near-field offset where its CPU volume skips it too);
+1. the scene's one reference: the transmittance towards each light averaged over its extent
+   (:func:`vtkvol.reference.extended_transmittance`, the light's ``size``; hard for an ideal
+   light or a bare direction);
 2. each candidate's own per-voxel light visibility, from its technique's CPU path
    (``Technique.light_visibility_cpu``: the same algorithm, resolution and filtering as its
    GPU path; 1 everywhere for techniques without shadows, such as local shading);
@@ -66,15 +72,21 @@ class Candidate:
         return f"{self.method} ({inner})"
 
 
-#: Default candidates, cheapest first: no shadows, then light volumes from coarse to fine,
-#: then cone-traced soft shadows. Techniques that are not installed are skipped.
-DEFAULT_CANDIDATES: tuple[Candidate, ...] = (
-    Candidate("local"),
-    Candidate("shadow_volume", {"model": "transmittance", "resolution": "quarter"}),
-    Candidate("shadow_volume", {"model": "transmittance", "resolution": "half"}),
-    Candidate("shadow_volume", {"model": "transmittance", "resolution": "full"}),
-    Candidate("cone_traced", {"ao_mode": "off"}),
-)
+def spec_candidates() -> list[Candidate]:
+    """The default candidates, from the declarations of the installed ``surface`` techniques:
+    each one's ``bench`` settings marked ``quick`` (its representative subset), or its
+    defaults when it declares none. Medium techniques are left out: the proxy rendering
+    below is the surface model's shading."""
+    from vtkvol.bench.reference_technique import NAME as REFERENCE
+    from vtkvol.engine.technique import installed_techniques
+
+    out: list[Candidate] = []
+    for name, cls in sorted(installed_techniques().items()):
+        if name == REFERENCE or cls.SPEC.lighting != "surface":
+            continue
+        chosen = [b for b in cls.SPEC.bench if b.quick]
+        out += [Candidate(name, dict(b.values)) for b in chosen] or [Candidate(name)]
+    return out
 
 
 @dataclass(frozen=True)
@@ -119,6 +131,14 @@ class _CpuHost:
 
     def opacity_volume(self) -> np.ndarray:
         return self._opacity
+
+
+def _light_size(light: Any) -> float:
+    """Angular radius (°) of a directional light: ``Light.angular_radius_deg()`` of the model,
+    a ``size`` attribute, or 0 (ideal) for a bare direction."""
+    if hasattr(light, "angular_radius_deg"):
+        return float(light.angular_radius_deg())
+    return float(getattr(light, "size", 0.0) or 0.0)
 
 
 def _light_direction(light: Any) -> tuple[float, float, float]:
@@ -244,20 +264,27 @@ def choose(
         Required predicted SSIM (0…1) of the image against the reference.
     candidates
         Settings to consider, cheapest first when no timings are available; default
-        :data:`DEFAULT_CANDIDATES` (those whose technique is installed).
+        :func:`spec_candidates` (which then needs ``timings``). Those whose technique is not
+        installed are skipped.
     timings
         Benchmark results for the cost ranking: a path (the ``benchmarks.json`` that
         ``vtkvol bench -o DIR`` wrote, ideally on this machine), a document or a list of
         records; None keeps the candidates' order.
+
+    Raises
+    ------
+    ValueError
+        Bad inputs, no installed candidate, or the declared candidates without measured costs
+        for all of them (the message says which results file to make).
     unit_distance
         Opacity unit distance (µm); default the smallest voxel edge.
     renderer
         Prefer timings measured on this renderer string.
     """
-    from vtkvol.bench.references import reference_spec
+    from vtkvol.bench.references import relevant_mask
     from vtkvol.engine.illuminator import LightSpec
     from vtkvol.engine.technique import installed_techniques
-    from vtkvol.reference import DirectionalLight, transmittance
+    from vtkvol.reference import DirectionalLight, extended_transmittance, transmittance
 
     opacity = np.ascontiguousarray(np.clip(scene_opacity, 0.0, 1.0), dtype=np.float32)
     if opacity.ndim != 3:
@@ -267,32 +294,41 @@ def choose(
     spacing = tuple(float(s) for s in spacing)
     u = float(min(spacing) if unit_distance is None else unit_distance)
     directions = [_light_direction(light) for light in lights]
+    sizes = [_light_size(light) for light in lights]
     if not directions:
         raise ValueError("choose needs at least one light")
     installed = installed_techniques()
-    cands = [c for c in (candidates or DEFAULT_CANDIDATES) if c.method in installed]
+    cands = [c for c in (candidates or spec_candidates()) if c.method in installed]
     if not cands:
         raise ValueError("none of the candidate techniques is installed")
-    source = timings
-    costs = measured_costs(cands, source, int(opacity.size), renderer,
+    costs = measured_costs(cands, timings, int(opacity.size), renderer,
                            {c.method: installed[c.method].defaults() for c in cands})
-    if costs and len(costs) == len(cands):
+    if len(costs) == len(cands):
         # Costs within ~15 % of each other count as equal (frame times on a shared machine are
         # that noisy): a stable sort on 15 %-wide log buckets keeps the listed order there.
         cands.sort(key=lambda c: round(math.log(max(costs[c], 1e-3)) / math.log(1.15)))
-
-    references: dict[tuple[float, ...], list[np.ndarray]] = {}
-
-    def reference_images(skips: tuple[float, ...]) -> list[np.ndarray]:
-        """Proxy images of the reference transmittance skipping ``skips`` µm per light."""
-        if skips not in references:
-            vis = [transmittance(opacity, spacing, DirectionalLight(d), unit_distance=u,
-                                 step=0.5, min_distance=skip)
-                   for d, skip in zip(directions, skips, strict=True)]
-            references[skips] = proxy_images(opacity, vis, directions, spacing, u)
-        return references[skips]
-
+    elif candidates is None:
+        missing = ", ".join(c.label for c in cands if c not in costs)
+        raise ValueError(
+            "auto quality ranks the declared settings by measured cost: pass timings= a "
+            "benchmarks.json written by `vtkvol bench -o DIR` on this machine (no "
+            f"measurement for {missing}), or an ordered candidates= list")
     host = _CpuHost(opacity, spacing, u)
+
+    # The scene's one reference: transmittance averaged over each light's extent, evaluated
+    # where a visible sample can read it (hard transmittance elsewhere).
+    mask = relevant_mask(opacity)
+    pts = np.argwhere(mask)[:, ::-1] * np.asarray(spacing)
+    ref_vis = []
+    for d, size in zip(directions, sizes, strict=True):
+        vis = transmittance(opacity, spacing, DirectionalLight(d), unit_distance=u, step=0.5)
+        if size > 0 and len(pts):
+            vis[mask] = extended_transmittance(opacity, spacing, DirectionalLight(d), size=size,
+                                               n_rays=16, unit_distance=u, step=0.5,
+                                               points=pts)
+        ref_vis.append(vis)
+    ref_images = proxy_images(opacity, ref_vis, directions, spacing, u)
+
     considered: list[dict[str, Any]] = []
     best: tuple[float, Candidate, dict[str, Any]] | None = None
     for cand in cands:
@@ -305,13 +341,6 @@ def choose(
                                                                       (1.0, 1.0, 1.0)), values)
             vis.append(np.ones_like(opacity) if v is None else np.clip(v, 0.0, 1.0))
         images = proxy_images(opacity, vis, directions, spacing, u)
-        # The candidate's volume is compared with the reference of the same quantity: where
-        # its CPU volume already skips a near-field offset (cone tracing), so does the
-        # reference (a lookup shift in the shader, as in the shadow volume, is not in it).
-        spec = reference_spec(cand.method, values, spacing, opacity.shape)
-        skips = tuple(spec.light_min_distance(d) if spec.volume_has_offset else 0.0
-                      for d in directions)
-        ref_images = reference_images(skips)
         ssim = min(_ssim(a, b) for a, b in zip(images, ref_images, strict=True))
         cost = costs.get(cand, math.nan)
         considered.append({"label": cand.label, "predicted_ssim": ssim, "cost_ms": cost})

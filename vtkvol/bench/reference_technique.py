@@ -13,7 +13,7 @@ The technique is registered under ``bench_reference`` only while :func:`register
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Mapping, Sequence
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -137,7 +137,3 @@ def registered() -> Iterator[None]:
     with register(SPEC):
         yield
 
-
-def without_reference(names: Sequence[str]) -> list[str]:
-    """``names`` minus the benchmark's own reference technique."""
-    return [n for n in names if n != NAME]

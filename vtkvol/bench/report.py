@@ -40,13 +40,9 @@ STABILITY_FIELDS: tuple[str, ...] = (
     "shader_ok", "ok", "error", "reference", "mode", "date",
 )
 
-METHOD_COLORS = {
-    "local": "#444444",
-    "shadow_volume": "#1f77b4",
-    "cone_traced": "#d62728",
-    "vtk_scattering": "#2ca02c",
-}
-_EXTRA_COLORS = ("#9467bd", "#8c564b", "#e377c2", "#17becf", "#bcbd22", "#ff7f0e")
+#: Colour-blind-safe palette (Okabe–Ito, then Tableau), handed out in method order.
+_PALETTE = ("#444444", "#0072B2", "#D55E00", "#009E73", "#CC79A7", "#E69F00", "#56B4E9",
+            "#8c564b", "#9467bd", "#bcbd22", "#17becf", "#7f7f7f")
 
 
 def slug(text: str) -> str:
@@ -58,10 +54,12 @@ def slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", low).strip("-")[:40] or "unknown"
 
 
-def method_color(method: str) -> str:
-    if method in METHOD_COLORS:
-        return METHOD_COLORS[method]
-    return _EXTRA_COLORS[sum(map(ord, method)) % len(_EXTRA_COLORS)]
+def method_colors(methods: Sequence[str]) -> dict[str, str]:
+    """A colour per method, assigned in the order the methods first appear (the run's order:
+    local first, then the techniques, VTK's scattering last), so a chart never depends on a
+    table of known technique names; the palette repeats after 12 methods."""
+    order = list(dict.fromkeys(methods))
+    return {m: _PALETTE[k % len(_PALETTE)] for k, m in enumerate(order)}
 
 
 # ------------------------------------------------------------------------------------------
@@ -89,8 +87,10 @@ def pareto_flags(points: Sequence[tuple[float, float]]) -> list[bool]:
 
 def add_derived(records: list[dict[str, Any]]) -> None:
     """Fill ``frame_ratio_vs_local``, ``frame_ratio_vs_vtk``, ``pareto_frame`` and
-    ``pareto_recompute`` per (scene, renderer, mode) group, in place. The VTK ratio uses the
-    first ``vtk_scattering`` setting (the default one); the Pareto fronts use RMSE as error."""
+    ``pareto_recompute`` in place. Ratios are per (scene, renderer, mode), to the first
+    ``local`` and ``vtk_scattering`` records (the default settings). Pareto fronts (RMSE as
+    error) are per (scene, renderer, mode, lighting model): only methods measured against the
+    same reference compete (records without ``lighting`` are surface records)."""
     groups: dict[tuple, list[dict[str, Any]]] = {}
     for r in records:
         groups.setdefault((r["scene"], r["renderer"], r["mode"]), []).append(r)
@@ -106,12 +106,20 @@ def add_derived(records: list[dict[str, Any]]) -> None:
             r["frame_ratio_vs_vtk"] = fm / vtk_ms if _finite(fm) and vtk_ms else None
             r["frame_cpu_ratio_vs_local"] = (cm / local_cpu if _finite(cm) and local_cpu
                                              else None)
-        for key, flag in (("frame_ms", "pareto_frame"), ("recompute_ms", "pareto_recompute")):
-            pts = [(r.get(key) if r.get("ok") else math.nan, r.get("rmse")) for r in group]
-            pts = [(c if c is not None else math.nan, e if e is not None else math.nan)
-                   for c, e in pts]
-            for r, f in zip(group, pareto_flags(pts), strict=True):
-                r[flag] = f
+        for lighting in dict.fromkeys(_lighting(r) for r in group):
+            members = [r for r in group if _lighting(r) == lighting]
+            for key, flag in (("frame_ms", "pareto_frame"),
+                              ("recompute_ms", "pareto_recompute")):
+                pts = [(r.get(key) if r.get("ok") else math.nan, r.get("rmse")) for r in members]
+                pts = [(c if c is not None else math.nan, e if e is not None else math.nan)
+                       for c, e in pts]
+                for r, f in zip(members, pareto_flags(pts), strict=True):
+                    r[flag] = f
+
+
+def _lighting(record: Mapping[str, Any]) -> str:
+    """The lighting model a record was measured under (older results: surface)."""
+    return str(record.get("lighting") or "surface")
 
 
 # ------------------------------------------------------------------------------------------
@@ -220,18 +228,21 @@ def _label_points(ax: Any, xs: Sequence[float], ys: Sequence[float], labels: Seq
 
 
 def pareto_chart(path: Path, run: Mapping[str, Any], records: Sequence[Mapping[str, Any]]) -> None:
-    """Error (RMSE against the reference image) against frame time and against recompute time,
-    one row per scene, every setting labelled, the Pareto front drawn and its points filled."""
+    """Error (RMSE against the scene's reference image) against frame time and against
+    recompute time, one row per scene and lighting model (the methods measured against the
+    same reference), every setting labelled, the Pareto front drawn and its points filled."""
     plt = _pyplot()
     from matplotlib.lines import Line2D
 
-    scenes = list(dict.fromkeys(r["scene"] for r in records))
+    rows = list(dict.fromkeys((r["scene"], _lighting(r)) for r in records))
     methods = list(dict.fromkeys(r["method"] for r in records))
-    fig, axes = plt.subplots(len(scenes), 2, figsize=(14, 3.9 * max(1, len(scenes))),
+    colors = method_colors(methods)
+    fig, axes = plt.subplots(len(rows), 2, figsize=(14, 3.9 * max(1, len(rows))),
                              squeeze=False)
     floor = 0.1  # recompute 0 (no precomputation) is drawn here so a log axis can show it
-    for row, scene in enumerate(scenes):
-        group = [r for r in records if r["scene"] == scene and r.get("ok")]
+    for row, (scene, lighting) in enumerate(rows):
+        group = [r for r in records
+                 if r["scene"] == scene and _lighting(r) == lighting and r.get("ok")]
         for col, (key, flag, title) in enumerate((
             ("frame_ms", "pareto_frame", "frame time (ms, median)"),
             ("recompute_ms", "pareto_recompute", "recompute time (ms, median)"),
@@ -244,7 +255,7 @@ def pareto_chart(path: Path, run: Mapping[str, Any], records: Sequence[Mapping[s
                     continue
                 xs = [max(float(r[key]), floor) for r in pts]
                 ys = [float(r["rmse"]) for r in pts]
-                color = method_color(method)
+                color = colors[method]
                 for x, y, r in zip(xs, ys, pts, strict=True):
                     on = bool(r.get(flag))
                     ax.scatter([x], [y], s=36, zorder=3, color=color if on else "none",
@@ -272,17 +283,19 @@ def pareto_chart(path: Path, run: Mapping[str, Any], records: Sequence[Mapping[s
                             color="#777777")
             ax.set_xlabel(title)
             ax.set_ylabel("RMSE vs reference (8-bit levels)")
-            ax.set_title(f"{scene}", fontsize=10, loc="left")
+            reference = next((str(r.get("reference")) for r in group if r.get("reference")),
+                             "")
+            ax.set_title(f"{scene} — {lighting} lighting, reference {reference}", fontsize=10,
+                         loc="left")
             ax.grid(True, which="both", alpha=0.25)
-    handles = [Line2D([], [], marker="o", ls="", color=method_color(m), label=m)
-               for m in methods]
+    handles = [Line2D([], [], marker="o", ls="", color=colors[m], label=m) for m in methods]
     handles += [
         Line2D([], [], marker="o", ls="", color="#555555", label="on the Pareto front"),
         Line2D([], [], marker="o", ls="", color="#555555", markerfacecolor="none",
                label="dominated"),
         Line2D([], [], ls="--", color="#999999", label="Pareto front"),
     ]
-    height = 3.9 * max(1, len(scenes))
+    height = 3.9 * max(1, len(rows))
     fig.suptitle(f"vtkvol bench ({run['mode']}): error against time on {run['renderer']}, "
                  f"{run['date'][:10]}", fontsize=11, y=1.0 - 0.12 / height)
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8,
@@ -299,6 +312,7 @@ def stability_chart(path: Path, run: Mapping[str, Any],
     method/setting; failed cases (shader or bounds) are marked with a red cross."""
     plt = _pyplot()
     sweeps = list(dict.fromkeys(c["sweep"] for c in cases))
+    colors = method_colors([c["method"] for c in cases])
     cols = 3
     rows = max(1, math.ceil(len(sweeps) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(15, 3.8 * rows), squeeze=False)
@@ -314,7 +328,7 @@ def stability_chart(path: Path, run: Mapping[str, Any],
             ys = [c["rmse"] if _finite(c.get("rmse")) else math.nan for c in pts]
             label = key[0] if key[1] in ("default", "") else f"{key[0]} {key[1]}"
             k = per_method[key[0]] = per_method.get(key[0], -1) + 1  # settings of one method
-            ax.plot(xs, ys, marker="osD^v"[k % 5], ms=4, color=method_color(key[0]),
+            ax.plot(xs, ys, marker="osD^v"[k % 5], ms=4, color=colors[key[0]],
                     label=label, alpha=0.9, ls=("-", "--", ":", "-.")[k % 4])
             bad = [(x, y if _finite(y) else 0.0) for x, y, c in zip(xs, ys, pts, strict=True)
                    if not c.get("ok")]
@@ -492,17 +506,6 @@ def markdown(doc: Mapping[str, Any]) -> str:
                            f"{c['setting']} | {_fmt(c.get('rmse'), 2)} | "
                            f"{_fmt(c.get('ssim'), 4)} | {_fmt(c.get('vol_rmse'), 4)} | "
                            f"{checks} |")
-            out.append("")
-        extra = run.get("recompute_large")
-        if extra:
-            out += [f"### Recompute at larger sizes ({run['mode']}, {slug(run['renderer'])})",
-                    "", "Measured by the techniques' own timing helpers "
-                    "(`vtkvol/bench/<technique>_timing.py`).", "",
-                    "| method | setting | size | recompute ms | notes |", "|---|---|---|---|---|"]
-            for e in extra:
-                out.append(f"| {e.get('method', '')} | {e.get('setting', '')} | "
-                           f"{e.get('size', '')} | {_fmt(e.get('recompute_ms'), 0)} | "
-                           f"{e.get('notes', '')} |")
             out.append("")
     return "\n".join(out) + "\n"
 

@@ -1,11 +1,13 @@
 """``vtkvol bench``: scenes × methods × settings, timed and compared against references.
 
 For every scene (:mod:`vtkvol.bench.scenes`) and every setting of every installed technique
-(``installed_techniques()`` of the surface lighting model, settings from each declaration's
-``bench``/``stability`` lists or its parameters), plus VTK's built-in volumetric scattering:
+(``installed_techniques()`` of every lighting model the bench has a reference for, settings
+from each declaration's ``bench``/``stability`` lists or its parameters), plus VTK's built-in
+volumetric scattering (measured as a surface method):
 
-1. the reference image: the same view rendered by the ``bench_reference`` technique, i.e. the
-   same host shading with the CPU reference visibility volumes (:mod:`~vtkvol.bench.references`);
+1. the scene's reference image per lighting model: the same view rendered by the
+   ``bench_reference`` technique, i.e. the same host shading with the CPU reference volumes
+   (:mod:`~vtkvol.bench.references`: one physical truth per scene and lighting model);
 2. warm-up frames, then timed frames (median and IQR), the comparison image, recompute times;
 3. image metrics against the reference (RMSE, PSNR, SSIM) and, where the technique has a
    per-voxel light volume (``light_visibility_cpu``), per-voxel metrics of light 0.
@@ -23,7 +25,7 @@ import math
 import os
 import sys
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, TextIO
@@ -35,12 +37,13 @@ from vtkvol.bench.reference_technique import NAME as REFERENCE
 from vtkvol.bench.reference_technique import ReferenceVolume, registered
 from vtkvol.bench.references import (
     FULL_BUDGET,
+    LIGHTING_REFERENCES,
     QUICK_BUDGET,
+    LightingReference,
     ReferenceBudget,
     ReferenceCache,
-    ReferenceSpec,
-    bench_helper,
-    scene_reference,
+    SurfaceReference,
+    reference_for,
 )
 from vtkvol.bench.scenes import Scene, StabilityCase, bench_scenes, stability_cases
 from vtkvol.engine.technique import Technique, installed_techniques
@@ -73,13 +76,11 @@ class BenchConfig:
     budget: ReferenceBudget
     vtk_settings: tuple[tuple[float, float], ...]
     voxel_metric_seconds: float = 1.5  #: above this, a method's CPU light path runs once/scene
-    large_recompute: bool = False  #: also run the techniques' large-volume recompute helpers
 
 
 QUICK = BenchConfig("quick", 64, 256, 2, 3, 1, 32, 160, QUICK_BUDGET, ((1.0, 1.0),))
 FULL = BenchConfig("full", 128, 256, 2, 10, 3, 48, 192, FULL_BUDGET,
-                   ((1.0, 1.0), (2.0, 1.0), (0.0, 1.0)), voxel_metric_seconds=60.0,
-                   large_recompute=True)
+                   ((1.0, 1.0), (2.0, 1.0), (0.0, 1.0)), voxel_metric_seconds=60.0)
 
 
 @dataclass(frozen=True)
@@ -234,11 +235,19 @@ class Context:
     light_independent: set[str] = field(default_factory=set)
 
 
-def _reference_image(ctx: Context, scene: Scene, spec: ReferenceSpec) -> np.ndarray:
-    """The scene's reference image for ``spec`` (rendered once per scene and spec)."""
-    key = (scene.name, id(scene.data), tuple(map(tuple, scene.lights)), spec)
+def _lighting_reference(ctx: Context, method: str) -> LightingReference:
+    """The reference ``method`` is measured against: its lighting model's (VTK's scattering
+    shades surfaces from the scene's lights, so it is measured as a surface method)."""
+    cls = ctx.techniques.get(method)
+    return reference_for(cls.SPEC.lighting) if cls is not None else SurfaceReference()
+
+
+def _reference_image(ctx: Context, scene: Scene, reference: LightingReference) -> np.ndarray:
+    """The scene's reference image of ``reference``'s lighting model (rendered once)."""
+    spec = reference.spec(scene)
+    key = (scene.name, id(scene.data), tuple(map(tuple, scene.lights)), reference.lighting, spec)
     if key not in ctx.reference_images:
-        ReferenceVolume.use(ctx.cache.volumes(scene, spec))
+        ReferenceVolume.use(reference.volumes(ctx.cache, scene))
         ctx.rig.set_method(REFERENCE, {})
         image = ctx.rig.image()  # correct on the build frame: textures are bound before it
         problem = ctx.errors.new_errors()
@@ -256,8 +265,8 @@ def _light_spec(scene: Scene) -> Any:
     return LightSpec("directional", (float(d[0]), float(d[1]), float(d[2])), (1.0, 1.0, 1.0))
 
 
-def _voxel_metrics(ctx: Context, scene: Scene, setting: Setting, spec: ReferenceSpec,
-                   opacity: np.ndarray, *, force: bool) -> tuple[dict[str, float], str]:
+def _voxel_metrics(ctx: Context, scene: Scene, setting: Setting, opacity: np.ndarray, *,
+                   force: bool) -> tuple[dict[str, float], str]:
     """Per-voxel metrics of light 0 of the technique's CPU light path against the reference
     (mask: α > 0.05), and a problem description ("" when the volume is finite and in [0, 1]).
     Methods whose CPU path took longer than the configured time run it only when ``force``."""
@@ -277,9 +286,7 @@ def _voxel_metrics(ctx: Context, scene: Scene, setting: Setting, spec: Reference
     problem = volume_checks({"light_visibility_cpu": vis}, unit_range=("light_visibility_cpu",))
     if problem:
         return {}, problem
-    light = scene.lights[0]
-    skip = spec.light_min_distance(light) if spec.volume_has_offset else 0.0
-    ref = ctx.cache.light_visibility(scene, light, spec.cone_angle_deg, skip, opacity)
+    ref = _lighting_reference(ctx, setting.method).light_visibility(ctx.cache, scene, opacity)
     mask = opacity > 0.05
     if not mask.any():
         return {}, ""
@@ -288,17 +295,19 @@ def _voxel_metrics(ctx: Context, scene: Scene, setting: Setting, spec: Reference
 
 
 def _base_record(
-    ctx: Context, scene: Scene, setting: Setting, spec: ReferenceSpec
+    ctx: Context, scene: Scene, setting: Setting, reference: LightingReference
 ) -> dict[str, Any]:
     label = (ctx.techniques[setting.method].LABEL if setting.method in ctx.techniques
              else "VTK built-in volumetric scattering")
+    spec = reference.spec(scene)
     return {
         "scene": scene.name, "method": setting.method, "setting": setting.label,
         "renderer": ctx.renderer, "date": ctx.date, "mode": ctx.config.mode,
         "scene_kind": scene.kind, "size": scene.size_label, "spacing": list(scene.spacing),
         "image_size": ctx.config.image_size, "method_label": label, "short": setting.short,
-        "parameters": dict(setting.values), "reference": spec.label,
-        "frame_ms": None, "recompute_ms": None, "rmse": None, "psnr": None, "ssim": None,
+        "parameters": dict(setting.values), "lighting": reference.lighting,
+        "reference": spec.label, "frame_ms": None, "recompute_ms": None, "rmse": None,
+        "psnr": None, "ssim": None,
         "vol_rmse": None, "vol_max_abs": None, "vol_bias": None, "ok": False, "error": None,
     }
 
@@ -326,10 +335,10 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
                     first_of_method: bool) -> dict[str, Any]:
     """One record: timing, image metrics and per-voxel metrics of ``setting`` on ``scene``."""
     cfg = ctx.config
-    spec = scene_reference(scene)
-    record = _base_record(ctx, scene, setting, spec)
+    reference = _lighting_reference(ctx, setting.method)
+    record = _base_record(ctx, scene, setting, reference)
     try:
-        ref_img = _reference_image(ctx, scene, spec)
+        ref_img = _reference_image(ctx, scene, reference)
         ctx.rig.set_method(setting.method, setting.values)
         timing = ctx.rig.time_frames(cfg.warmup, cfg.frames)
         image = ctx.rig.image()
@@ -340,8 +349,7 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
             raise RuntimeError("the technique's shader code is missing from the built program")
         light_ms, tf_ms = _recompute(ctx, scene, setting)
         metrics = image_metrics(image, ref_img)
-        vox, vproblem = _voxel_metrics(ctx, scene, setting, spec, opacity,
-                                       force=first_of_method)
+        vox, vproblem = _voxel_metrics(ctx, scene, setting, opacity, force=first_of_method)
         if vproblem:
             raise RuntimeError(vproblem)
         light = float(np.median(light_ms)) if light_ms else None
@@ -362,10 +370,10 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
 def measure_vtk(ctx: Context, scene: Scene, setting: Setting) -> dict[str, Any]:
     """One record for VTK's built-in scattering, compared with the scene's reference."""
     cfg = ctx.config
-    spec = scene_reference(scene)
-    record = _base_record(ctx, scene, setting, spec)
+    reference = SurfaceReference()
+    record = _base_record(ctx, scene, setting, reference)
     try:
-        ref_img = _reference_image(ctx, scene, spec)
+        ref_img = _reference_image(ctx, scene, reference)
         ctx.vtk_rig.set_setting(setting.values["blending"], setting.values["reach"])
         timing = ctx.vtk_rig.time_frames(cfg.warmup, cfg.frames)
         image = ctx.vtk_rig.image()
@@ -385,19 +393,29 @@ def measure_vtk(ctx: Context, scene: Scene, setting: Setting) -> dict[str, Any]:
     return record
 
 
+def _references_of(ctx: Context, settings: Sequence[Setting]) -> list[LightingReference]:
+    """The lighting references ``settings`` need (the surface one always: VTK's scattering and
+    the stability images use it), in a stable order."""
+    out: dict[str, LightingReference] = {"surface": SurfaceReference()}
+    for setting in settings:
+        ref = _lighting_reference(ctx, setting.method)
+        out.setdefault(ref.lighting, ref)
+    return list(out.values())
+
+
 def run_scene(ctx: Context, scene: Scene, settings: Sequence[Setting],
               vtk_settings: Sequence[Setting]) -> list[dict[str, Any]]:
     """Every setting on one scene (references first, then the methods, then VTK's)."""
     opacity = scene.opacity()
     ctx.rig.load(scene)
     records = []
-    specs = [scene_reference(scene)]
-    for spec in specs:
-        ctx.progress.step(f"{scene.name}: reference {spec.label}")
+    for reference in _references_of(ctx, settings):
+        label = reference.spec(scene).label
+        ctx.progress.step(f"{scene.name}: {reference.lighting} reference {label}")
         try:
-            _reference_image(ctx, scene, spec)
+            _reference_image(ctx, scene, reference)
         except Exception as exc:  # recorded per setting below (the lookup raises again)
-            print(f"\nvtkvol bench: reference {spec.label} on {scene.name} failed: {exc}",
+            print(f"\nvtkvol bench: reference {label} on {scene.name} failed: {exc}",
                   file=sys.stderr)
         ctx.progress.advance()
     seen: set[str] = set()
@@ -453,18 +471,19 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             values[pname] = choice
         ctx.progress.step(f"stability {case.sweep}={case.value_label}: {setting.method} "
                           f"{label}")
-        spec = scene_reference(scene)
+        reference = _lighting_reference(ctx, setting.method)
         rec: dict[str, Any] = {
             "sweep": case.sweep, "value": case.value, "value_label": case.value_label,
             "unit": case.unit, "scene": scene.name, "method": setting.method,
             "setting": label, "renderer": ctx.renderer, "mode": ctx.config.mode,
-            "date": ctx.date, "reference": spec.label, "rmse": None, "psnr": None,
+            "date": ctx.date, "lighting": reference.lighting,
+            "reference": reference.spec(scene).label, "rmse": None, "psnr": None,
             "ssim": None, "max_abs": None, "vol_rmse": None, "vol_max_abs": None,
             "image_ok": False, "volumes_ok": False, "shader_ok": False, "ok": False,
             "error": None,
         }
         try:
-            ref_img = _reference_image(ctx, scene, spec)
+            ref_img = _reference_image(ctx, scene, reference)
             ctx.rig.set_method(setting.method, values)
             ctx.rig.image()  # build frame (shader, textures, precomputation)
             image = ctx.rig.image()
@@ -473,8 +492,7 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             gpu = ctx.rig.gpu_volumes()
             gpu_problem = volume_checks(gpu)
             vox, cpu_problem = _voxel_metrics(
-                ctx, scene, Setting(setting.method, values, label, label), spec, opacity,
-                force=True)
+                ctx, scene, Setting(setting.method, values, label, label), opacity, force=True)
             rec["volumes_ok"] = not gpu_problem and not cpu_problem
             rec["image_ok"] = image_ok(image, ref_img)
             m = image_metrics(image, ref_img)
@@ -510,12 +528,13 @@ def measure_vtk_image(ctx: Context, scene: Scene, setting: Setting) -> dict[str,
     """Image metrics (no timing) of VTK's scattering against the scene's reference."""
     from vtkvol.bench.measure import image_ok
 
-    spec = scene_reference(scene)
+    reference = SurfaceReference()
     rec: dict[str, Any] = {"method": VTK_METHOD, "setting": setting.label,
-                           "reference": spec.label, "vol_rmse": None,
+                           "lighting": reference.lighting,
+                           "reference": reference.spec(scene).label, "vol_rmse": None,
                            "vol_max_abs": None, "volumes_ok": True}
     try:
-        ref_img = _reference_image(ctx, scene, spec)
+        ref_img = _reference_image(ctx, scene, reference)
         ctx.vtk_rig.set_setting(setting.values["blending"], setting.values["reach"])
         image = ctx.vtk_rig.image()
         problem = ctx.errors.new_errors()
@@ -528,44 +547,6 @@ def measure_vtk_image(ctx: Context, scene: Scene, setting: Setting) -> dict[str,
         rec.update(rmse=None, psnr=None, ssim=None, max_abs=None, shader_ok=False,
                    image_ok=False, ok=False, error=f"{type(exc).__name__}: {exc}"[:500])
     return rec
-
-
-# ------------------------------------------------------------------------------------------
-# Large-volume recompute timings from the technique helpers
-# ------------------------------------------------------------------------------------------
-def large_recompute(techniques: Mapping[str, type[Technique]], size: int,
-                    log: Callable[[str], None]) -> list[dict[str, Any]]:
-    """Recompute times at ``size``³ from each technique's bench helper, as rows with
-    ``method``, ``setting``, ``size``, ``recompute_ms`` and ``notes``.
-
-    Helpers are asked, in order, for ``recompute_timings(size)`` (rows in that shape) or
-    ``precompute_times(sizes=(size,))`` (the cone-traced helper's rows: ``gpu_ms``,
-    ``tf_edit_ms``, ``cpu_ms``, ``backend``); helpers with neither are skipped.
-    """
-    rows: list[dict[str, Any]] = []
-    for name in techniques:
-        helper = bench_helper(name)
-        if helper is None:
-            continue
-        log(f"{size}³ recompute timings: {name}")
-        try:
-            if hasattr(helper, "recompute_timings"):
-                for row in helper.recompute_timings(size):
-                    rows.append({"method": name, "size": f"{size}³", **dict(row)})
-            elif hasattr(helper, "precompute_times"):
-                for row in helper.precompute_times(sizes=(size,)):
-                    rows.append({
-                        "method": name, "setting": "filtered pyramid (TF edit)",
-                        "size": f"{row.get('size', size)}³", "recompute_ms": row.get("gpu_ms"),
-                        "notes": (f"{row.get('backend', '')} path; whole TF edit incl. CPU "
-                                  f"opacity {row.get('tf_edit_ms', math.nan):.0f} ms; numpy "
-                                  f"path {row.get('cpu_ms', math.nan):.0f} ms"),
-                    })
-        except Exception as exc:  # a helper failing must not lose the run
-            rows.append({"method": name, "setting": "", "size": f"{size}³",
-                         "recompute_ms": None,
-                         "notes": f"failed: {type(exc).__name__}: {exc}"[:300]})
-    return rows
 
 
 # ------------------------------------------------------------------------------------------
@@ -588,11 +569,11 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
     load_start = _load_average()
     files_start = source_files()
     quick = config.mode == "quick"
-    # The bench's references are the surface model's (transmittance, AO); medium techniques
-    # (multiple scattering) need their own reference and are measured by
-    # scripts/scattering-iterations.py until then.
-    techniques = {n: c for n, c in installed_techniques().items()
-                  if n != REFERENCE and c.SPEC.lighting == "surface"}
+    # Only lighting models with a reference can be measured (see vtkvol.bench.references);
+    # the others are named in the run's notes rather than silently left out.
+    installed = {n: c for n, c in installed_techniques().items() if n != REFERENCE}
+    techniques = {n: c for n, c in installed.items() if c.SPEC.lighting in LIGHTING_REFERENCES}
+    unmeasured = sorted(n for n in installed if n not in techniques)
     if methods is not None:
         techniques = {n: c for n, c in techniques.items() if n in methods}
     use_vtk = methods is None or VTK_METHOD in methods
@@ -605,7 +586,8 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
                  else stability_cases(config.stability_size, quick=quick))
     stab_settings = stability_settings({n: techniques[n] for n in order}, quick=quick)
     stab_vtk = vtk_settings[:1]
-    total = len(scene_list)  # one reference per scene
+    # one reference per scene and lighting model
+    total = len(scene_list) * len({c.SPEC.lighting for c in techniques.values()} | {"surface"})
     total += len(scene_list) * (len(settings) + len(vtk_settings))
     for case in case_list:
         if case.parameter_sweep is None:
@@ -617,7 +599,6 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
     date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
     records: list[dict[str, Any]] = []
     stability: list[dict[str, Any]] = []
-    large: list[dict[str, Any]] = []
     cache = ReferenceCache(config.budget)
     with VtkErrors() as errors, registered():
         rig = Rig(config.image_size)
@@ -638,8 +619,6 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
         finally:
             rig.close()
             vtk_rig.close()
-        if config.large_recompute:
-            large = large_recompute(techniques, 256, bar.step)
     load = _time_load()
     bar.finish()
     report.add_derived(records)
@@ -660,7 +639,7 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
         "techniques": {n: techniques[n].LABEL for n in order},
         "scenes": [{"name": s.name, "size": s.size_label, "spacing": list(s.spacing),
                     "kind": s.kind, "description": s.description} for s in scene_list],
-        "recompute_large": large,
+        "unmeasured": unmeasured,
         **info,
     }
     changed, affecting = affecting_changes(files_start, source_files(), loaded)
@@ -677,7 +656,7 @@ _SOURCE_PACKAGES = ("vtkvol.plugins", "vtkvol.resources", "vtkvol.engine", "vtkv
 
 def source_files() -> dict[str, str]:
     """Hash (16 hex digits) of every file of the code that renders, by package path
-    (``vtkvol/plugins/shadow_volume/technique.py``): read through the installed packages, so
+    (``vtkvol/plugins/<name>/technique.py``): read through the installed packages, so
     it works from a wheel as from a checkout."""
     import hashlib
     from importlib import resources
@@ -752,6 +731,9 @@ def _notes(run: Mapping[str, Any], records: Sequence[Mapping[str, Any]],
         notes.append(f"the machine was shared (1-min load average up to {load:.1f} on "
                      f"{cores} cores): absolute times are inflated, ratios measured side by "
                      "side are more reliable")
+    if run.get("unmeasured"):
+        notes.append(f"not measured (no reference for their lighting model yet): "
+                     f"{', '.join(run['unmeasured'])}")
     failed = [f"{r['scene']}/{r['method']} {r['setting']}" for r in records if not r.get("ok")]
     if failed:
         notes.append(f"{len(failed)} failed setting(s): {', '.join(failed[:6])}")

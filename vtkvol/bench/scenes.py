@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -396,7 +396,3 @@ def stability_cases(n: int = 48, *, quick: bool = True) -> list[StabilityCase]:
         cases.append(StabilityCase("outliers", frac * 100, f"{frac:.2%}", "% voxels", s16))
     return cases
 
-
-def with_lights(scene: Scene, lights: Sequence[Vec3]) -> Scene:
-    """A copy of ``scene`` with other lights (the data array is shared, not copied)."""
-    return replace(scene, lights=list(lights))

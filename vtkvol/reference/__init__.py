@@ -32,7 +32,11 @@ from vtkvol.reference.phantoms import (
 )
 from vtkvol.reference.raymarch import ExtinctionField, extinction, voxel_centres
 from vtkvol.reference.scattering import inscattered_mc
-from vtkvol.reference.transmittance import cone_transmittance_mc, transmittance
+from vtkvol.reference.transmittance import (
+    cone_transmittance_mc,
+    extended_transmittance,
+    transmittance,
+)
 
 __all__ = [
     "DirectionalLight",
@@ -40,6 +44,7 @@ __all__ = [
     "PointLight",
     "ambient_occlusion_mc",
     "cone_transmittance_mc",
+    "extended_transmittance",
     "extinction",
     "image_metrics",
     "inscattered_mc",

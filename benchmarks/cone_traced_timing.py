@@ -1,16 +1,18 @@
-"""Measurements of the cone-traced technique: accuracy against the CPU references, the
-opacity-vs-intensity averaging question, precompute times and frame-time ratios.
+"""Development study of the cone-traced technique (not part of the installed library):
+accuracy against the CPU references, the opacity-vs-intensity averaging question, precompute
+times and frame-time ratios. ``vtkvol bench`` measures every technique generically; these
+tables go deeper into this one technique for docs/cone-tracing.md.
 
-Functions return plain rows (lists of dicts) so the benchmark (``vtkvol bench``) can tabulate
-them; ``python -m vtkvol.bench.cone_traced_timing`` prints every table as markdown.
+Run from the checkout: ``python benchmarks/cone_traced_timing.py`` prints every table as
+markdown. Functions return plain rows (lists of dicts).
 
 Accuracy is per point: the CPU cone tracer
-(:func:`~vtkvol.plugins.cone_traced.technique.cone_trace_cpu`, the shader's algorithm) against
+(:func:`~vtkvol.plugins.cone_traced.cpu.cone_trace_cpu`, the shader's algorithm) against
 independent Monte-Carlo references (:mod:`vtkvol.reference`) at the points the renderer shades (TF
 opacity above the threshold; for AO also a defined normal): voxel centres, and for AO also random
 off-grid positions ("samples", where a ray sample lands), which is where baked AO
-(:func:`~vtkvol.plugins.cone_traced.technique.baked_ao_cpu`, the bake's algorithm, then one
-trilinear fetch: :func:`~vtkvol.plugins.cone_traced.technique.sample_grid`) pays for its
+(:func:`~vtkvol.plugins.cone_traced.cpu.baked_ao_cpu`, the bake's algorithm, then one
+trilinear fetch: :func:`~vtkvol.plugins.cone_traced.cpu.sample_grid`) pays for its
 interpolation. Phantoms are 1 µm voxels, so voxels = µm.
 """
 
@@ -24,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.plugins.cone_traced.technique import (
-    ConeTraced,
+from vtkvol.plugins.cone_traced.cpu import (
     ambient_occlusion_cpu,
     baked_ao_cpu,
     blur_level,
@@ -39,6 +40,7 @@ from vtkvol.plugins.cone_traced.technique import (
     source_pyramid,
     voxel_normals,
 )
+from vtkvol.plugins.cone_traced.technique import ConeTraced
 
 Row = dict[str, Any]
 
@@ -83,11 +85,6 @@ def shaded_sample_points(
         if found >= n_points:
             break
     return np.concatenate(pts_out), np.concatenate(nrm_out)
-
-
-def _at(volume: np.ndarray, pts: np.ndarray) -> np.ndarray:
-    idx = pts.astype(int)
-    return volume[idx[:, 2], idx[:, 1], idx[:, 0]]
 
 
 def _metrics(values: np.ndarray, reference: np.ndarray) -> dict[str, float]:
@@ -340,17 +337,6 @@ def averaging_study(
     return rows
 
 
-def accuracy_table(**kwargs: Any) -> list[Row]:
-    """Every accuracy row: AO per setting (``kind="ao"``) and shadows per angle
-    (``kind="shadow"``), with the defaults above."""
-    rows = [{"kind": "ao", **r} for r in ao_accuracy(**kwargs.get("ao", {}))]
-    rows += [{"kind": "shadow", **r} for r in shadow_accuracy(**kwargs.get("shadow", {}))]
-    return rows
-
-
-# ------------------------------------------------------------------------------------------------
-# Timing (offscreen GL)
-# ------------------------------------------------------------------------------------------------
 def _timing_volume(n: int) -> np.ndarray:
     """A bonsai-like test volume of intensities 0…1: slab, sphere and smooth noise."""
     from vtkvol.reference import phantom_sphere_over_slab
@@ -401,7 +387,7 @@ def precompute_times(
                 il.invalidate()
                 rw.Render()
                 gl(rw).glFinish()
-                gpu.append(float(tech.stats()["recompute_ms"]))
+                gpu.append(float(tech.stats().get("recompute_ms", math.nan)))
                 otf.AddPoint(0.5, 0.4 + 0.01 * i)  # a real TF edit: new opacity volume
                 rw.Render()
                 edit.append(il.last_prepare_ms)
@@ -429,7 +415,7 @@ def precompute_times(
                     il.set_parameters(h0=3.0)
                     rw.Render()
                     gl(rw).glFinish()
-                    bake.append(float(tech.stats()["bake_ms"]))
+                    bake.append(float(tech.stats().get("bake_ms", math.nan)))
                 row[f"bake_{res}_ms"] = statistics.median(bake)
                 row["bake_backend"] = tech.bake_backend
                 if n <= cpu_bake_max:

@@ -1,8 +1,10 @@
-"""Measurements of the precomputed shadow volume: recompute times, frame-time ratios, accuracy
-against the exact transmittance, memory.
+"""Development study of the precomputed shadow volume (not part of the installed library):
+recompute times per backend and resolution, frame-time ratios, accuracy against the exact
+transmittance. ``vtkvol bench`` measures every technique generically; these tables go deeper
+into this one technique for docs/shadow-volume.md.
 
-Functions return plain rows (lists of dicts) so the benchmark (``vtkvol bench``) can tabulate
-them; ``python -m vtkvol.bench.shadow_volume_timing`` prints every table as markdown.
+Run from the checkout: ``python benchmarks/shadow_volume_timing.py`` prints every table as
+markdown. Functions return plain rows (lists of dicts).
 
 * :func:`recompute_times`: light-volume recompute after a light move and after a transfer-
   function edit, GPU (compute shader) and numpy paths, per resolution.
@@ -27,7 +29,8 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.plugins.shadow_volume.technique import LightGrid, ShadowVolume, light_volume_cpu
+from vtkvol.plugins.shadow_volume.cpu import LightGrid, light_volume_cpu
+from vtkvol.plugins.shadow_volume.technique import ShadowVolume
 
 Row = dict[str, Any]
 
@@ -51,24 +54,6 @@ def _scene(n: int, size: int, elevation: float = 30.0) -> tuple[Any, Any, Any]:
     data = np.round(phantom_sphere_over_slab(n) * 255.0).astype(np.uint8)
     return simple_volume_scene(data, size=(size, size), elevation=elevation,
                                opacity=[(0.0, 0.0), (255.0, 1.0)])
-
-
-def memory_per_light(data_dims: Sequence[int], resolution: str = "full") -> int:
-    """Bytes of light volume per light: 4 B (float32) per light-grid cell. With 2 lights the
-    RG32F texture holds 8 B/cell, with 3 or 4 lights RGBA32F 16 B/cell. Besides the light
-    volume the technique keeps the extinction grid (4 B/cell, shared by all lights) and two
-    slices of scratch per axis."""
-    return LightGrid.for_data(data_dims, (1.0, 1.0, 1.0), resolution).nbytes_per_light()
-
-
-def memory_total(data_dims: Sequence[int], resolution: str = "full", lights: int = 1) -> int:
-    """All GPU memory the technique holds for ``lights`` lights (bytes)."""
-    grid = LightGrid.for_data(data_dims, (1.0, 1.0, 1.0), resolution)
-    mx, my, mz = grid.dims
-    cells = mx * my * mz
-    channels = 1 if lights <= 1 else (2 if lights == 2 else 4)
-    scratch = 2 * 4 * (my * mz + mx * mz + mx * my)
-    return 4 * cells * channels + 4 * cells + scratch
 
 
 # ------------------------------------------------------------------------------------------------
@@ -113,9 +98,9 @@ def recompute_times(
                         tf_ms = []
                         for i in range(max(2, reps // 2)):
                             otf.AddPoint(128.0, 0.5 + 0.01 * (i % 2))  # a real TF edit
-                            count = tech.recompute_count
+                            count = _recomputes(tech)
                             rw.Render()
-                            if tech.recompute_count > count:
+                            if _recomputes(tech) > count:
                                 tf_ms.append(_recompute_ms(rw, tech))
                         grid = tech.grid
                         assert grid is not None
@@ -123,7 +108,7 @@ def recompute_times(
                         med = statistics.median(light_ms)
                         rows.append({
                             "size": n, "model": model, "resolution": res,
-                            "backend": tech.last_backend,
+                            "backend": tech.stats().get("backend", ""),
                             "grid": "×".join(str(d) for d in grid.dims),
                             "light_ms": med, "light_min_ms": min(light_ms),
                             "tf_ms": statistics.median(tf_ms) if tf_ms else math.nan,
@@ -146,11 +131,16 @@ def _light_moves(il: Any, rw: Any, tech: ShadowVolume, repeats: int) -> list[flo
         c, s = math.cos(angle), math.sin(angle)
         x, y, z = LIGHT
         il.set_lights([Light(direction=(c * x - s * y, s * x + c * y, z))])
-        count = tech.recompute_count
+        count = _recomputes(tech)
         rw.Render()
-        if tech.recompute_count > count:
+        if _recomputes(tech) > count:
             out.append(_recompute_ms(rw, tech))
     return out
+
+
+def _recomputes(tech: Any) -> int:
+    """How many precomputations the technique has run (its ``stats()``)."""
+    return int(tech.stats().get("recomputes", 0))
 
 
 def _recompute_ms(rw: Any, tech: Any) -> float:
@@ -159,19 +149,6 @@ def _recompute_ms(rw: Any, tech: Any) -> float:
 
     gl(rw).glFinish()
     return float(tech.stats()["recompute_ms"])
-
-
-def recompute_timings(size: int) -> list[Row]:
-    """Rows for the benchmark's large-volume table (``method``-less; the runner adds it)."""
-    rows = []
-    for r in recompute_times((size,), cpu_max_size=0 if size > 128 else 128):
-        rows.append({
-            "setting": f"{r['model']}/{r['resolution']} ({r['backend']})",
-            "recompute_ms": r["light_ms"],
-            "notes": (f"light move, grid {r['grid']}; fastest {r['light_min_ms']:.0f} ms; "
-                      f"TF edit {r['tf_ms']:.0f} ms incl. CPU opacity"),
-        })
-    return rows
 
 
 # ------------------------------------------------------------------------------------------------
@@ -234,7 +211,7 @@ def frame_ratios(
     recomputes = 0
     try:
         sv = configs["shadow_volume"][3].technique
-        before = sv.recompute_count
+        before = _recomputes(sv)
         for _ in range(rounds * frames):
             for name, (rw, ren, _volume, _il) in configs.items():
                 ren.GetActiveCamera().Azimuth(AZIMUTH_STEP)
@@ -243,7 +220,7 @@ def frame_ratios(
                 rw.WaitForCompletion()
                 samples[name].append((time.perf_counter() - t0) * 1e3)
                 cpu[name].append((time.process_time() - c0) * 1e3)
-        recomputes = sv.recompute_count - before
+        recomputes = _recomputes(sv) - before
     finally:
         for rw, _ren, _volume, il in configs.values():
             if il is not None:
