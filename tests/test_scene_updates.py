@@ -148,6 +148,12 @@ def test_a_failed_technique_is_set_back_in_the_model_and_not_retried(two_channel
         model.render.background = (0.5, 0.5, 0.5)  # an unrelated edit
         rw.Render()
         assert Broken.builds == builds and model.illumination.method == "local"
+        assert len(messages) == 1
+        model.illumination.method = "broken_in_scene"  # the user picks it again: one retry
+        rw.Render()
+        rw.Render()
+        assert Broken.builds > builds and len(messages) == 2
+        assert model.illumination.method == "local"
 
 
 class Refining(Technique):

@@ -214,6 +214,12 @@ def test_a_failing_illumination_method_is_reported_and_the_dock_shows_local(
     assert "could not be compiled" in window.statusBar().currentMessage()
     dock = window.lights_dock
     assert dock.method.itemData(dock.method.currentIndex()) == "local"
+    # The app goes on: the next edit renders a frame (locally shaded) and reports nothing new.
+    background = window.model.render.background
+    with qtbot.waitSignal(window.viewport.frameRendered, timeout=10_000):
+        window.model.render.background = (0.1, 0.2, 0.3)
+    window.model.render.background = background  # the window is shared by the module
+    assert window.isVisible() and len(dialogs) == 1
 
 
 def test_refinement_progress_shows_in_the_status_bar(opened_window, qtbot):
