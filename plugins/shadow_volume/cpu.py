@@ -168,11 +168,14 @@ def light_softness(spec: LightSpec, grid: LightGrid, values: Mapping[str, Any]) 
     ``softness_from = "light size"``, the σ whose penumbra equals the light's geometric one
     half-way through the grid along the light.
 
-    A light of angular radius r casts a penumbra of half-width d·tan r at distance d; the
-    per-slice Gaussian blur widens it as √k·σ after k slices. Matching both at k = n/2 slices
-    (n along the dominant axis) gives σ = √k·(Δ_axis/Δ_plane)·tan r, clamped to the declared
-    range (4 cells). Nearer occluders get a slightly too wide penumbra, farther ones a too
-    narrow one (√k against k): the limit of a slice-by-slice blur (docs/shadow-volume.md).
+    A light of angular radius r casts a penumbra of half-width d·tan r at distance d; k slices
+    of a per-slice blur of standard deviation s widen an edge to √k·s. Matching both at
+    k = n/2 slices (n along the dominant axis) asks for s = √k·(Δ_axis/Δ_plane)·tan r cells;
+    the σ returned is the one whose *discrete, truncated* kernel (:func:`gauss_taps`) has that
+    standard deviation (:func:`softness_for_std`; for σ ≲ 0.5 the sampled Gaussian is much
+    narrower than σ), at most the declared range's 4 cells. Nearer occluders get a slightly too
+    wide penumbra, farther ones a too narrow one (√k against k): the limit of a slice-by-slice
+    blur (docs/shadow-volume.md).
     """
     if values.get("softness_from", "custom") == "custom" or values.get("model") == "seed000":
         return float(values["softness"])
@@ -191,7 +194,29 @@ def light_softness(spec: LightSpec, grid: LightGrid, values: Mapping[str, Any]) 
     axis = int(np.argmax(np.abs(direction / cell)))
     k = max(grid.dims[axis] / 2.0, 1.0)
     plane = float(np.mean([cell[a] for a in range(3) if a != axis]))
-    return float(min(math.sqrt(k) * cell[axis] / plane * tan_r, 4.0))
+    return softness_for_std(math.sqrt(k) * cell[axis] / plane * tan_r)
+
+
+def tap_std(softness: float) -> float:
+    """Standard deviation (cells) of the per-slice kernel :func:`gauss_taps` (``softness``)."""
+    radius, g = gauss_taps(softness)
+    k = np.arange(radius + 1)
+    return float(math.sqrt(2.0 * np.sum(g[1:] * k[1:] ** 2)))
+
+
+def softness_for_std(std: float, largest: float = 4.0) -> float:
+    """The softness σ ≤ ``largest`` whose kernel :func:`gauss_taps` has standard deviation
+    ``std`` cells (``largest`` when even that kernel is narrower). Bisection: the kernel's
+    standard deviation grows monotonically with σ."""
+    if std <= 0.0:
+        return 0.0
+    if tap_std(largest) <= std:
+        return largest
+    lo, hi = 0.0, largest
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if tap_std(mid) < std else (lo, mid)
+    return hi
 
 
 def gauss_taps(softness: float) -> tuple[int, np.ndarray]:
