@@ -216,7 +216,7 @@ class Rig:
                 ill.set_lights(lights)
                 if invalidate:
                     ill.invalidate()
-                count = tech.stats()["recomputes"]
+                count = int(tech.stats().get("recomputes", 0))
                 # The precomputation runs in the renderer's StartEvent whether or not the
                 # volume is drawn; hiding it makes these frames cost the recompute alone.
                 self.volume.VisibilityOff()
@@ -226,8 +226,10 @@ class Rig:
                     self.volume.VisibilityOn()
                 gl(self.rw).glFinish()  # the bench may wait: the timer's result is then ready
                 stats = tech.stats()
-                if ill.technique is tech and stats["recomputes"] > count:
-                    out.append(float(stats["recompute_ms"]))
+                if ill.technique is tech and int(stats.get("recomputes", 0)) > count:
+                    ms = float(stats.get("recompute_ms", math.nan))
+                    if math.isfinite(ms):  # a technique that counts but does not time
+                        out.append(ms)
         return light_ms, tf_ms if opacity else []
 
     def gpu_volumes(self) -> dict[str, np.ndarray]:
