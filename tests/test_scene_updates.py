@@ -179,20 +179,33 @@ def test_progress_is_reported_and_frames_are_requested_until_converged():
     rw = make_render_window((48, 48))
     renderer = vtk.vtkRenderer()
     rw.AddRenderer(renderer)
-    requests: list[int] = []
+    pending = [0]
+
+    def drain() -> int:
+        """What the app's coalescing timer does: render once per batch of requests, until no
+        one asks any more. Returns the number of frames rendered."""
+        frames = 0
+        while pending[0] and frames < 20:
+            pending[0] = 0
+            rw.Render()
+            frames += 1
+        return frames
+
     with register(Refining.SPEC):
         model.illumination.method = "refining_scene"
-        scene = VolumeScene(renderer, model, data, request_render=lambda: requests.append(1))
+        scene = VolumeScene(renderer, model, data,
+                            request_render=lambda: pending.__setitem__(0, pending[0] + 1))
         progress: list[tuple[int, bool]] = []
         scene.progress.connect(lambda i, done: progress.append((i, done)))
-        while not progress or not progress[-1][1]:
-            requests.clear()
-            rw.Render()
-            assert len(progress) < 20
-        assert [i for i, _ in progress] == [1, 2, 3, 4, 5]
-        assert requests == []  # converged: no further frame asked for
+        assert drain() == 5  # one frame asked for by showing the data, four by refinement
+        assert progress == [(1, False), (2, False), (3, False), (4, False), (5, True)]
+        assert not scene.illuminator.wants_frame
         scene.orbit(30.0, 0.0)
-        rw.Render()
-        assert progress[-1] == (6, True)  # the camera moved: refinement kept
+        assert drain() == 1
+        assert progress[-1] == (6, True)  # the camera moved: refinement kept, not restarted
+        progress.clear()
+        model.channels[0].tf.opacity = [(0.0, 0.0), (255.0, 0.5)]
+        assert drain() == 5  # a TF edit restarts refinement, which again runs by itself
+        assert [i for i, _ in progress] == [1, 2, 3, 4, 5] and progress[-1][1]
         scene.close()
     rw.Finalize()

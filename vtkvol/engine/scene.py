@@ -377,9 +377,11 @@ class VolumeScene:
 
     def _on_illumination_progress(self, iteration: int, converged: bool) -> None:
         self.progress.emit(iteration, converged)
-        # Ask for the next refinement frame; without a scheduler (scripts, render_image) the
-        # caller drives it with Illuminator.converge().
-        if not converged and self._request_render is not None:
+        # Ask for the next refinement frame (wants_frame is also False once the technique
+        # failed). Without a scheduler (scripts, render_image) rendering from inside this frame
+        # would recurse, so the caller drives refinement with Illuminator.converge().
+        assert self.illuminator is not None
+        if self.illuminator.wants_frame and self._request_render is not None:
             self._request_render()
 
     # -- camera ---------------------------------------------------------------------------------
