@@ -642,15 +642,28 @@ def test_stability(scene_factory, case):
 @pytest.mark.gl
 def test_light_visibility_cpu_hook(scene_factory):
     vol = phantom_sphere_over_slab(24)
-    s = scene_factory(vol, parameters={"shadow_angle": 5.0})
+    s = scene_factory(vol)
+    s.il.set_lights([Light(direction=(0.0, 0.3, 1.0), size=5.0)])  # angular radius 5°
     s.image()
     spec = s.il.light_specs()[0]
-    vis = s.tech.light_visibility_cpu(vol, (1.0, 1.0, 1.0), spec, s.il.parameters)
-    assert vis.shape == vol.shape and vis.dtype == np.float32
-    assert np.isfinite(vis).all() and vis.min() >= 0 and vis.max() <= 1
+    from_size = s.tech.light_visibility_cpu(vol, (1.0, 1.0, 1.0), spec, s.il.parameters)
+    assert from_size.shape == vol.shape and from_size.dtype == np.float32
+    # "light size" traces the cone the light subtends: the same as a custom 5° cone.
+    custom = {**s.il.parameters, "shadow_cone": "custom", "shadow_angle": 5.0}
+    np.testing.assert_allclose(
+        s.tech.light_visibility_cpu(vol, (1.0, 1.0, 1.0), spec, custom), from_size, atol=1e-6)
     # Under the sphere (slab top, centre) vs the slab's open corner.
     top = int(np.argwhere(vol[:, 2, 2] > 0.3).max())
-    assert vis[top, 9, 12] < 0.3 < 0.8 < vis[top, 2, 2]
+    assert from_size[top, 9, 12] < 0.3 < 0.8 < from_size[top, 2, 2]
+    # A wider cone widens the penumbra on the slab (cells partly lit, along y).
+    wide = s.tech.light_visibility_cpu(vol, (1.0, 1.0, 1.0), spec,
+                                       {**custom, "shadow_angle": 25.0})
+
+    def penumbra(vis: np.ndarray) -> int:
+        row = vis[top, :, 12]
+        return int(np.sum((row > 0.1) & (row < 0.9)))
+
+    assert penumbra(wide) >= penumbra(from_size) + 2
 
 
 @pytest.mark.gl
