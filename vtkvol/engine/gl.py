@@ -163,6 +163,9 @@ class Texture3D:
             )
 
     def generate_mipmaps(self) -> None:
+        """Fill levels 1… from level 0 with the driver's box filter (``mip_levels`` > 1)."""
+        if self.mip_levels <= 1:
+            raise ValueError("this texture was created without mip levels")
         GL = gl(self.render_window)
         self.tex.Activate()
         GL.glGenerateMipmap(GL.GL_TEXTURE_3D)
