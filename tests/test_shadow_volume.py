@@ -11,7 +11,7 @@ import pytest
 import vtk
 from scipy import ndimage
 
-from vtkvol.engine.gl import compute_supported
+from vtkvol.engine.gl import compute_supported, gl
 from vtkvol.engine.illuminator import Illuminator, LightSpec
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.engine.technique import technique_class
@@ -638,3 +638,31 @@ def test_penumbra_widens_with_the_light_size_as_geometry_says():
         assert near > 5 * geometric and far < 30 * geometric  # √d against d
         spreads.append(spread)
     assert spreads == sorted(spreads) and spreads[-1] > 3 * spreads[0]
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("profiling", [False, True])
+def test_first_recompute_is_timed_on_the_gpu_only_when_profiling(profiling, monkeypatch):
+    import time
+
+    GL = gl()
+    queries: list[int] = []
+    gen_queries = GL.glGenQueries
+    monkeypatch.setattr(GL, "glGenQueries", lambda n: queries.append(n) or gen_queries(n))
+    rw, ren, volume = simple_volume_scene(phantom_sphere_over_slab(24), size=TINY)
+    il = Illuminator(volume, ren, method="shadow_volume", lights=[Light()])
+    il.profiling = profiling
+    try:
+        start = time.perf_counter()
+        rw.Render()  # the recompute runs before anything was drawn in this context
+        rw.Render()  # its timer query is read on this later frame, never waited for
+        wall_ms = (time.perf_counter() - start) * 1e3
+        stats = il.technique.stats()
+        assert stats["recomputes"] == 1 and stats["backend"] == "gpu"
+        # A GPU time, and a plausible one: within the wall time of the two frames (llvmpipe's
+        # first GL_TIME_ELAPSED query reported the time since boot here).
+        assert 0 < stats["recompute_ms"] < wall_ms
+        assert queries == ([2] if profiling else [])
+    finally:
+        il.release()
+        rw.Finalize()
