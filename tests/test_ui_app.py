@@ -200,12 +200,16 @@ def test_every_menu_entry_does_something(opened_window):
 
 
 def test_a_failing_illumination_method_is_reported_and_the_dock_shows_local(
-        opened_window, qtbot, dialogs):
+        opened_window, qtbot, dialogs, monkeypatch):
     from tests_support_techniques import BROKEN_SPEC
 
     from vtkvol.model.techniques import register
+    from vtkvol.ui import undo
 
     window = opened_window
+    window.model.illumination.method = "shadow_volume"
+    window.recorder.reset()
+    monkeypatch.setattr(undo, "MERGE_WINDOW_S", 0.0)  # the fallback must not merge by timing
     with register(BROKEN_SPEC):
         window.model.illumination.method = BROKEN_SPEC.name
         qtbot.waitUntil(lambda: window.model.illumination.method == "local", timeout=20_000)
@@ -214,12 +218,22 @@ def test_a_failing_illumination_method_is_reported_and_the_dock_shows_local(
     assert "could not be compiled" in window.statusBar().currentMessage()
     dock = window.lights_dock
     assert dock.method.itemData(dock.method.currentIndex()) == "local"
+    # The fallback amended the user's choice: one step, and undo returns to the method shown
+    # before it (never to the broken one, which would fail again); redo to local shading.
+    stack = window.recorder.stack
+    assert stack.count() == 1
+    stack.undo()
+    assert window.model.illumination.method == "shadow_volume"
+    stack.redo()
+    assert window.model.illumination.method == "local" and len(dialogs) == 1
     # The app goes on: the next edit renders a frame (locally shaded) and reports nothing new.
     background = window.model.render.background
     with qtbot.waitSignal(window.viewport.frameRendered, timeout=10_000):
         window.model.render.background = (0.1, 0.2, 0.3)
     window.model.render.background = background  # the window is shared by the module
     assert window.isVisible() and len(dialogs) == 1
+    window.model.illumination.method = "local"
+    window.recorder.reset()
 
 
 def test_refinement_progress_shows_in_the_status_bar(opened_window, qtbot):

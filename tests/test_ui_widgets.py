@@ -376,3 +376,20 @@ def test_signals_blocked_silences_pushes_and_restores_each_widgets_previous_stat
     assert not first.signalsBlocked() and second.signalsBlocked()
     first.setValue(6)
     assert seen == [6]
+
+
+def test_amending_folds_an_engine_correction_into_the_users_step(qtbot):
+    model = SceneModel()
+    recorder = UndoRecorder(model)
+    with recorder.amending():  # nothing to amend yet: absorbed, not a step
+        model.illumination.method = "shadow_volume"
+    assert recorder.stack.count() == 0
+    model.illumination.method = "cone_traced"  # the user's choice
+    with recorder.amending():  # the engine sets it back
+        model.illumination.method = "local"
+    assert recorder.stack.count() == 1
+    recorder.stack.undo()
+    assert model.illumination.method == "shadow_volume"
+    recorder.stack.redo()
+    assert model.illumination.method == "local"
+    recorder.close()

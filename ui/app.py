@@ -210,6 +210,8 @@ class MainWindow(QMainWindow):
 
         self.recorder = UndoRecorder(self.model, self)
         self.viewport = Viewport(self.model, self)
+        # A failed method set back to local shading by the engine amends the user's choice.
+        self.viewport.engine_edit = self.recorder.amending
         self.setCentralWidget(self.viewport)
         self._make_docks()
         self._make_actions()

@@ -158,6 +158,7 @@ class UndoRecorder(QObject):
         self.stack = QUndoStack(self)
         self._state: dict[str, Any] = model.copy_state()
         self._restoring = False
+        self._amending = 0
         self._gesture_depth = 0
         self._gesture_serial = 0
         self._epoch = 0
@@ -171,6 +172,9 @@ class UndoRecorder(QObject):
         edits = tops - NOT_EDITS
         if self._restoring or not edits:
             return
+        if self._amending:
+            self._amend(edits, old_state, new_state)
+            return
         before = {k: old_state[k] for k in edits}
         after = {k: new_state[k] for k in edits}
         if before == after:
@@ -178,6 +182,31 @@ class UndoRecorder(QObject):
         gesture = self._gesture_serial if self._gesture_depth else None
         edit_paths = frozenset(p for p in paths if fields_of(p)[0] in edits)
         self.stack.push(SnapshotCommand(self, before, after, edit_paths, gesture, self._epoch))
+
+    @contextmanager
+    def amending(self) -> Iterator[None]:
+        """Changes made inside are not edits of their own but corrections by the engine (a
+        failed illumination method set back to local shading): they amend the latest step's
+        after-state, so undoing the user's choice returns to what was shown before it, and
+        undo never retries the broken method. With no step to amend they are only absorbed."""
+        self._amending += 1
+        try:
+            yield
+        finally:
+            self._amending -= 1
+
+    def _amend(self, keys: set[str], old_state: dict[str, Any],
+               new_state: dict[str, Any]) -> None:
+        index = self.stack.index()
+        top = self.stack.command(index - 1) if index > 0 else None
+        if not isinstance(top, SnapshotCommand):
+            return
+        for key in keys:
+            top.before.setdefault(key, old_state[key])
+            top.after[key] = new_state[key]
+        top.keys = frozenset(top.before)
+        if top.before == top.after:
+            top.setObsolete(True)  # e.g. local → broken → local: nothing left to undo
 
     def begin_gesture(self) -> None:
         """Edits until the matching :meth:`end_gesture` become one undo step."""

@@ -23,6 +23,8 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable
+from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING, Any
 
 os.environ.setdefault("QT_API", "pyside6")  # pyvistaqt (through qtpy) must pick PySide6
@@ -151,6 +153,8 @@ class Viewport(QWidget):
         super().__init__(parent)
         self.model = model
         self.scene: VolumeScene | None = None
+        #: Handed to the scene as its ``engine_edit`` (set before data is shown).
+        self.engine_edit: Callable[[], AbstractContextManager[None]] = nullcontext
         self.reduce_while_moving = True
         self._closed = False
         self._frame_start = 0.0
@@ -236,6 +240,7 @@ class Viewport(QWidget):
         if self.scene is None:
             self.scene = VolumeScene(self.renderer, self.model, data,
                                      request_render=self.request_render)
+            self.scene.engine_edit = self.engine_edit
             self.scene.error.connect(self.illuminationFailed.emit)
             self.scene.progress.connect(self.illuminationProgress.emit)
         else:

@@ -12,6 +12,7 @@ that :func:`vtkvol.illuminate` attaches to foreign volumes.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
@@ -87,6 +88,11 @@ class VolumeScene:
         self.error = Signal()
         #: Emits (iteration, converged) while a progressive technique refines.
         self.progress = Signal()
+        #: Wraps the engine's own write of ``illumination.method`` after a failure. The app
+        #: sets its undo recorder's ``amending`` here, so that the fallback is not an edit of
+        #: its own (undoing the user's choice then returns to what was shown before it).
+        self.engine_edit: Callable[[], contextlib.AbstractContextManager[None]] = (
+            contextlib.nullcontext)
         self._color_functions: list[vtk.vtkColorTransferFunction] = []
         self._opacity_functions: list[vtk.vtkPiecewiseFunction] = []
         self.volume = vtk.vtkVolume()
@@ -372,7 +378,8 @@ class VolumeScene:
         assert self.illuminator is not None
         shown = self.illuminator.method
         if self.model.illumination.method != shown:
-            self.model.illumination.method = shown
+            with self.engine_edit():
+                self.model.illumination.method = shown
         self.error.emit(message)
 
     def _on_illumination_progress(self, iteration: int, converged: bool) -> None:
