@@ -456,7 +456,7 @@ def baked_ao_cpu(
     chunk: int = 1 << 17,
 ) -> np.ndarray:
     """Baked hemisphere AO (0 = open, 1 = closed) at every point of the AO grid,
-    ``[z, y, x]`` float32: what ``cone_traced_bake_ao.comp.glsl`` computes.
+    ``[z, y, x]`` float32: what ``shaders/bake_ao.comp.glsl`` computes.
 
     Per grid point: the outward normal of the *filtered* opacity (:func:`gradient_normals` of
     D_0; the raw opacity's gradient vanishes one voxel inside a surface, and the full-sphere AO

@@ -40,7 +40,7 @@ class LightTexture(Texture3D):
 
 
 class GpuPropagator:
-    """Compute programs of shadow_volume_propagate.comp and their dispatch (GL context current).
+    """Compute programs of shaders/propagate.comp.glsl and their dispatch (GL context current).
 
     Programs are compiled on first use per variant (prefilter; propagate × model × channels ×
     filter radius × cells per invocation) and kept until :meth:`release`.

@@ -1,10 +1,10 @@
 #version 430
 // vtkvol technique "shadow_volume": compute passes that build the light volume.
 // Compiled by VTK (vtkShaderProgram), dispatched by vtkvol via PyOpenGL; see
-// plugins/shadow_volume.py, which mirrors every formula here in numpy (the CPU path) and must be
-// kept in step with this file. Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
+// plugins/shadow_volume/gpu.py (the driver) and cpu.py, which mirrors every formula here in
+// numpy (the CPU path) and must be kept in step with this file. Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
-// The host inserts #define lines after the #version line:
+// The loader (shaders.compute_source) inserts #define lines after the #version line:
 //   VV_PASS      0 = TF opacity -> extinction in place, 2 = reduction to a coarser light grid,
 //                1 = propagate
 //   VV_SEED000   1 = the thesis's additive clamped opacity model, 0 = transmittance

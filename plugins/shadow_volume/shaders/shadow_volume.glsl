@@ -1,7 +1,7 @@
 // vtkvol technique "shadow_volume": shadows read from a precomputed light volume.
 // Tested with VTK 9.7.1 (vtkOpenGLGPUVolumeRayCastMapper), single and independent components.
 //
-// The light volume (plugins/shadow_volume.py, resources/shaders/shadow_volume_propagate.comp)
+// The light volume (plugins/shadow_volume/technique.py, shaders/propagate.comp.glsl)
 // holds, per light, the visibility V in 0..1 at the cell centres of a grid of
 // vv_shadow_volume_dims cells spanning the data's point bounds; light i is channel i of one
 // texture (R32F for one light, RG32F for two, RGBA32F for three or four). It is clamped to a
