@@ -2,7 +2,8 @@
 // vtkvol technique "shadow_volume": compute passes that build the light volume.
 // Compiled by VTK (vtkShaderProgram), dispatched by vtkvol via PyOpenGL; see
 // plugins/shadow_volume/gpu.py (the driver) and cpu.py, which mirrors every formula here in
-// numpy (the CPU path) and must be kept in step with this file. Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
+// numpy (the CPU path) and must be kept in step with this file. Tested with VTK 9.7.1 on Mesa
+// llvmpipe (GL 4.5).
 //
 // The loader (shaders.compute_source) inserts #define lines after the #version line:
 //   VV_PASS      0 = TF opacity -> extinction in place, 2 = reduction to a coarser light grid,
