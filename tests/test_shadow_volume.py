@@ -593,6 +593,10 @@ def test_softness_follows_the_light_size_geometrically():
     lamp = LightSpec("point", (20.0, 20.0, 120.0), (1.0, 1.0, 1.0), size=10.0)
     assert sv.tap_std(sv.light_softness(lamp, grid, values)) == pytest.approx(
         np.sqrt(20) * 10.0 / 100.5, rel=1e-3)
+    # The same lamp and volume moved together by an origin offset: the same softness.
+    moved = LightSpec("point", (520.0, 20.0, 120.0), (1.0, 1.0, 1.0), size=10.0)
+    assert sv.light_softness(moved, grid, values, origin=(500.0, 0.0, 0.0)) == pytest.approx(
+        sv.light_softness(lamp, grid, values))
     custom = {**values, "softness_from": "custom", "softness": 1.5}
     assert sv.light_softness(sun, grid, custom) == 1.5
 

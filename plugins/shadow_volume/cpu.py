@@ -163,7 +163,10 @@ def in_plane_axes(axis: int) -> tuple[int, int]:
     return (1, 2) if axis == 0 else ((0, 2) if axis == 1 else (0, 1))
 
 
-def light_softness(spec: LightSpec, grid: LightGrid, values: Mapping[str, Any]) -> float:
+def light_softness(
+    spec: LightSpec, grid: LightGrid, values: Mapping[str, Any],
+    origin: Sequence[float] = (0.0, 0.0, 0.0), direction: np.ndarray | None = None,
+) -> float:
     """The per-slice blur σ (light-grid cells) for ``spec``: the declared ``softness``, or, with
     ``softness_from = "light size"``, the σ whose penumbra equals the light's geometric one
     half-way through the grid along the light.
@@ -175,14 +178,16 @@ def light_softness(spec: LightSpec, grid: LightGrid, values: Mapping[str, Any]) 
     standard deviation (:func:`softness_for_std`; for σ ≲ 0.5 the sampled Gaussian is much
     narrower than σ), at most the declared range's 4 cells. Nearer occluders get a slightly too
     wide penumbra, farther ones a too narrow one (√k against k): the limit of a slice-by-slice
-    blur (docs/shadow-volume.md).
+    blur (docs/shadow-volume.md). ``origin`` and ``direction`` place the image in dataset space
+    (as in :meth:`LightGrid.light`), so a point light's distance is to the grid's real centre.
     """
     if values.get("softness_from", "custom") == "custom" or values.get("model") == "seed000":
         return float(values["softness"])
     cell = np.asarray(grid.cell_um, float)
     if spec.is_point:
-        centre = np.array([(n - 1) * c / 2.0 for n, c in zip(grid.dims, cell, strict=True)])
-        to_centre = centre - np.asarray(spec.vector, float)
+        _kind, position = grid.light(spec, origin, direction)  # grid index coordinates
+        centre = (np.asarray(grid.dims, float) - 1.0) / 2.0
+        to_centre = (centre - position) * cell  # µm along the grid axes
         distance = float(np.linalg.norm(to_centre))
         tan_r = spec.size / max(distance, 1e-9)
         direction = to_centre

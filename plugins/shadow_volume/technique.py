@@ -150,7 +150,8 @@ class ShadowVolume(Technique):
         vis = light_volume_cpu(
             opacity, spacing, light, unit_distance=self.host.unit_distance,
             model=merged["model"], resolution=merged["resolution"],
-            softness=light_softness(light, grid, merged), origin=self._origin(),
+            softness=light_softness(light, grid, merged, self._origin(), self._direction()),
+            origin=self._origin(),
             direction=self._direction(),
         )
         return grid.to_data(vis)
@@ -218,7 +219,8 @@ class ShadowVolume(Technique):
             kind, vec = grid.light(spec, self._origin(), self._direction())
             gpu.propagate(
                 self._sigma_tex, self._work_tex, self.light_texture, grid, kind, vec,
-                model=values["model"], softness=light_softness(spec, grid, values),
+                model=values["model"],
+                softness=light_softness(spec, grid, values, self._origin(), self._direction()),
                 unit_distance=self.host.unit_distance, channel=channel,
             )
 
@@ -234,7 +236,7 @@ class ShadowVolume(Technique):
             kind, vec = grid.light(spec, self._origin(), self._direction())
             packed[..., channel] = propagate_cpu(
                 self._sigma_cpu, grid, kind, vec, model=values["model"],
-                softness=light_softness(spec, grid, values),
+                softness=light_softness(spec, grid, values, self._origin(), self._direction()),
                 unit_distance=self.host.unit_distance,
             )
         self.light_texture.upload(packed[..., 0] if packed.shape[-1] == 1 else packed)
