@@ -2,7 +2,8 @@
 
 * :mod:`~vtkvol.bench.runner`: the command (scenes × methods × settings, stability sweeps);
 * :mod:`~vtkvol.bench.scenes`: phantoms, the user's ``--data`` files, sweep cases;
-* :mod:`~vtkvol.bench.references`: which CPU reference each setting is measured against;
+* :mod:`~vtkvol.bench.references`: the one CPU reference per scene and lighting model that
+  every method is measured against;
 * :mod:`~vtkvol.bench.reference_technique`: the renderer of reference images (same shader,
   reference volumes);
 * :mod:`~vtkvol.bench.measure`: offscreen rigs, timing, checks;
