@@ -398,7 +398,7 @@ def precompute_times(
                 filtered_pyramid_cpu(opacity)
                 cpu.append((time.perf_counter() - t0) * 1e3)
             row: Row = {
-                "size": n, "voxels": n**3, "backend": tech.backend,
+                "size": n, "voxels": n**3, "backend": tech.stats()["backend"],
                 "levels": tech.filtered.mip_levels if tech.filtered else 0,
                 "gpu_ms": statistics.median(gpu), "tf_edit_ms": statistics.median(edit),
                 "cpu_ms": statistics.median(cpu),
@@ -417,7 +417,7 @@ def precompute_times(
                     gl(rw).glFinish()
                     bake.append(float(tech.stats().get("bake_ms", math.nan)))
                 row[f"bake_{res}_ms"] = statistics.median(bake)
-                row["bake_backend"] = tech.bake_backend
+                row["bake_backend"] = tech.stats()["bake_backend"]
                 if n <= cpu_bake_max:
                     t0 = time.perf_counter()
                     baked_ao_cpu(opacity, il.spacing, resolution=res, cones=6,

@@ -376,3 +376,14 @@ def test_gpu_timing_only_when_profiling_and_never_a_stall(profiling, monkeypatch
         assert stats["recompute_ms"] == pytest.approx(created[0].result_ms())
     il.release()
     rw.Finalize()
+
+
+def test_bound_textures_lists_the_techniques_not_the_hosts():
+    rw, ren, volume = scene()
+    il = Illuminator(volume, ren, method="shadow_volume")
+    il.set_slice_weights(np.stack([np.linspace(0.2, 1.0, 16)] * 3).astype(np.float32))
+    grab(rw)
+    assert set(il.bound_textures()) == {"vv_shadow_volume_tex"}
+    assert "vv_sliceWeights" in il._textures  # the host's own binding exists, but is not listed
+    il.release()
+    rw.Finalize()

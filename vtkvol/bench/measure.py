@@ -233,17 +233,15 @@ class Rig:
         return light_ms, tf_ms if opacity else []
 
     def gpu_volumes(self) -> dict[str, np.ndarray]:
-        """Level 0 of every 3D texture the active technique holds (read back), by attribute."""
+        """Level 0 of every 3D texture bound for the active technique (read back), by the
+        uniform name its shader reads it under."""
         from vtkvol.engine.gl import Texture3D
 
-        tech = self.illuminator.technique
         out: dict[str, np.ndarray] = {}
-        if tech is None:
-            return out
         self.rw.MakeCurrent()
-        for name, value in vars(tech).items():
-            if isinstance(value, Texture3D) and value.tex is not None:
-                out[name] = value.download(0)
+        for name, texture in self.illuminator.bound_textures().items():
+            if isinstance(texture, Texture3D) and texture.tex is not None:
+                out[name] = texture.download(0)
         return out
 
     def shader_installed(self) -> bool:

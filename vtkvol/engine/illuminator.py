@@ -556,6 +556,12 @@ class Illuminator:
         self.shader_property.GetFragmentCustomUniforms().SetUniformi(uniform, unit)
         self._textures[uniform] = (texture, sampler)
 
+    def bound_textures(self) -> dict[str, Any]:
+        """The textures bound for the active technique, by GLSL uniform name (what its shader
+        reads; diagnostics and the benchmark's checks). The host's own are left out."""
+        return {name: texture for name, (texture, _sampler) in self._textures.items()
+                if name not in _HOST_TEXTURES}
+
     def unbind_texture(self, uniform: str) -> None:
         entry = self._textures.pop(uniform, None)
         if entry is not None:
