@@ -33,26 +33,76 @@ def light_channels(count: int) -> int:
     return 1 if count <= 1 else (2 if count == 2 else 4)
 
 
-class ConvectionDiffusion(Technique):
-    """Multiple scattering by convection–diffusion, refined over frames."""
+class GridScattering(Technique):
+    """What seed 003's two methods share: progressive light on the data grid with a GPU
+    (``ComputePath``) and a numpy path, shown through two textures — the direct light and the
+    scattered light — bound under ``DIRECT``/``SCATTERED``; their counters in ``stats()``."""
 
-    SPEC = TECHNIQUE
-    SHADER: ClassVar[str] = "convection_diffusion.glsl"
+    DIRECT: ClassVar[str]
+    SCATTERED: ClassVar[str]
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.setup: Setup | None = None
-        self._transport: cpu.Transport | None = None  # numpy path state
-        self._compute = ComputePath(self.NAME, GpuTransport)
+        self._compute = ComputePath(self.NAME, self.make_driver)
         self._direct: Texture3D | None = None  # numpy path: what the shader samples
         self._scattered: Texture3D | None = None
         self._restarts = 0
         self._backend = ""
         self._last_ms = 0.0
 
+    def make_driver(self, window: vtk.vtkRenderWindow) -> Any:
+        """The GPU driver (compute programs and textures) of this technique."""
+        raise NotImplementedError
+
     @property
-    def _gpu(self) -> GpuTransport | None:
+    def _gpu(self) -> Any:
         return self._compute.driver
+
+    def _bind(self, gpu_textures: tuple[Texture3D, Texture3D] | None) -> None:
+        """Bind the GPU path's (direct, scattered) textures, or the numpy path's."""
+        direct, scattered = gpu_textures or (self._direct, self._scattered)
+        assert direct is not None and scattered is not None
+        self.host.bind_texture(self.DIRECT, direct)
+        self.host.bind_texture(self.SCATTERED, scattered)
+
+    def stats(self) -> dict[str, Any]:
+        textures = [self._direct, self._scattered]
+        if self._gpu is not None:
+            textures += self._gpu.textures
+        return {
+            "recomputes": self._restarts,
+            "iterations": self.iteration,
+            "recompute_ms": self._last_ms,
+            "backend": self._backend,
+            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
+        }
+
+    def release(self) -> None:
+        for tex in (self._direct, self._scattered):
+            if tex is not None:
+                tex.release()
+        self._direct = self._scattered = None
+        self._compute.release()
+
+    def _origin(self) -> tuple[float, float, float]:
+        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
+
+
+class ConvectionDiffusion(GridScattering):
+    """Multiple scattering by convection–diffusion, refined over frames."""
+
+    SPEC = TECHNIQUE
+    SHADER: ClassVar[str] = "convection_diffusion.glsl"
+    DIRECT = DIRECT_UNIFORM
+    SCATTERED = SCATTERED_UNIFORM
+
+    def __init__(self, host: Illuminator) -> None:
+        super().__init__(host)
+        self.setup: Setup | None = None
+        self._transport: cpu.Transport | None = None  # numpy path state
+
+    def make_driver(self, window: vtk.vtkRenderWindow) -> GpuTransport:
+        return GpuTransport(window)
 
     # -- hooks --------------------------------------------------------------------------------
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
@@ -73,32 +123,11 @@ class ConvectionDiffusion(Technique):
             self.iteration += count
             self._last_ms = (time.perf_counter() - t0) * 1e3
         self.converged = self.iteration >= limit
-        direct, scattered = (
-            (self._gpu.rho, self._gpu.rho_s) if self._gpu is not None
-            else (self._direct, self._scattered)
-        )
-        assert direct is not None and scattered is not None
-        self.host.bind_texture(DIRECT_UNIFORM, direct)
-        self.host.bind_texture(SCATTERED_UNIFORM, scattered)
-
-    def stats(self) -> dict[str, Any]:
-        textures = [self._direct, self._scattered]
-        if self._gpu is not None:
-            textures += self._gpu.textures
-        return {
-            "recomputes": self._restarts,
-            "iterations": self.iteration,
-            "recompute_ms": self._last_ms,
-            "backend": self._backend,
-            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
-        }
+        gpu = self._gpu
+        self._bind((gpu.rho, gpu.rho_s) if gpu is not None else None)
 
     def release(self) -> None:
-        for tex in (self._direct, self._scattered):
-            if tex is not None:
-                tex.release()
-        self._direct = self._scattered = None
-        self._compute.release()
+        super().release()
         self._transport = None
         self.setup = None
 
@@ -118,9 +147,6 @@ class ConvectionDiffusion(Technique):
         return transport.rho[0]
 
     # -- internals ----------------------------------------------------------------------------
-    def _origin(self) -> tuple[float, float, float]:
-        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
-
     def _restart(self, values: Mapping[str, Any]) -> None:
         nx, ny, nz = self.host.dims
         grid = cpu.Grid((nz, ny, nx), self.host.spacing, self._origin())

@@ -18,11 +18,11 @@ import vtk
 
 from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import ComputePath, Technique
 from vtkvol.plugins.convection_diffusion import cpu as kd
 from vtkvol.plugins.convection_diffusion.technique import (
     GROUP,
     GpuDiffusion,
+    GridScattering,
     set_uniform,
     unbind_images,
 )
@@ -58,27 +58,22 @@ class Setup:
         return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo))
 
 
-class HybridDiffusion(Technique):
+class HybridDiffusion(GridScattering):
     """Tracked direct light plus diffused multiple scattering, refined over frames."""
 
     SPEC = TECHNIQUE
     SHADER: ClassVar[str] = "hybrid_diffusion.glsl"
+    DIRECT = DIRECT_UNIFORM
+    SCATTERED = SCATTERED_UNIFORM
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
         self.setup: Setup | None = None
-        self._compute = ComputePath(self.NAME, GpuHybrid)
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
-        self._direct: Texture3D | None = None  # numpy path: what the shader samples
-        self._scattered: Texture3D | None = None
-        self._restarts = 0
-        self._backend = ""
-        self._last_ms = 0.0
 
-    @property
-    def _gpu(self) -> GpuHybrid | None:
-        return self._compute.driver
+    def make_driver(self, window: vtk.vtkRenderWindow) -> GpuHybrid:
+        return GpuHybrid(window)
 
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
         if changes.reset_accumulation or self.setup is None:
@@ -94,32 +89,11 @@ class HybridDiffusion(Technique):
                 self._upload_cpu_state()
             self._last_ms = (time.perf_counter() - t0) * 1e3
         self.converged = self.iteration >= int(values["max_iterations"])
-        direct, scattered = (
-            (self._gpu.rho_d, self._gpu.diffusion.rho_s) if self._gpu is not None
-            else (self._direct, self._scattered)
-        )
-        assert direct is not None and scattered is not None
-        self.host.bind_texture(DIRECT_UNIFORM, direct)
-        self.host.bind_texture(SCATTERED_UNIFORM, scattered)
-
-    def stats(self) -> dict[str, Any]:
-        textures = [self._direct, self._scattered]
-        if self._gpu is not None:
-            textures += self._gpu.textures
-        return {
-            "recomputes": self._restarts,
-            "iterations": self.iteration,
-            "recompute_ms": self._last_ms,
-            "backend": self._backend,
-            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
-        }
+        gpu = self._gpu
+        self._bind((gpu.rho_d, gpu.diffusion.rho_s) if gpu is not None else None)
 
     def release(self) -> None:
-        for tex in (self._direct, self._scattered):
-            if tex is not None:
-                tex.release()
-        self._direct = self._scattered = None
-        self._compute.release()
+        super().release()
         self.setup = self._rho_d = self._rho_s = None
 
     def light_visibility_cpu(
@@ -141,9 +115,6 @@ class HybridDiffusion(Technique):
         return mean[..., 0]
 
     # -- internals ----------------------------------------------------------------------------
-    def _origin(self) -> tuple[float, float, float]:
-        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
-
     def _restart(self, values: Mapping[str, Any]) -> None:
         nx, ny, nz = self.host.dims
         grid = kd.Grid((nz, ny, nx), self.host.spacing, self._origin())
