@@ -16,6 +16,7 @@ through vtkvol's model or from user code touching the VTK objects directly.
 from __future__ import annotations
 
 import contextlib
+import functools
 import gc
 import logging
 import math
@@ -173,6 +174,7 @@ class Illuminator:
         )
         self._check_lights(self._lights)
         self._unsupported: str | None = None
+        self._frame_specs: list[LightSpec] | None = None
         self._check_input(raise_error=True)
         self._values: dict[str, dict[str, Any]] = {}
         self._technique_cls: type[Technique] = technique_class(method)
@@ -435,7 +437,14 @@ class Illuminator:
         return float(self.volume.GetProperty().GetScalarOpacityUnitDistance(0))
 
     def light_specs(self) -> list[LightSpec]:
-        """Enabled lights converted to dataset space (through the volume's inverse matrix)."""
+        """Enabled lights converted to dataset space (through the volume's inverse matrix).
+
+        Computed once per frame (the host and the technique both ask); outside a frame, anew."""
+        if self._frame_specs is not None:
+            return list(self._frame_specs)
+        return self._compute_light_specs()
+
+    def _compute_light_specs(self) -> list[LightSpec]:
         inv = vtk.vtkMatrix4x4()
         vtk.vtkMatrix4x4.Invert(self.volume.GetMatrix(), inv)
         linear = np.array([[inv.GetElement(i, j) for j in range(3)] for i in range(3)])
@@ -637,7 +646,10 @@ class Illuminator:
     # -- frame ----------------------------------------------------------------------------------
     def _on_start(self, _renderer: Any, _event: str) -> None:
         with _no_collection():
-            self._start_frame()
+            try:
+                self._start_frame()
+            finally:
+                self._frame_specs = None
 
     def _start_frame(self) -> None:
         if self._closed or self._unsupported is not None:
@@ -646,6 +658,7 @@ class Illuminator:
             return
         if self._follow_renderer:
             self._lights = self._renderer_lights()
+        self._frame_specs = self._compute_light_specs()
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
         if self._detach_requested and self._technique is not None:
@@ -722,7 +735,7 @@ class Illuminator:
                 "host_slice_weights.glsl", {"VV_INDEPENDENT": "1"} if independent else None
             )
         own = tech.sections(values)
-        defined = {m for s in own for m in _HOOK_DEFINITION.findall(s.code)}
+        defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
         if tech.SPEC.has("rgb") != ("vv_light_transmittance_rgb" in defined):
             # The capability is what the dock and the benchmark read; it must not lie.
@@ -875,6 +888,12 @@ class Illuminator:
 #: Uniforms and textures the host sets for itself (not for the technique).
 _MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
 _HOST_TEXTURES = frozenset({"vv_sliceWeights"})
+
+
+@functools.lru_cache(maxsize=64)
+def _defined_functions(codes: tuple[str, ...]) -> frozenset[str]:
+    """The ``vv_`` functions a technique's GLSL defines (asked every frame; parsed once)."""
+    return frozenset(m for code in codes for m in _HOOK_DEFINITION.findall(code))
 
 
 @contextlib.contextmanager
