@@ -143,11 +143,6 @@ def reference_for(lighting: str) -> LightingReference:
                        f"(it has: {known})") from None
 
 
-def scene_reference(scene: Scene) -> ReferenceSpec:
-    """The surface model's one physical truth of ``scene`` (see :class:`SurfaceReference`)."""
-    return SurfaceReference().spec(scene)
-
-
 def outward_normals(opacity: np.ndarray, spacing: Sequence[float]) -> np.ndarray:
     """Outward unit normals (x, y, z) per voxel, ``[z, y, x, 3]``: −∇α by central differences in
     µm; zero where the gradient vanishes (the AO reference then samples the full sphere)."""

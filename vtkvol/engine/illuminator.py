@@ -95,15 +95,6 @@ class Changes:
         return (self.first or self.opacity or self.lights or self.light_colors
                 or bool(self.invalidates & restart))
 
-    def merge(self, other: Changes) -> None:
-        self.opacity |= other.opacity
-        self.lights |= other.lights
-        self.light_colors |= other.light_colors
-        self.parameters |= other.parameters
-        self.invalidates |= other.invalidates
-        self.view |= other.view
-        self.first |= other.first
-
 
 class Illuminator:
     """Installs one illumination technique on a ``vtkVolume`` and keeps it up to date.
@@ -755,7 +746,7 @@ class Illuminator:
             replacements[(f"uniform int {name};", "post")] = f"uniform {sampler} {name};"
         if self._replacements.install(replacements):
             markers = {shaders.marker(s) for s in sections}
-            self._expected_markers = (markers, self._technique_uniform_names(values))
+            self._expected_markers = (markers, set(self._technique_uniform_values(values)))
 
     def _upload_weights(self) -> None:
         if self._weights is None:
@@ -787,9 +778,6 @@ class Illuminator:
                 )
         out.update(tech.uniforms(values))
         return out
-
-    def _technique_uniform_names(self, values: Mapping[str, Any]) -> set[str]:
-        return set(self._technique_uniform_values(values))
 
     def _upload_uniforms(self, values: Mapping[str, Any]) -> None:
         fu = self.shader_property.GetFragmentCustomUniforms()
