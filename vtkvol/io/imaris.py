@@ -27,7 +27,7 @@ from vtkvol.io.optional import require
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.units import unit_scale_um
-from vtkvol.io.volume_data import Spacing, VolumeData, resolve_channels
+from vtkvol.io.volume_data import VolumeData, resolve_channels, spacing_or_default
 
 __all__ = ["IMARIS_READER", "read_imaris"]
 
@@ -125,14 +125,13 @@ def read_imaris(
     if scale is None:
         notes.append(f"unknown length unit {unit!r} in the file: voxel size read as µm")
         scale = 1.0
-    voxel = [(hi - lo) / n * scale for (lo, hi), n in zip(extent, (nx, ny, nz), strict=True)]
-    from_metadata = all(np.isfinite(v) and v > 0 for v in voxel)
-    if not from_metadata:
-        notes.append(f"extent {extent} gives no positive voxel size: using 1 × 1 × 1 µm")
-        voxel = [1.0, 1.0, 1.0]
+    spacing, from_metadata = spacing_or_default(
+        [(hi - lo) / n * scale for (lo, hi), n in zip(extent, (nx, ny, nz), strict=True)],
+        f"extent {extent} gives no positive voxel size: using 1 × 1 × 1 µm", notes,
+    )
     return VolumeData(
         np.stack(volumes),
-        Spacing(*voxel),
+        spacing,
         [names[c] for c in chosen],
         source=str(path),
         voxel_size_from_metadata=from_metadata,

@@ -17,7 +17,12 @@ from vtkvol.io.errors import VolumeReadError
 from vtkvol.io.optional import require
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
-from vtkvol.io.volume_data import Spacing, VolumeData, default_channel_names, resolve_channels
+from vtkvol.io.volume_data import (
+    VolumeData,
+    default_channel_names,
+    resolve_channels,
+    spacing_or_default,
+)
 
 __all__ = ["MRC_READER", "read_mrc"]
 
@@ -66,12 +71,10 @@ def read_mrc(
         angstrom = (float(size.x), float(size.y), float(size.z))
     progress(1.0, "reading MRC")
     notes = [f"MRC header: {w.message}" for w in caught]
-    from_metadata = all(np.isfinite(a) and a > 0 for a in angstrom)
-    if from_metadata:
-        spacing = Spacing(*(a * ANGSTROM_UM for a in angstrom))
-    else:
-        spacing = Spacing(1.0, 1.0, 1.0)
-        notes.append(f"MRC voxel size {angstrom} Å is not set: using 1 × 1 × 1 µm")
+    spacing, from_metadata = spacing_or_default(
+        [a * ANGSTROM_UM for a in angstrom],
+        f"MRC voxel size {angstrom} Å is not set: using 1 × 1 × 1 µm", notes,
+    )
     return VolumeData(
         array,
         spacing,

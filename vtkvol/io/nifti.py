@@ -20,7 +20,12 @@ from vtkvol.io.optional import require
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.units import unit_scale_um
-from vtkvol.io.volume_data import Spacing, VolumeData, default_channel_names, resolve_channels
+from vtkvol.io.volume_data import (
+    VolumeData,
+    default_channel_names,
+    resolve_channels,
+    spacing_or_default,
+)
 
 __all__ = ["NIFTI_READER", "read_nifti"]
 
@@ -79,12 +84,10 @@ def read_nifti(
     if scale is None:
         scale = unit_scale_um("mm")
         notes.append("NIfTI header gives no length unit: voxel size read as mm")
-    from_metadata = all(np.isfinite(z) and z > 0 for z in zooms)
-    if from_metadata:
-        spacing = Spacing(*(z * scale for z in zooms))  # type: ignore[operator]
-    else:
-        spacing = Spacing(1.0, 1.0, 1.0)
-        notes.append(f"NIfTI voxel size {tuple(zooms)} is not positive: using 1 × 1 × 1 µm")
+    spacing, from_metadata = spacing_or_default(
+        [z * scale for z in zooms],  # type: ignore[operator]
+        f"NIfTI voxel size {tuple(zooms)} is not positive: using 1 × 1 × 1 µm", notes,
+    )
     affine = image.affine
     if affine is not None and np.count_nonzero(affine[:3, :3] - np.diag(np.diag(affine[:3, :3]))):
         notes.append("the file's orientation matrix is rotated or sheared: shown in voxel order")

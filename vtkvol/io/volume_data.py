@@ -68,6 +68,17 @@ def as_spacing(value: Spacing | Sequence[float] | float, *, what: str = "voxel_s
     return Spacing(*values)
 
 
+def spacing_or_default(values_um: Sequence[float], note: str,
+                       notes: list[str]) -> tuple[Spacing, bool]:
+    """``(spacing, from_metadata)``: the file's voxel size (x, y, z) in µm when every value is
+    finite and positive; otherwise 1 × 1 × 1 µm, and ``note`` (which says so) is added."""
+    values = [float(v) for v in values_um]
+    if all(math.isfinite(v) and v > 0 for v in values):
+        return Spacing(*values), True
+    notes.append(note)
+    return Spacing(1.0, 1.0, 1.0), False
+
+
 def default_channel_names(n: int) -> list[str]:
     """``["ch0", "ch1", …]``: names for channels the file does not name."""
     return [f"ch{i}" for i in range(n)]
