@@ -810,3 +810,20 @@ def test_version_detection_errors() -> None:
         detect_version({"format": FORMAT, "version": True})
     with pytest.raises(ValueError, match="format version 3; this version reads up to 2"):
         migrate({"format": FORMAT, "version": 3})
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda light: light.update(size=-1.0), r"lights\[0\]\.size = -1(\.0)? is below 0"),
+        (lambda light: light.update(falloff="cubic"), r"lights\[0\]\.falloff"),
+        (lambda light: light.update(size="big"), r"lights\[0\]\.size .*should be a number"),
+    ],
+    ids=["negative_size", "unknown_falloff", "size_not_a_number"],
+)
+def test_bad_light_size_or_falloff_is_named(tmp_path: Path, edit, message) -> None:
+    doc = load_fixture("v2_complete.vtkvol.json")
+    edit(doc["scene"]["lights"][0])
+    path = write_json(tmp_path / "bad.vtkvol.json", doc)
+    with pytest.raises(SessionError, match=message):
+        read_session(path)
