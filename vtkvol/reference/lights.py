@@ -47,12 +47,22 @@ class DirectionalLight:
 
 @dataclass(frozen=True)
 class PointLight:
-    """A point light at world ``position`` (x, y, z) in µm; it may lie inside the volume's box."""
+    """A point light at world ``position`` (x, y, z) in µm; it may lie inside the volume's box.
+
+    ``falloff_distance`` d₀ (µm): 0 gives unit irradiance everywhere (what the visibility
+    references assume); d₀ > 0 gives the irradiance (d₀/r)² at distance r, the host's
+    inverse-square fall-off (used by :func:`~vtkvol.reference.scattering.inscattered_mc`).
+    """
 
     position: Vec3
+    falloff_distance: float = 0.0
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "position", _finite3(self.position, "light position"))
+        d0 = float(self.falloff_distance)
+        if not (math.isfinite(d0) and d0 >= 0.0):
+            raise ValueError(f"falloff distance {self.falloff_distance} must be finite and >= 0")
+        object.__setattr__(self, "falloff_distance", d0)
 
 
 Light = DirectionalLight | PointLight
