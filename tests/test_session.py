@@ -33,6 +33,7 @@ from vtkvol.model import (
 )
 from vtkvol.model import session as session_mod
 from vtkvol.model.migrations import MIGRATIONS, detect_version
+from vtkvol.model.scene import Overlays
 from vtkvol.model.session import (
     FORMAT,
     SUFFIX,
@@ -122,6 +123,8 @@ def rich_model() -> SceneModel:
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
             background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3,
         ),
+        overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
+                          color_legend=True),
     )
 
 
@@ -427,7 +430,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 2)"),
+         "(format version 99; this version reads up to 3)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -744,7 +747,7 @@ def test_migrate_v0_to_v1_matches_fixture() -> None:
 def test_migrate_v1_to_v2_matches_fixture() -> None:
     raw = load_fixture("v1_complete.vtkvol.json")
     untouched = copy.deepcopy(raw)
-    out = migrate(raw)
+    out = MIGRATIONS[1](raw)
     assert out == load_fixture("v1_complete.migrated.vtkvol.json")
     assert [(x["size"], x["falloff"]) for x in out["scene"]["lights"]] == [(0.0, "none")] * 2
     assert raw == untouched
@@ -756,8 +759,24 @@ def test_v1_file_reads_without_warnings_as_ideal_lights() -> None:
     assert [(x.size, x.falloff) for x in session.model.lights] == [(0.0, "none")] * 2
 
 
+def test_migrate_v2_to_v3_matches_fixture() -> None:
+    raw = load_fixture("v2_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[2](raw)
+    assert out == load_fixture("v2_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    assert not any(out["scene"]["overlays"].values())  # v2 drew no overlays
+    assert raw == untouched
+
+
+def test_v2_file_reads_without_warnings_and_no_overlays() -> None:
+    session = read_session(FIXTURES / "v2_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.overlays == Overlays()
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v2_complete.vtkvol.json")
+    doc = load_fixture("v3_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -787,8 +806,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v2 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v2_complete.vtkvol.json")
+    """The checked-in v3 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v3_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -808,8 +827,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 3; this version reads up to 2"):
-        migrate({"format": FORMAT, "version": 3})
+    with pytest.raises(ValueError, match="format version 4; this version reads up to 3"):
+        migrate({"format": FORMAT, "version": 4})
 
 
 @pytest.mark.parametrize(

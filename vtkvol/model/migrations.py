@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 2
+VERSION = 3
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -113,7 +113,19 @@ def _v1_to_v2(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2}
+def _v2_to_v3(raw: dict[str, Any]) -> dict[str, Any]:
+    """v2 → v3: the scene gained ``overlays`` (scale bar, orientation axes, bounding box,
+    colour legend). v2 drew none of them, which the all-off section states exactly."""
+    out = copy.deepcopy(raw)
+    out["version"] = 3
+    scene = out.get("scene")
+    if isinstance(scene, dict):
+        scene.setdefault("overlays", {"scale_bar": False, "orientation_axes": False,
+                                      "bounding_box": False, "color_legend": False})
+    return out
+
+
+MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

@@ -19,6 +19,9 @@ from vtkvol.model.transfer_function import RGB, TransferFunction
 
 BlendMode = Literal["composite", "mip", "minip", "average", "additive", "isosurface"]
 BLEND_MODES: tuple[str, ...] = BlendMode.__args__  # type: ignore[attr-defined]
+#: PyVista's names for blend modes (``Plotter.add_volume(blending=...)``,
+#: ``mapper.blend_mode``), accepted wherever a blend mode is set and stored under our name.
+BLEND_ALIASES: dict[str, str] = {"maximum": "mip", "minimum": "minip"}
 ChannelMixing = Literal["additive", "composite"]
 Vec3 = tuple[float, float, float]
 #: Largest angular radius (°) of a directional light: wider is no longer a "direction".
@@ -232,6 +235,34 @@ class RenderSettings(EventedModel):
     albedo: float = Field(1.0, ge=0.0, le=1.0)
     phase_g: float = Field(0.0, ge=-0.99, le=0.99)
 
+    @field_validator("blend_mode", mode="before")
+    @classmethod
+    def _blend_alias(cls, v: Any):
+        # PyVista users write "maximum"/"minimum" (and any case); store one name per mode.
+        if isinstance(v, str):
+            name = v.strip().lower()
+            return BLEND_ALIASES.get(name, name)
+        return v
+
+
+class Overlays(EventedModel):
+    """Annotations drawn over the volume (in the view and in screenshots). None changes the
+    rendered volume or its illumination.
+
+    * ``scale_bar``: a horizontal bar of a round length in µm, measured in the plane of the
+      camera's focal point, with its length written above it.
+    * ``orientation_axes``: x (red), y (green), z (blue) arrows in a corner, turning with
+      the camera.
+    * ``bounding_box``: the outline of the data's box (voxel centres, world µm).
+    * ``color_legend``: a colour bar per visible channel over its TF's value span (data
+      units), titled with the channel's name.
+    """
+
+    scale_bar: bool = False
+    orientation_axes: bool = False
+    bounding_box: bool = False
+    color_legend: bool = False
+
 
 class SceneModel(EventedModel):
     """Everything the user set for one view."""
@@ -244,6 +275,7 @@ class SceneModel(EventedModel):
     slice_weights: SliceWeights = Field(default_factory=SliceWeights)
     camera: Camera = Field(default_factory=Camera)
     render: RenderSettings = Field(default_factory=RenderSettings)
+    overlays: Overlays = Field(default_factory=Overlays)
 
     @model_validator(mode="after")
     def _limits(self):
