@@ -51,6 +51,12 @@ BUILTIN_READERS: dict[str, str] = {
     "nifti": "vtkvol.io.nifti:NIFTI_READER",
     "mrc": "vtkvol.io.mrc:MRC_READER",
     "imaris": "vtkvol.io.imaris:IMARIS_READER",
+    "ome_zarr": "vtkvol.io.ome_zarr:OME_ZARR_READER",
+    "nd2": "vtkvol.io.nd2:ND2_READER",
+    "lif": "vtkvol.io.lif:LIF_READER",
+    "czi": "vtkvol.io.czi:CZI_READER",
+    # Last on purpose: it claims only files no other reader takes, and only with bioio installed.
+    "bioio": "vtkvol.io.bioio_fallback:BIOIO_READER",
 }
 """Entry-point name → ``"module:attribute"`` of vtkvol's own readers (same as pyproject.toml)."""
 

@@ -1,0 +1,358 @@
+"""OME-Zarr images (NGFF v0.4 on Zarr v2, v0.5 on Zarr v3): a ``.zarr`` folder with a pyramid.
+
+Read with ``zarr`` (optional extra ``formats``). The ``multiscales`` metadata (in the group's
+attributes for v0.4, under ``attributes["ome"]`` for v0.5) is interpreted here, a few dozen
+lines of a published JSON schema: the ``ome-zarr`` package's reader is built for napari (it
+returns every level and label as dask arrays and pulls in dask, aiohttp and fsspec), while
+what vtkvol needs is one level sliced lazily, which a zarr array does by itself.
+
+* axes: up to five of ``t``, ``c``, ``z``, ``y``, ``x`` (by ``type`` "time"/"channel"/"space"),
+  with a ``unit`` per axis (``micrometer``, ``nanometer``…; none means µm, with a note);
+* voxel size: the dataset's ``scale`` transformation times the multiscale's own, per level;
+* channel names and colours: ``omero.channels[i].label`` and ``color`` (hex ``RRGGBB``);
+* a ``bioformats2raw.layout`` root holds its first image in the group ``0``.
+
+**Pyramid level**: the finest level whose chosen channels, at one time point, fit both the
+memory budget (:data:`DEFAULT_LEVEL_BUDGET_BYTES`, or ``memory_budget_bytes`` of
+:func:`read_ome_zarr`) and the texture size per axis. Only that level is read, z-slab by z-slab,
+as zarr reads only the chunks a slice touches: a level larger than the budget is never loaded.
+The level read and why is in the notes and in ``metadata["level"]``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.limits import check_declared_bytes, physical_memory_bytes
+from vtkvol.io.optional import require
+from vtkvol.io.progress import Progress
+from vtkvol.io.registry import ReaderSpec
+from vtkvol.io.units import unit_scale_um
+from vtkvol.io.volume_data import (
+    VolumeData,
+    default_channel_names,
+    format_bytes,
+    resolve_channels,
+    spacing_or_default,
+)
+
+__all__ = ["DEFAULT_LEVEL_BUDGET_BYTES", "OME_ZARR_READER", "choose_level", "read_ome_zarr"]
+
+#: Voxel data of one time point read by default (all chosen channels): 2 GiB, what a 12 GB
+#: GPU holds next to its illumination volumes; at most a quarter of this machine's memory.
+DEFAULT_LEVEL_BUDGET_BYTES = min(2 << 30, physical_memory_bytes() // 4)
+#: Largest number of voxels per axis of the level chosen (the default GPU 3-D texture limit of
+#: :func:`vtkvol.io.read_volume`).
+DEFAULT_MAX_TEXTURE = 2048
+
+_AXIS_TYPES = {"time": "t", "channel": "c", "space": None}
+
+
+def _zarr_root(path: Path) -> Path:
+    """The store folder: ``path`` itself, or its folder when the metadata file was named."""
+    if path.is_file() and path.name in ("zarr.json", ".zattrs", ".zgroup"):
+        return path.parent
+    return path
+
+
+def _multiscales(attrs: dict[str, Any]) -> tuple[list[Any] | None, str]:
+    """``(multiscales, version)`` from a group's attributes (v0.5 nests them under ``ome``)."""
+    ome = attrs.get("ome")
+    if isinstance(ome, dict) and "multiscales" in ome:
+        return ome["multiscales"], str(ome.get("version", "0.5"))
+    if "multiscales" in attrs:
+        ms = attrs["multiscales"]
+        version = ms[0].get("version", "0.4") if isinstance(ms, list) and ms and isinstance(
+            ms[0], dict) else "0.4"
+        return ms, str(version)
+    return None, ""
+
+
+def _omero(attrs: dict[str, Any]) -> dict[str, Any]:
+    ome = attrs.get("ome")
+    omero = ome.get("omero") if isinstance(ome, dict) else None
+    omero = omero if omero is not None else attrs.get("omero")
+    return omero if isinstance(omero, dict) else {}
+
+
+def _axes(ms: dict[str, Any], ndim: int, path: Path) -> list[tuple[str, str | None]]:
+    """``[(name, unit)]`` per array axis, names normalised to t/c/z/y/x."""
+    raw = ms.get("axes")
+    if raw is None:  # v0.1/v0.2: always 5-D tczyx
+        raw = ["t", "c", "z", "y", "x"][-ndim:]
+    if not isinstance(raw, list) or len(raw) != ndim:
+        raise VolumeReadError(path, f"multiscales axes {raw!r} do not match the {ndim}-D arrays")
+    axes: list[tuple[str, str | None]] = []
+    for item in raw:
+        if isinstance(item, str):  # v0.3: names only
+            name, unit, kind = item, None, None
+        elif isinstance(item, dict) and isinstance(item.get("name"), str):
+            name, unit, kind = item["name"], item.get("unit"), item.get("type")
+        else:
+            raise VolumeReadError(path, f"multiscales axis {item!r} has no name")
+        name = name.lower()
+        if name not in ("t", "c", "z", "y", "x"):
+            mapped = _AXIS_TYPES.get(kind) if isinstance(kind, str) else None
+            if mapped is None:
+                raise VolumeReadError(path, f"unsupported axis {name!r} (type {kind!r}); vtkvol "
+                                            "reads t, c, z, y, x")
+            name = mapped
+        axes.append((name, unit if isinstance(unit, str) else None))
+    names = [a for a, _ in axes]
+    if len(set(names)) != len(names) or "x" not in names or "y" not in names:
+        raise VolumeReadError(path, f"axes {names} need x and y once each")
+    return axes
+
+
+def _scale(transforms: Any, ndim: int, path: Path, where: str) -> list[float]:
+    """The product of the ``scale`` transformations in ``transforms`` (ones if none)."""
+    scale = [1.0] * ndim
+    if transforms is None:
+        return scale
+    if not isinstance(transforms, list):
+        raise VolumeReadError(path, f"{where} coordinateTransformations is not a list")
+    for t in transforms:
+        if isinstance(t, dict) and t.get("type") == "scale":
+            values = t.get("scale")
+            if not isinstance(values, list) or len(values) != ndim:
+                raise VolumeReadError(path, f"{where} scale {values!r} does not have {ndim} values")
+            try:
+                scale = [s * float(v) for s, v in zip(scale, values, strict=True)]
+            except (TypeError, ValueError):
+                raise VolumeReadError(path, f"{where} scale {values!r} is not numeric") from None
+    return scale
+
+
+def _color(value: Any) -> tuple[float, float, float] | None:
+    if isinstance(value, str) and len(value) == 6:
+        try:
+            return tuple(int(value[i:i + 2], 16) / 255.0 for i in (0, 2, 4))  # type: ignore[return-value]
+        except ValueError:
+            return None
+    return None
+
+
+def _z_slabs(arr: Any, z_axis: int | None, n: int, bytes_per_z: int) -> list[slice]:
+    """z-slabs of about 32 MiB that start and end on the array's chunk boundaries in z, so that
+    no chunk is decoded twice."""
+    if z_axis is None:
+        return [slice(0, 1)]
+    chunk = max(1, int(arr.chunks[z_axis]))
+    step = chunk * max(1, (32 << 20) // max(1, bytes_per_z * chunk))
+    return [slice(start, min(n, start + step)) for start in range(0, n, step)]
+
+
+def choose_level(
+    shapes: Sequence[Sequence[int]],
+    voxel_bytes: int,
+    budget_bytes: int,
+    max_texture: int | None,
+) -> tuple[int, str]:
+    """Index of the finest level whose ``(c, z, y, x)`` shape fits, and why it was chosen.
+
+    ``shapes`` are per level, finest first, for the data that will be read (chosen channels,
+    one time point); ``voxel_bytes`` is the item size. Returns ``(-1, reason)`` when none fits.
+    """
+    for i, shape in enumerate(shapes):
+        nbytes = math.prod(shape) * voxel_bytes
+        too_wide = max_texture is not None and max(shape[1:]) > max_texture
+        if nbytes <= budget_bytes and not too_wide:
+            if i == 0:
+                return 0, "the finest level fits the memory budget"
+            finer = shapes[i - 1]
+            reason = (f"{format_bytes(math.prod(finer) * voxel_bytes)} > budget "
+                      f"{format_bytes(budget_bytes)}"
+                      if math.prod(finer) * voxel_bytes > budget_bytes
+                      else f"an axis of {max(finer[1:])} voxels > texture size {max_texture}")
+            return i, f"level {i - 1} does not fit ({reason})"
+    return -1, (f"even the coarsest level ({format_bytes(math.prod(shapes[-1]) * voxel_bytes)}, "
+                f"shape {tuple(shapes[-1])}) exceeds the budget {format_bytes(budget_bytes)}"
+                + (f" or texture size {max_texture}" if max_texture else ""))
+
+
+def read_ome_zarr(
+    path: Path,
+    *,
+    time_index: int = 0,
+    channels: Sequence[int | str] | None = None,
+    progress: Progress | None = None,
+    memory_budget_bytes: int | None = None,
+    max_texture_size: int | None = DEFAULT_MAX_TEXTURE,
+    level: int | None = None,
+) -> VolumeData:
+    """Read one time point of an OME-Zarr image as ``[c, z, y, x]`` from one pyramid level.
+
+    ``level`` forces a level (0 = finest); by default the finest one that fits
+    ``memory_budget_bytes`` (default :data:`DEFAULT_LEVEL_BUDGET_BYTES`) and
+    ``max_texture_size`` voxels per axis is read. The voxel size is that level's, in µm.
+    """
+    progress = progress or Progress()
+    path = Path(path)
+    zarr = require("zarr", "OME-Zarr images", path)
+    root = _zarr_root(path)
+    budget = DEFAULT_LEVEL_BUDGET_BYTES if memory_budget_bytes is None else int(memory_budget_bytes)
+    try:
+        group = zarr.open_group(str(root), mode="r")
+        attrs = dict(group.attrs)
+    except Exception as exc:  # zarr raises many types for a folder that is not a group
+        raise VolumeReadError(path, f"not a readable Zarr group ({type(exc).__name__}: "
+                                    f"{exc})") from exc
+    notes: list[str] = []
+    multiscales, version = _multiscales(attrs)
+    if multiscales is None and "0" in group:
+        # bioformats2raw layout: the images are the numbered child groups.
+        try:
+            child = group["0"]
+            child_ms, version = _multiscales(dict(child.attrs))
+        except Exception:
+            child_ms = None
+        if child_ms is not None:
+            group, multiscales = child, child_ms
+            notes.append("bioformats2raw layout: image 0 read")
+    if not multiscales:
+        raise VolumeReadError(path, "a Zarr group without OME-Zarr 'multiscales' metadata "
+                                    "(not an OME-Zarr image)")
+    if not isinstance(multiscales, list) or not isinstance(multiscales[0], dict):
+        raise VolumeReadError(path, "the 'multiscales' metadata is not a list of objects")
+    ms = multiscales[0]
+    datasets = ms.get("datasets")
+    if not isinstance(datasets, list) or not datasets or not all(
+            isinstance(d, dict) and isinstance(d.get("path"), str) for d in datasets):
+        raise VolumeReadError(path, "the multiscales 'datasets' list is missing, empty or has "
+                                    "entries without a path")
+    arrays = []
+    for d in datasets:
+        try:
+            arr = group[d["path"]]
+        except Exception:
+            raise VolumeReadError(path, f"pyramid level {d['path']!r} named in the metadata is "
+                                        "missing") from None
+        if not hasattr(arr, "shape") or not hasattr(arr, "dtype"):
+            raise VolumeReadError(path, f"pyramid level {d['path']!r} is a group, not an array")
+        arrays.append(arr)
+    ndim = arrays[0].ndim
+    if any(a.ndim != ndim for a in arrays):
+        raise VolumeReadError(path, f"pyramid levels differ in dimensions: "
+                                    f"{[a.shape for a in arrays]}")
+    axes = _axes(ms, ndim, path)
+    names_axes = [a for a, _ in axes]
+    global_scale = _scale(ms.get("coordinateTransformations"), ndim, path, "multiscales")
+    scales = [
+        [g * s for g, s in zip(global_scale, _scale(d.get("coordinateTransformations"), ndim,
+                                                    path, f"level {d['path']!r}"), strict=True)]
+        for d in datasets
+    ]
+    pos = {name: i for i, name in enumerate(names_axes)}
+    shape0 = arrays[0].shape
+    n_time = shape0[pos["t"]] if "t" in pos else 1
+    n_channels = shape0[pos["c"]] if "c" in pos else 1
+    if not 0 <= time_index < n_time:
+        raise VolumeReadError(path, f"time_index {time_index} is out of range: the image has "
+                                    f"{n_time} time point(s)")
+    omero = _omero(dict(group.attrs))
+    omero_channels = omero.get("channels") if isinstance(omero.get("channels"), list) else []
+    names = default_channel_names(n_channels)
+    colors: list[tuple[float, float, float] | None] = [None] * n_channels
+    if len(omero_channels) == n_channels:
+        for i, ch in enumerate(omero_channels):
+            if isinstance(ch, dict):
+                if isinstance(ch.get("label"), str) and ch["label"].strip():
+                    names[i] = ch["label"].strip()
+                colors[i] = _color(ch.get("color"))
+        if len(set(names)) != len(names):  # duplicate labels cannot be chosen by name
+            names = [f"{n} ({i})" for i, n in enumerate(names)]
+    elif omero_channels:
+        notes.append(f"omero metadata names {len(omero_channels)} channels, the data has "
+                     f"{n_channels}: channel names ignored")
+    chosen = resolve_channels(channels, names, str(path))
+
+    def read_shape(arr: Any) -> tuple[int, int, int, int]:
+        s = arr.shape
+        return (len(chosen), s[pos["z"]] if "z" in pos else 1, s[pos["y"]], s[pos["x"]])
+
+    itemsize = np.dtype(arrays[0].dtype).itemsize
+    shapes = [read_shape(a) for a in arrays]
+    if level is None:
+        index, reason = choose_level(shapes, itemsize, budget, max_texture_size)
+        if index < 0:
+            raise VolumeReadError(path, f"no pyramid level fits: {reason}")
+    else:
+        if not 0 <= level < len(arrays):
+            raise VolumeReadError(path, f"level {level} is out of range: the pyramid has "
+                                        f"{len(arrays)} level(s)")
+        index, reason = level, "level chosen by the caller"
+    arr = arrays[index]
+    c_n, z_n, y_n, x_n = shapes[index]
+    check_declared_bytes(path, c_n * z_n * y_n * x_n * itemsize, f"level {index} {shapes[index]}")
+    out = np.empty((c_n, z_n, y_n, x_n), dtype=arr.dtype)
+    progress(0.0, f"reading OME-Zarr level {index}")
+    try:
+        for k, c in enumerate(chosen):
+            for sl in _z_slabs(arr, pos.get("z"), z_n, y_n * x_n * itemsize):
+                index_tuple: list[Any] = []
+                for name in names_axes:
+                    index_tuple.append({"t": time_index, "c": c, "z": sl}.get(name, slice(None)))
+                block = np.asarray(arr[tuple(index_tuple)])
+                out[k, sl] = block.reshape(sl.stop - sl.start, y_n, x_n) if "z" in pos else block
+                progress((k + sl.stop / z_n) / len(chosen), f"reading OME-Zarr level {index}")
+    except VolumeReadError:
+        raise
+    except Exception as exc:  # codec errors on truncated chunks, missing stores…
+        raise VolumeReadError(path, f"level {datasets[index]['path']!r} cannot be read: the "
+                                    f"chunks are truncated or corrupt ({type(exc).__name__}: "
+                                    f"{exc})") from exc
+    level_scale = scales[index]
+    spacing_values: list[float] = []
+    for name in ("x", "y", "z"):
+        if name not in pos:
+            spacing_values.append(spacing_values[0])  # a 2-D image: one slice, z as x
+            continue
+        unit = axes[pos[name]][1]
+        factor = unit_scale_um(unit) if unit else 1.0
+        if factor is None:
+            notes.append(f"unknown unit {unit!r} on axis {name}: read as µm")
+            factor = 1.0
+        spacing_values.append(level_scale[pos[name]] * factor)
+    if not any(axes[pos[n]][1] for n in ("x", "y", "z") if n in pos):
+        notes.append("the axes declare no unit: scale read as µm")
+    spacing, from_metadata = spacing_or_default(
+        spacing_values, f"OME-Zarr scale {spacing_values} is not positive: using 1 × 1 × 1 µm",
+        notes)
+    level_text = (f"pyramid level {index} of {len(arrays)} ({datasets[index]['path']!r}, "
+                  f"{x_n}×{y_n}×{z_n} x×y×z) read: {reason}")
+    notes.insert(0, level_text)
+    return VolumeData(
+        out,
+        spacing,
+        [names[c] for c in chosen],
+        source=str(path),
+        voxel_size_from_metadata=from_metadata,
+        metadata={
+            "format": f"ome-zarr {version}",
+            "axes": "".join(names_axes).upper(),
+            "time_points": n_time,
+            "time_index": time_index,
+            "level": index,
+            "levels": [list(s) for s in (a.shape for a in arrays)],
+            "level_budget_bytes": budget,
+            "channel_colors": [colors[c] for c in chosen],
+            "voxel_size_source": "OME-Zarr scale" if from_metadata else "default 1 µm",
+        },
+        notes=notes,
+    )
+
+
+OME_ZARR_READER = ReaderSpec(
+    name="ome_zarr",
+    label="OME-Zarr (.zarr folder)",
+    # A folder is offered to this reader when it holds a Zarr group's metadata file.
+    filename_patterns=("*.zarr", "zarr.json", ".zattrs", ".zgroup"),
+    accepts_directories=True,
+    read=read_ome_zarr,
+)
