@@ -11,6 +11,9 @@ from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
 #: AO variants (``ao_mode``) and their ``VV_CT_AO`` value in the fragment shader.
 AO_MODES: tuple[str, ...] = ("off", "view_cone", "hemisphere", "baked_hemisphere")
+#: What the app shows for each of :data:`AO_MODES`.
+AO_MODE_LABELS: tuple[str, ...] = ("Off", "View cone", "Hemisphere (per sample)",
+                                   "Hemisphere (baked)")
 #: Baked-AO grid: data voxels per grid step (``ao_resolution``).
 AO_RESOLUTIONS: dict[str, int] = {"full": 1, "half": 2}
 
@@ -51,7 +54,7 @@ PARAMETERS: tuple[Param, ...] = (
         "baked_hemisphere: the same cones traced once per voxel of the AO grid when the data or "
         "transfer function change, then one texture fetch per sample (measured within 0.02 RMSE "
         "of per-sample, at about half its frame time on llvmpipe).",
-        kind="choice", choices=AO_MODES,
+        kind="choice", choices=AO_MODES, choice_labels=AO_MODE_LABELS,
         invalidates=Invalidates.SHADER | Invalidates.ILLUMINATION, uniform=False,
     ),
     Param(
@@ -68,6 +71,7 @@ PARAMETERS: tuple[Param, ...] = (
         "second voxel per axis (8× fewer points, bakes ≈ 3× faster; less accurate near small "
         "features). Both are interpolated trilinearly.",
         kind="choice", choices=tuple(AO_RESOLUTIONS),
+        choice_labels=("Full (every voxel)", "Half (every second voxel)"),
         invalidates=Invalidates.ILLUMINATION, uniform=False,
         applies_when=(("ao_mode", ("baked_hemisphere",)),),
     ),

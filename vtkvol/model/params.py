@@ -33,7 +33,9 @@ class Param:
 
     ``kind`` is ``"float"``, ``"int"``, ``"bool"`` or ``"choice"``. ``range`` is inclusive.
     ``unit`` is shown in labels (``"voxel"``, ``"°"``, ``""``). ``scale="log"`` asks the UI for
-    a logarithmic slider. ``applies_when`` lists ``(other parameter, values)`` pairs that must
+    a logarithmic slider. ``choice_labels`` (optional, one per choice) are the words the app
+    shows for a ``"choice"`` parameter's values; the values stay the stored identifiers.
+    ``applies_when`` lists ``(other parameter, values)`` pairs that must
     all hold for this parameter to have an effect (the dock hides it otherwise), e.g.
     ``(("ao_mode", ("view_cone",)),)``.
     """
@@ -48,9 +50,21 @@ class Param:
     unit: str = ""
     scale: Literal["linear", "log"] = "linear"
     choices: tuple[str, ...] = ()
+    choice_labels: tuple[str, ...] = ()
     invalidates: Invalidates = Invalidates.FRAME
     uniform: bool = field(default=True)  # uploaded as vv_<technique>_<name> when numeric
     applies_when: tuple[tuple[str, tuple[Any, ...]], ...] = ()
+
+    def __post_init__(self) -> None:
+        if self.choice_labels and len(self.choice_labels) != len(self.choices):
+            raise ValueError(f"{self.name}: {len(self.choice_labels)} choice labels for "
+                             f"{len(self.choices)} choices")
+
+    def choice_label(self, value: Any) -> str:
+        """The declared label of choice ``value`` (the value itself when none is declared)."""
+        if self.choice_labels and value in self.choices:
+            return self.choice_labels[self.choices.index(value)]
+        return str(value)
 
     def applies(self, values: Mapping[str, Any]) -> bool:
         """Whether this parameter has an effect given the technique's other ``values``."""
