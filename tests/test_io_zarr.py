@@ -1,0 +1,179 @@
+"""OME-Zarr reader: pyramids written by the reference writer (ome-zarr) in NGFF v0.4 and v0.5."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+zarr = pytest.importorskip("zarr")
+writer = pytest.importorskip("ome_zarr.writer")
+ome_format = pytest.importorskip("ome_zarr.format")
+
+from vtkvol.io import VolumeReadError, read_volume  # noqa: E402
+from vtkvol.io.ome_zarr import OME_ZARR_READER, choose_level, read_ome_zarr  # noqa: E402
+from vtkvol.io.registry import get_reader  # noqa: E402
+
+WINDOW = {"start": 0, "end": 1000, "min": 0, "max": 65535}
+
+
+def _write(path: Path, data: np.ndarray, axes: str, *, version: str = "0.5",
+           scale: dict[str, float] | None = None, unit: str = "micrometer",
+           labels: list[str] | None = None, levels: int = 3) -> Path:
+    fmt = ome_format.FormatV05() if version == "0.5" else ome_format.FormatV04()
+    group = zarr.open_group(str(path), mode="w", zarr_format=fmt.zarr_format)
+    extra = {}
+    if labels is not None:
+        colors = ["0000FF", "00FF00", "FF0000"]
+        extra["omero"] = {"channels": [{"label": label, "color": colors[i], "window": WINDOW}
+                                       for i, label in enumerate(labels)]}
+    writer.write_image(
+        data, group, axes=axes, fmt=fmt, scale_factors=tuple(2 ** i for i in range(1, levels)),
+        scale=scale, axes_units={a: unit for a in axes if a in "zyx"}, **extra,
+    )
+    return path
+
+
+def _cells(c: int = 2, z: int = 16, y: int = 32, x: int = 40) -> np.ndarray:
+    rng = np.random.default_rng(1)
+    return rng.integers(0, 4000, size=(c, z, y, x), dtype=np.uint16)
+
+
+@pytest.mark.parametrize("version", ["0.4", "0.5"])
+def test_reads_shape_voxel_size_channels_from_either_version(tmp_path, version):
+    data = _cells()
+    path = _write(tmp_path / "cells.zarr", data, "czyx", version=version,
+                  scale={"c": 1.0, "z": 0.5, "y": 0.2, "x": 0.2}, labels=["DAPI", "GFP"])
+    assert get_reader(path) is OME_ZARR_READER  # the folder is recognised by its zarr metadata
+    vol = read_volume(path)
+    assert vol.array.shape == (2, 16, 32, 40)
+    np.testing.assert_array_equal(vol.array, data)
+    assert vol.voxel_size_um == pytest.approx((0.2, 0.2, 0.5))
+    assert vol.voxel_size_from_metadata
+    assert vol.channel_names == ["DAPI", "GFP"]
+    assert vol.metadata["channel_colors"] == [(0.0, 0.0, 1.0), (0.0, 1.0, 0.0)]
+    assert vol.metadata["format"] == f"ome-zarr {version}"
+    assert vol.metadata["level"] == 0
+    assert any("pyramid level 0 of 3" in note for note in vol.notes)
+
+
+def test_metadata_file_itself_opens_the_image(tmp_path):
+    path = _write(tmp_path / "a.zarr", _cells(1), "czyx", labels=["only"])
+    vol = read_volume(path / "zarr.json")
+    assert vol.channel_names == ["only"]
+
+
+def test_units_are_converted_to_micrometres(tmp_path):
+    path = _write(tmp_path / "em.zarr", _cells(1, 8, 16, 16)[0], "zyx", version="0.4",
+                  scale={"z": 40.0, "y": 8.0, "x": 8.0}, unit="nanometer")
+    vol = read_volume(path)
+    assert vol.voxel_size_um == pytest.approx((0.008, 0.008, 0.04))
+
+
+def test_budget_picks_a_coarser_level_and_never_reads_the_finer_one(tmp_path):
+    data = _cells()
+    path = _write(tmp_path / "big.zarr", data, "czyx",
+                  scale={"c": 1.0, "z": 0.5, "y": 0.2, "x": 0.2}, labels=["DAPI", "GFP"])
+    # Corrupt every chunk of level 0: a read of it would fail, so success proves it was skipped.
+    for chunk in (path / "s0").rglob("*"):
+        if chunk.is_file() and chunk.name != "zarr.json":
+            chunk.write_bytes(b"\x00garbage")
+    level0_bytes = data.nbytes
+    vol = read_ome_zarr(path, memory_budget_bytes=level0_bytes // 2)
+    assert vol.metadata["level"] == 1
+    assert vol.array.shape == (2, 16, 16, 20)
+    assert vol.voxel_size_um == pytest.approx((0.4, 0.4, 0.5))
+    assert vol.array.nbytes <= level0_bytes // 2
+    assert "pyramid level 1 of 3" in vol.notes[0] and "budget" in vol.notes[0]
+    # Choosing one channel halves the bytes: level 0 would now fit, and its damage shows.
+    with pytest.raises(VolumeReadError, match=r"^big\.zarr: level 's0' cannot be read"):
+        read_ome_zarr(path, memory_budget_bytes=level0_bytes // 2, channels=["GFP"])
+
+
+def test_texture_limit_also_picks_a_coarser_level(tmp_path):
+    path = _write(tmp_path / "wide.zarr", _cells(1, 4, 32, 64)[0], "zyx")
+    vol = read_ome_zarr(path, max_texture_size=32)
+    assert vol.array.shape == (1, 4, 16, 32)
+    assert "texture size 32" in vol.notes[0]
+
+
+def test_choose_level_order_and_failure():
+    shapes = [(1, 64, 64, 64), (1, 64, 32, 32), (1, 64, 16, 16)]
+    assert choose_level(shapes, 2, 64 ** 3 * 2, None)[0] == 0
+    assert choose_level(shapes, 2, 64 * 32 * 32 * 2, None)[0] == 1
+    index, reason = choose_level(shapes, 2, 100, None)
+    assert index == -1 and "coarsest" in reason
+
+
+def test_time_axis(tmp_path):
+    data = np.stack([np.full((2, 4, 8, 8), t * 10 + 1, np.uint16) for t in range(3)])
+    data[:, 1] += 5  # channel 1 differs from channel 0
+    path = _write(tmp_path / "t.zarr", data, "tczyx", levels=1)
+    vol = read_volume(path, time_index=2, channels=[1])
+    assert vol.metadata["time_points"] == 3
+    assert np.all(vol.array == 26)
+    with pytest.raises(VolumeReadError, match=r"^t\.zarr: time_index 3 is out of range: the image "
+                                              r"has 3 time point"):
+        read_volume(path, time_index=3)
+
+
+def _one_line(exc: pytest.ExceptionInfo, name: str) -> str:
+    text = str(exc.value)
+    assert "\n" not in text and text.startswith(f"{name}: ")
+    return text
+
+
+def test_missing_level_is_named(tmp_path):
+    path = _write(tmp_path / "cut.zarr", _cells(1), "czyx")
+    shutil.rmtree(path / "s1")
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(path)
+    assert "pyramid level 's1' named in the metadata is missing" in _one_line(exc, "cut.zarr")
+
+
+def test_truncated_chunk_is_an_error_not_zeros(tmp_path):
+    path = _write(tmp_path / "trunc.zarr", _cells(1), "czyx", levels=1)
+    chunks = [p for p in (path / "s0").rglob("*") if p.is_file() and p.name != "zarr.json"]
+    assert chunks
+    for chunk in chunks:
+        chunk.write_bytes(chunk.read_bytes()[:10])
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(path)
+    assert "truncated or corrupt" in _one_line(exc, "trunc.zarr")
+
+
+def test_wrong_metadata(tmp_path):
+    plain = tmp_path / "plain.zarr"
+    zarr.open_group(str(plain), mode="w").create_array("0", shape=(4, 4), dtype="uint8")
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(plain)
+    assert "without OME-Zarr 'multiscales' metadata" in _one_line(exc, "plain.zarr")
+
+    path = _write(tmp_path / "axes.zarr", _cells(1), "czyx", version="0.5", levels=1)
+    meta = json.loads((path / "zarr.json").read_text())
+    meta["attributes"]["ome"]["multiscales"][0]["axes"].pop(0)  # 3 axes for 4-D arrays
+    (path / "zarr.json").write_text(json.dumps(meta))
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(path)
+    assert "do not match the 4-D arrays" in _one_line(exc, "axes.zarr")
+
+    meta["attributes"]["ome"]["multiscales"][0]["datasets"] = []
+    (path / "zarr.json").write_text(json.dumps(meta))
+    with pytest.raises(VolumeReadError, match="'datasets' list is missing, empty"):
+        read_volume(path)
+
+    not_zarr = tmp_path / "empty.zarr"
+    not_zarr.mkdir()
+    (not_zarr / ".zattrs").write_text("{not json")
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(not_zarr)
+    _one_line(exc, "empty.zarr")
+
+
+def test_no_level_fits_the_budget(tmp_path):
+    path = _write(tmp_path / "huge.zarr", _cells(1), "czyx")
+    with pytest.raises(VolumeReadError, match=r"no pyramid level fits: even the coarsest"):
+        read_ome_zarr(path, memory_budget_bytes=16)
