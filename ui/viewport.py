@@ -238,8 +238,9 @@ class Viewport(QWidget):
         if self._closed:
             return
         if self.scene is None:
+            # The first view and "reset view" frame what is visible, not the empty box.
             self.scene = VolumeScene(self.renderer, self.model, data,
-                                     request_render=self.request_render)
+                                     request_render=self.request_render, framing="visible")
             self.scene.engine_edit = self.engine_edit
             self.scene.error.connect(self.illuminationFailed.emit)
             self.scene.progress.connect(self.illuminationProgress.emit)
@@ -305,7 +306,8 @@ class Viewport(QWidget):
 
     # -- camera ---------------------------------------------------------------------------------
     def reset_camera(self) -> None:
-        """Frame the volume from the default direction (the model's camera follows)."""
+        """Frame the visible content (voxels with non-zero opacity, inside the crop) from the
+        default direction (the model's camera follows)."""
         if self.scene is not None:
             self.scene.reset_camera()
             self.request_render()

@@ -14,13 +14,15 @@ from __future__ import annotations
 
 import contextlib
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 import vtk
 from vtk.util.numpy_support import numpy_to_vtk
 
+from vtkvol.engine.framing import visible_bounds
 from vtkvol.engine.illuminator import Illuminator
+from vtkvol.engine.overlays import SceneOverlays
 from vtkvol.model.defaults import default_channels
 from vtkvol.model.evented import Signal, element_fields, fields_of, subfields, touches
 from vtkvol.model.scene import Channel, SceneModel
@@ -64,6 +66,10 @@ class VolumeScene:
     request_render
         Called when the view needs a new frame (the app coalesces these on a Qt timer);
         default: render the window at once.
+    framing
+        What :meth:`reset_camera` frames: ``"box"``, the data's whole box, or ``"visible"``,
+        the voxels the transfer functions make visible (the app's first view and "reset view":
+        a mostly transparent stack then fills the view with its object).
     """
 
     def __init__(
@@ -73,8 +79,10 @@ class VolumeScene:
         data: VolumeData | None = None,
         *,
         request_render: Callable[[], None] | None = None,
+        framing: Literal["box", "visible"] = "box",
     ) -> None:
         self.renderer = renderer
+        self.framing = framing
         self.model = model
         self._request_render = request_render
         self.data: VolumeData | None = None
@@ -103,6 +111,8 @@ class VolumeScene:
         self.property.SetInterpolationTypeToLinear()
         self.volume.SetMapper(self.mapper)
         self.volume.SetProperty(self.property)
+        #: Scale bar, orientation axes, bounding box and colour legend (``model.overlays``).
+        self.overlays = SceneOverlays(renderer)
         model.changed.connect(self._on_model_changed)
         if data is not None:
             self.set_data(data)
@@ -143,6 +153,7 @@ class VolumeScene:
             )
             self.illuminator.on_error = self._on_illumination_error
             self.illuminator.on_progress = self._on_illumination_progress
+        self.overlays.set_bounds(self.bounds)
         self._apply_all()
         if self.model.camera.position is None:
             self.reset_camera()
@@ -176,6 +187,10 @@ class VolumeScene:
             self._apply_slice_weights()
         if touches(paths, "camera") and not self._syncing_camera:
             self._apply_camera()
+        if touches(paths, "overlays"):
+            self.overlays.apply(self.model.overlays)
+        if touches(paths, "channels") and self.model.overlays.color_legend:
+            self._apply_legend()
         self.request_render()
 
     def _on_channels_change(self, paths: frozenset[str]) -> None:
@@ -205,6 +220,7 @@ class VolumeScene:
         render = self.model.render
         if every or "background" in names:
             self.renderer.SetBackground(*render.background)
+            self.overlays.set_background(render.background)
         if every or "jitter" in names:
             self.mapper.SetUseJittering(int(render.jitter))
         if every or names & {"sample_distance", "interactive_sample_distance",
@@ -228,6 +244,16 @@ class VolumeScene:
             self._apply_camera()
         assert self.illuminator is not None
         self.illuminator.set_lights(self.model.lights)
+        self._apply_legend()
+        self.overlays.apply(self.model.overlays)
+
+    def _apply_legend(self) -> None:
+        """The colour legend shows each visible channel's colour function."""
+        self.overlays.set_legend_channels([
+            (channel.name, self._color_functions[c])
+            for c, channel in enumerate(self.model.channels)
+            if channel.visible and c < len(self._color_functions)
+        ])
 
     def _apply_channels(self) -> None:
         """(Re)build every channel: one colour and one opacity function per channel, kept and
@@ -392,9 +418,18 @@ class VolumeScene:
             self._request_render()
 
     # -- camera ---------------------------------------------------------------------------------
+    def visible_bounds(self) -> tuple[float, float, float, float, float, float]:
+        """World bounds (µm) of what is visible: voxels with non-zero opacity inside the crop
+        box (:func:`vtkvol.engine.framing.visible_bounds`); the data's box when nothing is."""
+        if self.data is None:
+            return self.bounds
+        found = visible_bounds(self.data, self.model)
+        return found if found is not None else self.model.crop.as_bounds(self.bounds)
+
     def reset_camera(self, *, azimuth: float = 30.0, elevation: float = 20.0) -> None:
-        """Frame the (cropped) volume from the front (−y), z up, then rotate by the angles (°)."""
-        b = self.bounds
+        """Frame the data's box, or with ``framing="visible"`` the visible content
+        (:meth:`visible_bounds`), from the front (−y), z up, then rotate by the angles (°)."""
+        b = self.visible_bounds() if self.framing == "visible" else self.bounds
         center = np.array([(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2])
         cam = self.renderer.GetActiveCamera()
         cam.SetParallelProjection(int(self.model.camera.parallel_projection))
@@ -457,6 +492,7 @@ class VolumeScene:
     def close(self) -> None:
         """Release GL resources and remove the volume (call while the window still exists)."""
         self.model.changed.disconnect(self._on_model_changed)
+        self.overlays.close()
         if self.illuminator is not None:
             self.illuminator.release()
             self.illuminator = None

@@ -1,0 +1,253 @@
+"""Annotations over the volume: scale bar, orientation axes, bounding box, colour legend.
+
+:class:`SceneOverlays` owns the VTK props of ``SceneModel.overlays``; the
+:class:`~vtkvol.engine.scene.VolumeScene` tells it what changed. Everything is an ordinary
+prop of the scene's render window, so screenshots contain it too. Nothing here changes the
+volume or its illumination.
+
+* **Bounding box**: a ``vtkOutlineSource`` over the data's bounds (voxel centres, µm), an
+  opaque actor in the volume's renderer, so the volume hides its far edges.
+* **Orientation axes**: a ``vtkAxesActor`` in a small renderer in the lower-left corner (a
+  layer above the volume's), whose camera looks along the main camera's direction before
+  each frame. No interactor is needed, so offscreen renders (``vtkvol render``) have it too.
+* **Scale bar**: a 2-D bar of a round length (1, 2 or 5 × 10ⁿ µm, about a fifth of the
+  view's width) measured in the plane through the camera's focal point, with its length
+  above it; recomputed before each frame from the camera.
+* **Colour legend**: a ``vtkScalarBarActor`` per visible channel over its colour function's
+  value span (data units), titled with the channel's name.
+
+Line and text colours follow the background's brightness (light on dark, dark on light).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import vtk
+
+from vtkvol.model.scene import RGB, Overlays
+
+#: Width of the scale bar, as a share of the view's width, before rounding its length.
+SCALE_BAR_SHARE = 0.2
+#: Corner viewport of the orientation axes (share of the view's width/height).
+AXES_VIEWPORT = (0.0, 0.0, 0.2, 0.2)
+#: Margin of the scale bar from the view's lower-right corner, pixels.
+MARGIN_PX = 14
+
+
+def round_length(length: float) -> float:
+    """The largest 1, 2 or 5 × 10ⁿ not above ``length`` (> 0)."""
+    exponent = math.floor(math.log10(length))
+    base = 10.0**exponent
+    for step in (5.0, 2.0, 1.0):
+        if step * base <= length * (1 + 1e-9):
+            return step * base
+    return base
+
+
+def format_length(length_um: float) -> str:
+    """``"50 µm"``, ``"2 mm"``, ``"500 nm"``: the unit that keeps the number readable."""
+    if length_um >= 1000.0:
+        return f"{length_um / 1000.0:g} mm"
+    if length_um < 1.0:
+        return f"{length_um * 1000.0:g} nm"
+    return f"{length_um:g} µm"
+
+
+def ink_for(background: RGB) -> RGB:
+    """Line and text colour readable on ``background``."""
+    r, g, b = background
+    return (0.1, 0.1, 0.1) if 0.2126 * r + 0.7152 * g + 0.0722 * b > 0.5 else (0.92, 0.92, 0.92)
+
+
+class SceneOverlays:
+    """The overlay props of one scene (see the module docstring)."""
+
+    def __init__(self, renderer: vtk.vtkRenderer) -> None:
+        self.renderer = renderer
+        self._state = Overlays()
+        self._ink: RGB = (0.92, 0.92, 0.92)
+
+        self._outline = vtk.vtkOutlineSource()
+        mapper = vtk.vtkPolyDataMapper()
+        mapper.SetInputConnection(self._outline.GetOutputPort())
+        self.box_actor = vtk.vtkActor()
+        self.box_actor.SetMapper(mapper)
+        self.box_actor.PickableOff()
+        self.box_actor.GetProperty().SetLineWidth(1.5)
+        self.box_actor.GetProperty().LightingOff()
+
+        self.axes_actor = vtk.vtkAxesActor()
+        self.axes_actor.SetShaftTypeToCylinder()
+        self.axes_actor.SetTotalLength(1.0, 1.0, 1.0)
+        self.axes_renderer = vtk.vtkRenderer()
+        self.axes_renderer.SetViewport(*AXES_VIEWPORT)
+        self.axes_renderer.SetLayer(1)
+        self.axes_renderer.InteractiveOff()  # clicks in the corner still move the main camera
+        self.axes_renderer.AddActor(self.axes_actor)
+
+        self._bar = vtk.vtkPolyData()
+        points = vtk.vtkPoints()
+        points.SetNumberOfPoints(2)
+        self._bar.SetPoints(points)
+        lines = vtk.vtkCellArray()
+        lines.InsertNextCell(2, [0, 1])
+        self._bar.SetLines(lines)
+        bar_mapper = vtk.vtkPolyDataMapper2D()
+        bar_mapper.SetInputData(self._bar)
+        self.bar_actor = vtk.vtkActor2D()
+        self.bar_actor.SetMapper(bar_mapper)
+        self.bar_actor.GetProperty().SetLineWidth(4.0)
+        self.bar_actor.PickableOff()
+        self.bar_text = vtk.vtkTextActor()
+        text = self.bar_text.GetTextProperty()
+        text.SetFontSize(14)
+        text.SetJustificationToCentered()
+        text.SetVerticalJustificationToBottom()
+        self.bar_text.PickableOff()
+        #: Length (µm) and pixel length of the bar in the last frame (tests read them).
+        self.bar_length_um = 0.0
+        self.bar_length_px = 0.0
+
+        self.legends: list[vtk.vtkScalarBarActor] = []
+        self._legend_sources: list[tuple[str, vtk.vtkScalarsToColors]] = []
+        self._tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._before_frame)
+
+    # -- state ----------------------------------------------------------------------------------
+    @property
+    def state(self) -> Overlays:
+        return self._state
+
+    def set_bounds(self, bounds: Sequence[float]) -> None:
+        """The data's box (xmin, xmax, ymin, ymax, zmin, zmax) in µm."""
+        self._outline.SetBounds(*(float(b) for b in bounds))
+
+    def set_background(self, background: RGB) -> None:
+        self._ink = ink_for(background)
+        self.box_actor.GetProperty().SetColor(*self._ink)
+        self.bar_actor.GetProperty().SetColor(*self._ink)
+        self.bar_text.GetTextProperty().SetColor(*self._ink)
+        for legend in self.legends:
+            for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
+                prop.SetColor(*self._ink)
+
+    def set_legend_channels(self, channels: Sequence[tuple[str, vtk.vtkScalarsToColors]]) -> None:
+        """The visible channels' names and colour functions, in order."""
+        self._legend_sources = list(channels)
+        self._build_legends()
+
+    def apply(self, state: Overlays) -> None:
+        """Show what ``state`` asks for."""
+        self._state = state.model_copy()
+        ren = self.renderer
+        _show(ren, self.box_actor, state.bounding_box)
+        _show(ren, self.bar_actor, state.scale_bar)
+        _show(ren, self.bar_text, state.scale_bar)
+        self._build_legends()
+        window = ren.GetRenderWindow()
+        has_axes = window is not None and window.HasRenderer(self.axes_renderer)
+        if state.orientation_axes and not has_axes and window is not None:
+            # The volume's renderer stays on layer 0; the corner is drawn over it.
+            window.SetNumberOfLayers(max(window.GetNumberOfLayers(), 2))
+            window.AddRenderer(self.axes_renderer)
+        elif not state.orientation_axes and has_axes:
+            window.RemoveRenderer(self.axes_renderer)
+
+    def _build_legends(self) -> None:
+        for legend in self.legends:
+            self.renderer.RemoveViewProp(legend)
+        self.legends = []
+        if not self._state.color_legend:
+            return
+        count = len(self._legend_sources)
+        # One above the other along the right edge: side by side, the labels would collide.
+        band = 0.8 / max(count, 1)  # from the top down to above the scale bar
+        for k, (name, lut) in enumerate(self._legend_sources):
+            legend = vtk.vtkScalarBarActor()
+            legend.SetLookupTable(lut)
+            legend.SetTitle(name)
+            legend.SetNumberOfLabels(3)
+            legend.SetLabelFormat("%.4g")
+            legend.SetTextPositionToPrecedeScalarBar()  # labels left of the bar: on screen
+            legend.SetMaximumWidthInPixels(90)
+            legend.SetBarRatio(0.3)
+            legend.UnconstrainedFontSizeOn()
+            legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
+            legend.SetPosition(0.82, 0.97 - band * (k + 1))
+            legend.SetWidth(0.16)
+            legend.SetHeight(band - 0.04)
+            for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
+                prop.SetColor(*self._ink)
+                prop.SetFontSize(12)
+                prop.ShadowOff()
+                prop.BoldOff()
+                prop.ItalicOff()
+            legend.PickableOff()
+            self.renderer.AddViewProp(legend)
+            self.legends.append(legend)
+
+    # -- per frame ------------------------------------------------------------------------------
+    def _before_frame(self, *_: object) -> None:
+        if self._state.orientation_axes:
+            self._orient_axes()
+        if self._state.scale_bar:
+            self._place_scale_bar()
+
+    def _orient_axes(self) -> None:
+        main = self.renderer.GetActiveCamera()
+        cam = self.axes_renderer.GetActiveCamera()
+        direction = np.subtract(main.GetPosition(), main.GetFocalPoint())
+        norm = float(np.linalg.norm(direction)) or 1.0
+        cam.SetFocalPoint(0.0, 0.0, 0.0)
+        cam.SetPosition(*(direction / norm * 5.0))
+        cam.SetViewUp(*main.GetViewUp())
+        cam.SetParallelProjection(0)
+        cam.SetViewAngle(30.0)
+        self.axes_renderer.ResetCamera(-0.6, 0.6, -0.6, 0.6, -0.6, 0.6)
+
+    def _place_scale_bar(self) -> None:
+        width, height = self.renderer.GetSize()
+        if width < 2 or height < 2:
+            return
+        cam = self.renderer.GetActiveCamera()
+        if cam.GetParallelProjection():
+            world_height = 2.0 * cam.GetParallelScale()
+        else:
+            world_height = 2.0 * cam.GetDistance() * math.tan(math.radians(cam.GetViewAngle()) / 2)
+        um_per_px = world_height / height
+        if not um_per_px > 0.0:
+            return
+        length = round_length(SCALE_BAR_SHARE * width * um_per_px)
+        pixels = length / um_per_px
+        x1 = width - MARGIN_PX
+        x0 = x1 - pixels
+        y = MARGIN_PX
+        points = self._bar.GetPoints()
+        points.SetPoint(0, x0, y, 0.0)
+        points.SetPoint(1, x1, y, 0.0)
+        points.Modified()
+        self._bar.Modified()
+        self.bar_text.SetInput(format_length(length))
+        self.bar_text.SetPosition(0.5 * (x0 + x1), y + 5)
+        self.bar_length_um, self.bar_length_px = length, pixels
+
+    def close(self) -> None:
+        self.renderer.RemoveObserver(self._tag)
+        for actor in (self.box_actor,):
+            self.renderer.RemoveActor(actor)
+        for actor in (self.bar_actor, self.bar_text, *self.legends):
+            self.renderer.RemoveViewProp(actor)
+        self.legends = []
+        window = self.renderer.GetRenderWindow()
+        if window is not None and window.HasRenderer(self.axes_renderer):
+            window.RemoveRenderer(self.axes_renderer)
+
+
+def _show(renderer: vtk.vtkRenderer, prop: vtk.vtkProp, visible: bool) -> None:
+    present = bool(renderer.HasViewProp(prop))
+    if visible and not present:
+        renderer.AddViewProp(prop)
+    elif not visible and present:
+        renderer.RemoveViewProp(prop)
