@@ -87,8 +87,9 @@ def test_one_reference_per_scene_and_lighting_model():
     assert spec.label == f"T({scene.light_size_deg:g}°) + AO({spec.ao_distance_um:g} µm)"
     assert ReferenceSpec().label == "T" and ReferenceSpec(0.0, 12.0).label == "T + AO(12 µm)"
     assert reference_for("surface").lighting == "surface"
-    with pytest.raises(KeyError, match="no reference for the 'medium' lighting model"):
-        reference_for("medium")
+    assert reference_for("medium").lighting == "medium"
+    with pytest.raises(KeyError, match="no reference for the 'glow' lighting model"):
+        reference_for("glow")
 
 
 def test_a_lighting_model_plugs_in_by_adding_its_reference(monkeypatch):
@@ -475,3 +476,66 @@ def test_auto_ranks_the_declared_settings_by_a_results_file(tmp_path):
     assert choice.considered[0]["label"] == "local"
     assert choice.method == "shadow_volume" and choice.parameters["resolution"] in cost
     assert choice.cost_ms == cost[choice.parameters["resolution"]]
+
+
+def test_medium_reference_adds_path_traced_inscattered_light_scaled_by_the_lights():
+    from vtkvol.bench.references import (
+        MediumReference,
+        MediumSpec,
+        ReferenceBudget,
+        ReferenceCache,
+    )
+
+    scene = phantom_scenes(16)[0]
+    cache = ReferenceCache(ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4))
+    single = MediumReference(orders="single").volumes(cache, scene)
+    multiple = MediumReference().volumes(cache, scene)
+    assert single.irradiance is None and multiple.irradiance is not None
+    # the same direct light: the surface reference's visibility
+    np.testing.assert_array_equal(single.visibility[0], multiple.visibility[0])
+    alpha = scene.opacity()
+    assert multiple.irradiance[alpha > 0.3].mean() > 0.05  # light scatters inside
+    assert np.all(multiple.irradiance >= 0)
+    spec = MediumReference(seeds=(0, 1)).spec(scene, cache.budget)
+    assert spec == MediumSpec(scene.light_size_deg, scene.albedo, 0.0, "multiple", (0, 1), 4)
+    assert spec.label == f"T({scene.light_size_deg:g}°) + MS(a {scene.albedo:g}, g 0, 8 paths)"
+    dim = replace(scene, light_intensity=0.5)
+    half = MediumReference().volumes(cache, dim)
+    np.testing.assert_allclose(half.irradiance, 0.5 * multiple.irradiance, rtol=1e-6)
+
+
+def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
+    from vtkvol.bench.convergence import StudyConfig, checkpoints, run, summary
+    from vtkvol.bench.references import ReferenceBudget
+
+    assert checkpoints(10) == [1, 2, 4, 8, 10] and checkpoints(8) == [1, 2, 4, 8]
+    scene = phantom_scenes(16)[0]
+    result = run(StudyConfig(mode="test", size=16, image_size=64, max_seconds=30.0), tmp_path,
+                 [scene], budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
+                 stream=io.StringIO())
+    recs = result["records"]
+    assert {(r["method"], r["lights"]) for r in recs} == {
+        (m, n) for m in ("convection_diffusion", "hybrid_diffusion") for n in (1, 3)}
+    for method, lights in {(r["method"], r["lights"]) for r in recs}:
+        rows = [r for r in recs if r["method"] == method and r["lights"] == lights]
+        its = [r["iteration"] for r in rows]
+        assert its[:3] == [1, 2, 4] and its == sorted(its) and rows[-1]["final"]
+        secs = [r["seconds"] for r in rows]
+        assert secs[0] > 0 and secs == sorted(secs)
+        # the reference's own noise bounds what can be shown: every image is further away
+        assert all(r["psnr_ms"] < r["floor_psnr"] for r in rows)
+        # refining moves the image towards the multiple-scattering reference
+        assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"]
+    mem = {(r["method"], r["lights"]): r["bytes_per_voxel"] for r in recs}
+    # KD keeps a light volume per light; HD's memory does not grow with the lights
+    assert mem[("convection_diffusion", 3)] > mem[("convection_diffusion", 1)]
+    assert mem[("hybrid_diffusion", 3)] == mem[("hybrid_diffusion", 1)]
+    assert len(summary(recs)) == 4
+    md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
+    assert "## Multiple scattering: convergence (test," in md and "| KD | " in md
+    assert result["paths"]["scattering"].exists()
+    doc = report.load(tmp_path / "benchmarks.json")
+    assert len(doc["scattering"]) == len(recs) and len(doc["scattering_runs"]) == 1
+    # a matrix run merged later keeps the study
+    kept = report.merge(doc, {"renderer": "x", "mode": "quick"}, [], [])
+    assert kept["scattering"] == doc["scattering"]

@@ -56,6 +56,9 @@ def _parser() -> argparse.ArgumentParser:
                          help="a volume of yours to measure on, besides the phantoms "
                               "(repeatable; any format vtkvol reads)")
     p_bench.add_argument("--size", type=int, default=None, help="override the scene size (voxels)")
+    p_bench.add_argument("--scattering", action="store_true",
+                         help="run the convergence study of the multiple-scattering techniques "
+                              "instead (against path-traced references, 1 and 3 lights)")
     return parser
 
 
@@ -169,6 +172,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if not Path(file).exists():
             print(f"vtkvol: --data {file}: no such file", file=sys.stderr)
             return 1
+    if args.scattering:
+        from vtkvol.bench.runner import main_scattering
+
+        return main_scattering(quick=args.quick, out=str(output), size=args.size, data=args.data)
     return bench_main(quick=args.quick, out=str(output), size=args.size, data=args.data)
 
 

@@ -110,7 +110,7 @@ class ConvectionDiffusion(GridScattering):
             self._restart(values)
         setup = self.setup
         assert setup is not None
-        limit = values["max_iterations"] or 4 * cpu.iterations_to_cross(setup.grid)
+        limit = values["max_iterations"] or self.automatic_iterations()
         count = min(int(values["iterations_per_frame"]), limit - self.iteration)
         if count > 0:
             t0 = time.perf_counter()
@@ -130,6 +130,13 @@ class ConvectionDiffusion(GridScattering):
         super().release()
         self._transport = None
         self.setup = None
+
+    def automatic_iterations(self) -> int:
+        """Iterations of ``max_iterations = 0``: four times what the light front needs to
+        cross the grid's diagonal (it moves half a voxel per iteration)."""
+        if self.setup is None:
+            raise RuntimeError("the technique has not been prepared yet")
+        return 4 * cpu.iterations_to_cross(self.setup.grid)
 
     def light_visibility_cpu(
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,

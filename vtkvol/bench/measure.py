@@ -147,8 +147,10 @@ class Rig:
     def load(self, scene: Scene) -> None:
         """Show ``scene`` (data, transfer function, lights, view)."""
         _load_volume(self.volume, scene)
-        self.illuminator.set_lights([Light(direction=d, size=scene.light_size_deg)
+        self.illuminator.set_lights([Light(direction=d, size=scene.light_size_deg,
+                                           intensity=scene.light_intensity)
                                      for d in scene.lights])
+        self.illuminator.set_material(albedo=scene.albedo, phase_g=scene.phase_g)
         self.scene = scene
         self.reset_view()
 
@@ -160,6 +162,18 @@ class Rig:
         """Switch to technique ``method`` with exactly ``values`` (defaults + overrides)."""
         self.illuminator.set_method(method)
         self.illuminator.set_parameters(**dict(values))
+
+    def refine(self, max_seconds: float) -> tuple[int, float]:
+        """Run a progressive technique until it has converged or ``max_seconds`` have passed
+        (nothing for the others): ``(its iteration count, seconds spent)``. The bench measures
+        what users see once the view has stopped refining."""
+        ill = self.illuminator
+        t0 = time.perf_counter()
+        if ill.wants_frame:
+            self.reset_view()
+            ill.converge(max_seconds=max_seconds)
+        tech = ill.technique
+        return (int(tech.iteration) if tech is not None else 0), time.perf_counter() - t0
 
     def image(self) -> np.ndarray:
         """The comparison image at the scene's view, ``(h, w, 3)`` uint8."""

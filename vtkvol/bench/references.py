@@ -12,11 +12,16 @@ reference, :class:`SurfaceReference`:
 * ambient visibility: 1 − AO, cosine-weighted about the outward normal, within the scene's
   fixed AO distance (:func:`~vtkvol.reference.ambient_occlusion_mc`).
 
+The ``medium`` model (multiple scattering) has :class:`MediumReference`: the same light
+visibility, plus the light scattered inside the volume, all orders, by Monte-Carlo path tracing
+(:func:`~vtkvol.reference.scattering.inscattered_mc`, with the scene's albedo and phase
+function), shaded isotropically as the medium model shades every technique's volume. Its
+``orders="single"`` variant leaves the in-scattered light out (direct light only): the
+convergence study (:mod:`vtkvol.bench.convergence`) measures against both.
+
 A lighting model's reference is an object with a ``lighting`` name, ``spec(scene)`` (what it
-computes, as a label for the tables) and ``volumes(cache, scene)`` (what the
-``bench_reference`` technique renders); :func:`reference_for` looks it up in
-:data:`LIGHTING_REFERENCES`. The ``medium`` model (multiple scattering, reference
-:func:`vtkvol.reference.scattering.inscattered_mc`) plugs in by adding its object there;
+computes, as a label for the tables) and ``volumes(cache, scene)`` (what the reference
+technique renders); :func:`reference_for` looks it up in :data:`LIGHTING_REFERENCES`;
 techniques of a model without a reference are not measured (the runner says so).
 
 Monte-Carlo and light-extent references are evaluated only where they can matter: at voxels
@@ -30,7 +35,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -40,6 +45,7 @@ from vtkvol.reference import (
     DirectionalLight,
     ambient_occlusion_mc,
     extended_transmittance,
+    inscattered_mc,
     transmittance,
 )
 
@@ -75,18 +81,24 @@ class ReferenceBudget:
     """Accuracy of the references: march step (voxels) and ray counts.
 
     ``light_rays``: stratified samples of each light's extent per voxel (error ~1/rays for a
-    penumbra); ``ao_rays``: Monte-Carlo AO rays (standard error ≤ 0.5/√rays). Hard
-    transmittance is deterministic (midpoint rule, error O(step²)).
+    penumbra); ``ao_rays``: Monte-Carlo AO rays (standard error ≤ 0.5/√rays);
+    ``scatter_paths``: Monte-Carlo paths per voxel of the in-scattered light, followed for at
+    most ``scatter_bounces`` scattering events. Hard transmittance is deterministic (midpoint
+    rule, error O(step²)).
     """
 
     step: float = 0.5
     light_rays: int = 32
     ao_rays: int = 128
     ao_step: float = 1.0
+    scatter_paths: int = 32
+    scatter_bounces: int = 48
 
 
-QUICK_BUDGET = ReferenceBudget(step=0.5, light_rays=16, ao_rays=64, ao_step=1.0)
-FULL_BUDGET = ReferenceBudget(step=0.5, light_rays=32, ao_rays=128, ao_step=1.0)
+QUICK_BUDGET = ReferenceBudget(step=0.5, light_rays=16, ao_rays=64, ao_step=1.0,
+                               scatter_paths=8)
+FULL_BUDGET = ReferenceBudget(step=0.5, light_rays=32, ao_rays=128, ao_step=1.0,
+                              scatter_paths=32)
 
 
 class LightingReference(Protocol):
@@ -94,8 +106,9 @@ class LightingReference(Protocol):
 
     lighting: str
 
-    def spec(self, scene: Scene) -> ReferenceSpec:
-        """What the reference computes for ``scene`` (its ``label`` goes into the records)."""
+    def spec(self, scene: Scene, budget: ReferenceBudget | None = None) -> Any:
+        """What the reference computes for ``scene`` with ``budget`` (default the quick one);
+        hashable, its ``label`` goes into the records."""
         ...
 
     def volumes(self, cache: ReferenceCache, scene: Scene) -> ReferenceVolumes:
@@ -115,7 +128,7 @@ class SurfaceReference:
 
     lighting: str = "surface"
 
-    def spec(self, scene: Scene) -> ReferenceSpec:
+    def spec(self, scene: Scene, budget: ReferenceBudget | None = None) -> ReferenceSpec:
         return ReferenceSpec(
             light_size_deg=float(scene.light_size_deg),
             ao_distance_um=float(scene.ao_distance_voxels) * min(scene.spacing),
@@ -129,8 +142,59 @@ class SurfaceReference:
         return cache.light_visibility(scene, scene.lights[0], scene.light_size_deg, opacity)
 
 
+@dataclass(frozen=True)
+class MediumSpec:
+    """The medium illumination a scene is measured against.
+
+    ``light_size_deg``: as :class:`ReferenceSpec`; ``albedo``/``phase_g``: the scene's material;
+    ``orders``: ``"multiple"`` (direct light plus the in-scattered light, all orders) or
+    ``"single"`` (direct light only); ``seeds``: independent Monte-Carlo estimates averaged
+    (two give the reference's own noise, see :mod:`vtkvol.bench.convergence`); ``paths``: paths
+    per voxel and seed.
+    """
+
+    light_size_deg: float
+    albedo: float
+    phase_g: float
+    orders: str = "multiple"
+    seeds: tuple[int, ...] = (0,)
+    paths: int = 0
+
+    @property
+    def label(self) -> str:
+        """Short text for tables: ``T(2°) + MS(a 0.9, g 0, 8 paths)``, ``T(2°)``."""
+        light = f"T({self.light_size_deg:g}°)" if self.light_size_deg > 0 else "T"
+        if self.orders == "single":
+            return light
+        return (f"{light} + MS(a {self.albedo:g}, g {self.phase_g:g}, "
+                f"{self.paths * len(self.seeds)} paths)")
+
+
+@dataclass(frozen=True)
+class MediumReference:
+    """The medium model's truth: the surface reference's light visibility plus Monte-Carlo
+    in-scattered light (``orders="multiple"``), or the direct light alone (``"single"``)."""
+
+    lighting: str = "medium"
+    orders: str = "multiple"
+    seeds: tuple[int, ...] = (0,)
+
+    def spec(self, scene: Scene, budget: ReferenceBudget | None = None) -> MediumSpec:
+        paths = (budget or QUICK_BUDGET).scatter_paths if self.orders == "multiple" else 0
+        return MediumSpec(float(scene.light_size_deg), float(scene.albedo),
+                          float(scene.phase_g), self.orders, self.seeds, paths)
+
+    def volumes(self, cache: ReferenceCache, scene: Scene) -> ReferenceVolumes:
+        return cache.medium_volumes(scene, self.spec(scene, cache.budget))
+
+    def light_visibility(self, cache: ReferenceCache, scene: Scene,
+                         opacity: np.ndarray) -> np.ndarray:
+        return cache.light_visibility(scene, scene.lights[0], scene.light_size_deg, opacity)
+
+
 #: The reference of each lighting model (``TechniqueSpec.lighting``).
-LIGHTING_REFERENCES: dict[str, LightingReference] = {"surface": SurfaceReference()}
+LIGHTING_REFERENCES: dict[str, LightingReference] = {
+    "surface": SurfaceReference(), "medium": MediumReference()}
 
 
 def reference_for(lighting: str) -> LightingReference:
@@ -173,6 +237,7 @@ class ReferenceCache:
         self._light: dict[tuple, np.ndarray] = {}
         self._ambient: dict[tuple, np.ndarray] = {}
         self._volumes: dict[tuple, ReferenceVolumes] = {}
+        self._scattered: dict[tuple, np.ndarray] = {}
 
     @staticmethod
     def _scene_key(scene: Scene) -> tuple:
@@ -243,9 +308,54 @@ class ReferenceCache:
             self._volumes[key] = ReferenceVolumes(vis, amb)
         return self._volumes[key]
 
+    def scattered(self, scene: Scene, albedo: float, phase_g: float, seed: int) -> np.ndarray:
+        """Monte-Carlo in-scattered light from all the scene's lights (every order ≥ 1), float32
+        ``[z, y, x]`` ≥ 0; evaluated where a visible sample can read it, 0 elsewhere."""
+        key = (self._scene_key(scene), tuple(tuple(v) for v in scene.lights), float(albedo),
+               float(phase_g), int(seed), self.budget.scatter_paths)
+        if key in self._scattered:
+            return self._scattered[key]
+        alpha = scene.opacity()
+        t0 = time.perf_counter()
+        out = np.zeros(alpha.shape, np.float32)
+        mask = relevant_mask(alpha)
+        if mask.any():
+            pts = np.argwhere(mask)[:, ::-1] * np.asarray(scene.spacing)
+            lights = [DirectionalLight(tuple(float(c) for c in d))  # type: ignore[arg-type]
+                      for d in scene.lights]
+            out[mask] = inscattered_mc(
+                alpha, scene.spacing, lights, albedo=albedo, phase_g=phase_g,
+                n_paths=self.budget.scatter_paths, seed=seed,
+                unit_distance=scene.unit_distance, max_bounces=self.budget.scatter_bounces,
+                points=pts)
+        self.seconds += time.perf_counter() - t0
+        self._scattered[key] = out
+        return out
+
+    def medium_volumes(self, scene: Scene, spec: MediumSpec) -> ReferenceVolumes:
+        """The :class:`ReferenceVolumes` of ``scene`` for the medium ``spec``: visibility per
+        light, and the mean in-scattered light over ``spec.seeds`` (multiple orders only)."""
+        key = (self._scene_key(scene), tuple(tuple(v) for v in scene.lights), spec,
+               scene.light_intensity)
+        if key not in self._volumes:
+            alpha = scene.opacity()
+            vis = tuple(
+                np.clip(self.light_visibility(scene, light, spec.light_size_deg, alpha), 0, 1)
+                for light in scene.lights
+            )
+            irradiance = None
+            if spec.orders == "multiple":
+                # unit-irradiance lights in the reference; the host scales the direct light by
+                # each light's intensity, the in-scattered light is scaled here
+                irradiance = (scene.light_intensity * np.mean(
+                    [self.scattered(scene, spec.albedo, spec.phase_g, seed)
+                     for seed in spec.seeds], axis=0)).astype(np.float32)
+            self._volumes[key] = ReferenceVolumes(vis, None, irradiance)
+        return self._volumes[key]
+
     def clear_scene(self, scene: Scene) -> None:
         """Forget everything computed for ``scene`` (keeps memory bounded across scenes)."""
         sk = self._scene_key(scene)
-        for table in (self._light, self._ambient, self._volumes):
+        for table in (self._light, self._ambient, self._volumes, self._scattered):
             for key in [k for k in table if k[0] == sk]:
                 del table[key]

@@ -33,6 +33,7 @@ from typing import Any, TextIO
 import numpy as np
 
 from vtkvol.bench import report
+from vtkvol.bench.reference_technique import MEDIUM_NAME as MEDIUM_REFERENCE
 from vtkvol.bench.reference_technique import NAME as REFERENCE
 from vtkvol.bench.reference_technique import ReferenceVolume, registered
 from vtkvol.bench.references import (
@@ -62,7 +63,8 @@ class BenchConfig:
     ``size``: scene voxels per axis; ``image_size``: square image (pixels); ``warmup`` and
     ``frames``: untimed and timed frames per setting; ``recompute_repeats``: forced recomputes
     per trigger; ``stability_size``: voxels of the stability scenes; ``vtk_settings``:
-    (blending, reach) pairs of VTK's volumetric scattering, the first being the one ratios use.
+    (blending, reach) pairs of VTK's volumetric scattering, the first being the one ratios use;
+    ``refine_seconds``: the most a progressive technique refines before it is measured.
     """
 
     mode: str
@@ -76,6 +78,7 @@ class BenchConfig:
     budget: ReferenceBudget
     vtk_settings: tuple[tuple[float, float], ...]
     voxel_metric_seconds: float = 1.5  #: above this, a method's CPU light path runs once/scene
+    refine_seconds: float = 60.0
 
 
 QUICK = BenchConfig("quick", 64, 256, 2, 3, 1, 32, 160, QUICK_BUDGET, ((1.0, 1.0),))
@@ -244,11 +247,11 @@ def _lighting_reference(ctx: Context, method: str) -> LightingReference:
 
 def _reference_image(ctx: Context, scene: Scene, reference: LightingReference) -> np.ndarray:
     """The scene's reference image of ``reference``'s lighting model (rendered once)."""
-    spec = reference.spec(scene)
+    spec = reference.spec(scene, ctx.cache.budget)
     key = (scene.name, id(scene.data), tuple(map(tuple, scene.lights)), reference.lighting, spec)
     if key not in ctx.reference_images:
         ReferenceVolume.use(reference.volumes(ctx.cache, scene))
-        ctx.rig.set_method(REFERENCE, {})
+        ctx.rig.set_method(MEDIUM_REFERENCE if reference.lighting == "medium" else REFERENCE, {})
         image = ctx.rig.image()  # correct on the build frame: textures are bound before it
         problem = ctx.errors.new_errors()
         if problem:
@@ -299,7 +302,7 @@ def _base_record(
 ) -> dict[str, Any]:
     label = (ctx.techniques[setting.method].LABEL if setting.method in ctx.techniques
              else "VTK built-in volumetric scattering")
-    spec = reference.spec(scene)
+    spec = reference.spec(scene, ctx.cache.budget)
     return {
         "scene": scene.name, "method": setting.method, "setting": setting.label,
         "renderer": ctx.renderer, "date": ctx.date, "mode": ctx.config.mode,
@@ -309,6 +312,7 @@ def _base_record(
         "reference": spec.label, "frame_ms": None, "recompute_ms": None, "rmse": None,
         "psnr": None, "ssim": None,
         "vol_rmse": None, "vol_max_abs": None, "vol_bias": None, "ok": False, "error": None,
+        "iterations": None, "refine_s": None,
     }
 
 
@@ -340,6 +344,7 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
     try:
         ref_img = _reference_image(ctx, scene, reference)
         ctx.rig.set_method(setting.method, setting.values)
+        iterations, refine_s = ctx.rig.refine(cfg.refine_seconds)
         timing = ctx.rig.time_frames(cfg.warmup, cfg.frames)
         image = ctx.rig.image()
         problem = ctx.errors.new_errors()
@@ -360,7 +365,8 @@ def measure_setting(ctx: Context, scene: Scene, setting: Setting, opacity: np.nd
             n_frames=len(timing.samples), recompute_light_ms=light, recompute_tf_ms=tf,
             recompute_ms=max([v for v in (light, tf) if v is not None], default=0.0),
             rmse=metrics["rmse"], psnr=metrics["psnr"], ssim=metrics["ssim"],
-            max_abs=metrics["max_abs"], ok=True, **vox,
+            max_abs=metrics["max_abs"], ok=True, iterations=iterations or None,
+            refine_s=refine_s if iterations else None, **vox,
         )
     except Exception as exc:  # one failing setting must not end the run: record it
         record["error"] = f"{type(exc).__name__}: {exc}"[:500]
@@ -410,7 +416,7 @@ def run_scene(ctx: Context, scene: Scene, settings: Sequence[Setting],
     ctx.rig.load(scene)
     records = []
     for reference in _references_of(ctx, settings):
-        label = reference.spec(scene).label
+        label = reference.spec(scene, ctx.cache.budget).label
         ctx.progress.step(f"{scene.name}: {reference.lighting} reference {label}")
         try:
             _reference_image(ctx, scene, reference)
@@ -477,8 +483,8 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             "unit": case.unit, "scene": scene.name, "method": setting.method,
             "setting": label, "renderer": ctx.renderer, "mode": ctx.config.mode,
             "date": ctx.date, "lighting": reference.lighting,
-            "reference": reference.spec(scene).label, "rmse": None, "psnr": None,
-            "ssim": None, "max_abs": None, "vol_rmse": None, "vol_max_abs": None,
+            "reference": reference.spec(scene, ctx.cache.budget).label, "rmse": None,
+            "psnr": None, "ssim": None, "max_abs": None, "vol_rmse": None, "vol_max_abs": None,
             "image_ok": False, "volumes_ok": False, "shader_ok": False, "ok": False,
             "error": None,
         }
@@ -486,6 +492,7 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             ref_img = _reference_image(ctx, scene, reference)
             ctx.rig.set_method(setting.method, values)
             ctx.rig.image()  # build frame (shader, textures, precomputation)
+            ctx.rig.refine(ctx.config.refine_seconds)
             image = ctx.rig.image()
             shader_problem = ctx.errors.new_errors()
             rec["shader_ok"] = not shader_problem and ctx.rig.shader_installed()
@@ -531,8 +538,8 @@ def measure_vtk_image(ctx: Context, scene: Scene, setting: Setting) -> dict[str,
     reference = SurfaceReference()
     rec: dict[str, Any] = {"method": VTK_METHOD, "setting": setting.label,
                            "lighting": reference.lighting,
-                           "reference": reference.spec(scene).label, "vol_rmse": None,
-                           "vol_max_abs": None, "volumes_ok": True}
+                           "reference": reference.spec(scene, ctx.cache.budget).label,
+                           "vol_rmse": None, "vol_max_abs": None, "volumes_ok": True}
     try:
         ref_img = _reference_image(ctx, scene, reference)
         ctx.vtk_rig.set_setting(setting.values["blending"], setting.values["reach"])
@@ -571,7 +578,8 @@ def run(config: BenchConfig, out_dir: Path, *, scenes: Sequence[Scene] | None = 
     quick = config.mode == "quick"
     # Only lighting models with a reference can be measured (see vtkvol.bench.references);
     # the others are named in the run's notes rather than silently left out.
-    installed = {n: c for n, c in installed_techniques().items() if n != REFERENCE}
+    installed = {n: c for n, c in installed_techniques().items()
+                 if n not in (REFERENCE, MEDIUM_REFERENCE)}
     techniques = {n: c for n, c in installed.items() if c.SPEC.lighting in LIGHTING_REFERENCES}
     unmeasured = sorted(n for n in installed if n not in techniques)
     if methods is not None:
@@ -755,6 +763,41 @@ def _time_load() -> dict[str, Any]:
         result = time_load(tmp)
     return {"median_s": result["median_s"], "runs_s": result["runs_s"],
             "shape_czyx": list(result["shape_czyx"]), "file_bytes": result["file_bytes"]}
+
+
+def main_scattering(quick: bool = False, out: str = "vtkvol-bench", size: int | None = None,
+                    data: Sequence[str] = ()) -> int:
+    """``vtkvol bench --scattering -o DIR [--quick] [--size N] [--data FILE]…``: the convergence
+    study of the multiple-scattering techniques (:mod:`vtkvol.bench.convergence`), merged into
+    ``DIR/benchmarks.*``. The phantoms and every ``--data`` file, with 1 and 3 lights."""
+    from vtkvol.bench.convergence import StudyConfig
+    from vtkvol.bench.convergence import run as run_study
+    from vtkvol.bench.scenes import file_scenes, phantom_scenes
+    from vtkvol.io import VolumeReadError
+
+    config = StudyConfig(mode="quick", size=32, image_size=128, max_seconds=30.0) if quick \
+        else StudyConfig()
+    if size is not None:
+        if size < 16:
+            raise ValueError(f"--size must be at least 16 voxels, got {size}")
+        config = replace(config, size=int(size))
+    command = "vtkvol bench --scattering" + (" --quick" if quick else "") + (
+        f" --size {size}" if size is not None else "") + f" -o {out}" + "".join(
+        f" --data {Path(d).name}" for d in data)
+    try:
+        scenes = phantom_scenes(config.size) + file_scenes(data, max_size=config.size)
+    except VolumeReadError as exc:
+        print(f"vtkvol: {exc}", file=sys.stderr)
+        return 1
+    Path(out).mkdir(parents=True, exist_ok=True)
+    budget = QUICK_BUDGET if quick else FULL_BUDGET
+    result = run_study(config, Path(out), scenes, budget=budget, command=command)
+    print(f"vtkvol bench --scattering ({config.mode}): {len(result['records'])} checkpoints in "
+          f"{result['duration_s'] / 60:.1f} min on {result['renderer']}", file=sys.stderr)
+    for kind in ("json", "md", "scattering"):
+        if kind in result["paths"]:
+            print(f"  {kind}: {result['paths'][kind]}", file=sys.stderr)
+    return 0
 
 
 def main(quick: bool = False, out: str = "vtkvol-bench", size: int | None = None,

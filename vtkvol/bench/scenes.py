@@ -39,6 +39,10 @@ DEFAULT_LIGHT_SIZE_DEG = 2.0
 #: AO distance of the scenes' reference (voxels of the smallest edge).
 DEFAULT_AO_DISTANCE_VOXELS = 24.0
 
+#: Single-scattering albedo of the scenes' medium: below 1 so that light is absorbed as well as
+#: scattered (tissue), and the Monte-Carlo reference's paths end (0.9^48 < 1 %).
+DEFAULT_ALBEDO = 0.9
+
 #: Camera orbit of the comparison images (degrees): looking down onto the scene a little, so
 #: cast shadows on horizontal receivers are visible.
 DEFAULT_AZIMUTH = 30.0
@@ -84,6 +88,13 @@ class Scene:
     ao_distance_voxels: float = DEFAULT_AO_DISTANCE_VOXELS
     azimuth: float = DEFAULT_AZIMUTH
     elevation: float = DEFAULT_ELEVATION
+    #: Scattering material of the ``medium`` lighting model (techniques and reference alike):
+    #: single-scattering albedo and Henyey–Greenstein asymmetry g.
+    albedo: float = DEFAULT_ALBEDO
+    phase_g: float = 0.0
+    #: Intensity of each light (the convergence study's three-light scenes give each 1/3, so
+    #: that the images do not saturate and compare with the one-light ones).
+    light_intensity: float = 1.0
 
     @property
     def unit_distance(self) -> float:

@@ -1,0 +1,254 @@
+"""How the progressive (multiple-scattering) techniques converge: seed 003's Figs. 3–6 and
+Table 1, measured here (``vtkvol bench --scattering``).
+
+For every scene, with one and with three lights, each progressive ``medium`` technique (KD,
+HD) restarts and refines; at iterations 1, 2, 4, … and at its own end the view is rendered and
+compared with three reference images of the same view, shaded by the same host medium model
+(:mod:`vtkvol.bench.references`, :class:`~vtkvol.bench.references.MediumReference`):
+
+* ``ss``: single scattering, the exact direct light only (transmittance over the light's size);
+* ``ms``: multiple scattering, the direct light plus Monte-Carlo in-scattered light of every
+  order, the mean of two independent estimates (seeds 0 and 1);
+* the two estimates on their own, whose difference is the reference's own noise: with two
+  independent estimates A and B of variance v, MSE(A, B) = 2v and the mean's error is v/2, so
+  the ``ms`` reference's **noise floor** is PSNR(A, B) + 6.02 dB. A technique cannot be
+  shown closer to the truth than that.
+
+Time is the wall-clock time of the iterations alone (frames with the volume hidden, as the
+recompute timing does, then ``glFinish``): what refining costs on this renderer, without the
+comparison renders. ``iterations_per_s`` of the last checkpoint is the Table 1 analogue;
+``texture_bytes`` (the technique's ``stats()``) gives the memory per voxel.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from vtkvol.bench.references import MediumReference, ReferenceCache
+from vtkvol.bench.scenes import DEFAULT_LIGHT, Scene, Vec3
+from vtkvol.reference import image_metrics
+
+#: The three lights of the three-light runs: the scenes' own light and two more from other
+#: sides (world directions towards the lights), so that each lights what the others shadow.
+THREE_LIGHTS: tuple[Vec3, Vec3, Vec3] = (DEFAULT_LIGHT, (-0.6, 0.3, 0.75), (0.2, 0.8, -0.55))
+
+#: dB between the noise floor of a mean of two estimates and PSNR(A, B): 10·log10(4).
+TWO_ESTIMATE_FLOOR_DB = 10.0 * math.log10(4.0)
+
+
+@dataclass(frozen=True)
+class StudyConfig:
+    """Sizes of a convergence study: ``size`` voxels per axis, square ``image_size``,
+    ``light_counts`` to run, ``max_seconds`` of refinement per technique and light count
+    (the study stops there even if the technique has not ended)."""
+
+    mode: str = "default"
+    size: int = 48
+    image_size: int = 192
+    light_counts: tuple[int, ...] = (1, 3)
+    max_seconds: float = 120.0
+
+
+def checkpoints(limit: int) -> list[int]:
+    """1, 2, 4, … below ``limit``, then ``limit`` itself."""
+    out, k = [], 1
+    while k < limit:
+        out.append(k)
+        k *= 2
+    return [*out, int(limit)]
+
+
+def with_lights(scene: Scene, count: int) -> Scene:
+    """``scene`` lit by its first ``count`` of :data:`THREE_LIGHTS` (1: its own light), each of
+    intensity 1/count: the same total light, so images do not saturate."""
+    if count == 1:
+        return scene
+    return replace(scene, lights=list(THREE_LIGHTS[:count]), light_intensity=1.0 / count)
+
+
+def _psnr(a: np.ndarray, b: np.ndarray) -> float:
+    m = image_metrics(a, b)
+    return float(m["psnr"]) if m["psnr"] is not None else math.inf
+
+
+def _iteration_limit(rig: Any) -> int:
+    """The active technique's own end: its declared default ``max_iterations``, or, where that
+    is 0 (automatic, KD), what the technique computes for the loaded grid."""
+    tech = rig.illuminator.technique
+    limit = int(tech.defaults().get("max_iterations") or 0)
+    if limit > 0:
+        return limit
+    automatic = getattr(tech, "automatic_iterations", None)
+    if callable(automatic):
+        return int(automatic())
+    raise RuntimeError(f"{rig.illuminator.method} states no iteration limit")
+
+
+def _run_to(rig: Any, target: int) -> float:
+    """Iterate the active technique up to ``target`` iterations with the volume hidden;
+    seconds spent (wall clock, GPU work finished)."""
+    from vtkvol.engine.gl import gl
+
+    ill = rig.illuminator
+    ill.set_parameters(max_iterations=target)
+    t0 = time.perf_counter()
+    rig.volume.VisibilityOff()
+    try:
+        restart = True  # after an invalidation the first frame restarts from iteration 0
+        while restart or ill.technique is None or ill.technique.iteration < target:
+            restart = False
+            before = ill.technique.iteration if ill.technique is not None else -1
+            rig.rw.Render()
+            if ill.technique is None or ill.failed_method is not None:
+                raise RuntimeError(f"{ill.method} failed while refining")
+            if ill.technique.iteration == before and ill.technique.converged:
+                break  # ended below the target (its own limit)
+    finally:
+        rig.volume.VisibilityOn()
+    gl(rig.rw).glFinish()
+    return time.perf_counter() - t0
+
+
+def reference_images(rig: Any, cache: ReferenceCache, scene: Scene,
+                     render: Any) -> dict[str, np.ndarray]:
+    """The ``ss``, ``ms``, ``ms_a`` and ``ms_b`` reference images of ``scene`` (loaded in
+    ``rig``); ``render(reference)`` renders one reference object's image."""
+    return {
+        "ss": render(MediumReference(orders="single")),
+        "ms_a": render(MediumReference(seeds=(0,))),
+        "ms_b": render(MediumReference(seeds=(1,))),
+        "ms": render(MediumReference(seeds=(0, 1))),
+    }
+
+
+def study_scene(rig: Any, cache: ReferenceCache, scene: Scene, methods: Sequence[str],
+                config: StudyConfig, render: Any, base: dict[str, Any]) -> list[dict[str, Any]]:
+    """Every method × light count on one scene: one record per checkpoint."""
+    records: list[dict[str, Any]] = []
+    for count in config.light_counts:
+        lit = with_lights(scene, count)
+        rig.load(lit)
+        refs = reference_images(rig, cache, lit, render)
+        floor = _psnr(refs["ms_a"], refs["ms_b"]) + TWO_ESTIMATE_FLOOR_DB
+        gap = _psnr(refs["ss"], refs["ms"])  # how much the scattered light shows at all
+        voxels = int(np.prod(lit.shape))
+        for method in methods:
+            rig.set_method(method, {"max_iterations": 1})
+            rig.rw.Render()  # build: shaders, textures, first iteration
+            limit = _iteration_limit(rig)
+            spec = rig.illuminator.spec  # the declared short name (first bench setting's label)
+            short = spec.bench[0].label if spec.bench else method
+            rig.illuminator.invalidate()  # restart: the timed run starts from nothing
+            spent = 0.0
+            for target in checkpoints(limit):
+                spent += _run_to(rig, target)
+                tech = rig.illuminator.technique
+                image = rig.image()
+                ms = image_metrics(image, refs["ms"])
+                ss = image_metrics(image, refs["ss"])
+                stats = tech.stats()
+                records.append({
+                    **base, "scene": scene.name, "scene_kind": scene.kind,
+                    "size": lit.size_label, "method": method, "short": short,
+                    "lights": count,
+                    "iteration": int(tech.iteration), "seconds": spent,
+                    "iterations_per_s": tech.iteration / spent if spent > 0 else None,
+                    "rmse_ms": ms["rmse"], "psnr_ms": ms["psnr"],
+                    "rmse_ss": ss["rmse"], "psnr_ss": ss["psnr"], "floor_psnr": floor,
+                    "single_vs_multiple_psnr": gap,
+                    "texture_bytes": stats.get("texture_bytes"),
+                    "bytes_per_voxel": (stats["texture_bytes"] / voxels
+                                        if stats.get("texture_bytes") else None),
+                    "backend": stats.get("backend"), "final": target == limit,
+                    "albedo": lit.albedo, "phase_g": lit.phase_g,
+                })
+                if spent > config.max_seconds:
+                    records[-1]["final"] = True
+                    break
+        cache.clear_scene(lit)
+    return records
+
+
+def summary(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per scene × method × light count: the last checkpoint's error, rate and memory, and
+    the time at which the image came within 1 dB of the reference's noise floor."""
+    out = []
+    keys = dict.fromkeys((r["renderer"], r["scene"], r["method"], r["lights"]) for r in records)
+    for key in keys:
+        rows = [r for r in records if (r["renderer"], r["scene"], r["method"], r["lights"]) == key]
+        last = rows[-1]
+        near = [r for r in rows if r["psnr_ms"] is not None
+                and r["psnr_ms"] >= r["floor_psnr"] - 1.0]
+        best = max(rows, key=lambda r: r["psnr_ms"] or -math.inf)
+        out.append({**last, "within_1db_s": near[0]["seconds"] if near else None,
+                    "within_1db_iteration": near[0]["iteration"] if near else None,
+                    "best_psnr_ms": best["psnr_ms"], "best_iteration": best["iteration"]})
+    return out
+
+
+def run(config: StudyConfig, out_dir: Any, scenes: Sequence[Scene],
+        methods: Sequence[str] | None = None, *, budget: Any = None,
+        command: str = "vtkvol bench --scattering", stream: Any = None) -> dict[str, Any]:
+    """Run the study on ``scenes`` for the progressive medium techniques (or ``methods``) and
+    merge it into ``out_dir/benchmarks.json`` (regenerating the Markdown and charts). Returns
+    the run's metadata with ``records`` and ``paths``."""
+    import datetime as _dt
+    import sys
+    from pathlib import Path
+
+    from vtkvol.bench import report
+    from vtkvol.bench.measure import Rig, VtkErrors, machine_info
+    from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
+    from vtkvol.bench.references import FULL_BUDGET
+    from vtkvol.engine.technique import installed_techniques
+
+    stream = stream if stream is not None else sys.stderr
+    techniques = installed_techniques()
+    names = [n for n, c in sorted(techniques.items())
+             if c.SPEC.lighting == "medium" and c.SPEC.has("progressive")
+             and (methods is None or n in methods)]
+    if not names:
+        raise ValueError("no progressive medium technique is installed (or selected)")
+    cache = ReferenceCache(budget or FULL_BUDGET)
+    date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0).isoformat()
+    t_start = time.perf_counter()
+    records: list[dict[str, Any]] = []
+    with VtkErrors() as errors, registered():
+        rig = Rig(config.image_size)
+        try:
+            rig.rw.Render()
+            info = machine_info(rig.rw)
+
+            def render(reference: MediumReference) -> np.ndarray:
+                assert rig.scene is not None
+                ReferenceVolume.use(reference.volumes(cache, rig.scene))
+                rig.set_method(MEDIUM_NAME, {})
+                image = rig.image()
+                problem = errors.new_errors()
+                if problem:
+                    raise RuntimeError(f"the reference shader failed: {problem}")
+                return image
+
+            base = {"renderer": info["renderer"], "mode": config.mode, "date": date}
+            for scene in scenes:
+                print(f"vtkvol bench --scattering: {scene.name} ({scene.size_label})",
+                      file=stream, flush=True)
+                records += study_scene(rig, cache, scene, names, config, render, base)
+        finally:
+            rig.close()
+    run_info = {
+        **info, "mode": config.mode, "date": date, "command": command,
+        "duration_s": time.perf_counter() - t_start, "reference_seconds": cache.seconds,
+        "size": config.size, "image_size": config.image_size,
+        "reference_budget": vars(cache.budget).copy(), "methods": names,
+        "scenes": [{"name": s.name, "size": s.size_label, "kind": s.kind,
+                    "description": s.description} for s in scenes],
+    }
+    paths = report.write_scattering(Path(out_dir), run_info, records)
+    return {**run_info, "records": records, "paths": paths}
