@@ -160,3 +160,97 @@ def test_illuminate_follows_the_renderers_own_lights():
     assert il.light_specs()[0].vector == pytest.approx((0.0, 1.0, 0.0))
     il.release()
     rw.Finalize()
+
+
+def eight_volume_scene(method: str, n: int = 8):
+    """``n`` small cubes side by side in one renderer, each lit by its own illuminator."""
+    import vtkvol
+    from vtkvol.engine.offscreen import image_from_array, make_render_window
+
+    rw = make_render_window((32 * n, 32))
+    ren = vtk.vtkRenderer()
+    rw.AddRenderer(ren)
+    cube = np.zeros((8, 8, 8), np.float32)
+    cube[2:6, 2:6, 2:6] = 1.0
+    illuminators = []
+    for i in range(n):
+        image = image_from_array(cube)
+        image.SetOrigin(10.0 * i, 0.0, 0.0)
+        mapper = vtk.vtkOpenGLGPUVolumeRayCastMapper()
+        mapper.SetInputData(image)
+        prop = vtk.vtkVolumeProperty()
+        otf = vtk.vtkPiecewiseFunction()
+        otf.AddPoint(0.0, 0.0)
+        otf.AddPoint(1.0, 0.8)
+        prop.SetScalarOpacity(otf)
+        prop.ShadeOn()
+        volume = vtk.vtkVolume()
+        volume.SetMapper(mapper)
+        volume.SetProperty(prop)
+        ren.AddVolume(volume)
+        illuminators.append(vtkvol.illuminate(volume, ren, method=method))
+    ren.ResetCamera()
+    camera = ren.GetActiveCamera()
+    camera.ParallelProjectionOn()
+    camera.SetParallelScale(6.0)  # 12 units high, 96 wide: every cube in view
+    return rw, ren, illuminators
+
+
+def brightest_at_each_volume(ren: vtk.vtkRenderer, image: np.ndarray, n: int) -> list[int]:
+    height = image.shape[0]
+    out = []
+    for i in range(n):
+        ren.SetWorldPoint(10.0 * i + 3.5, 3.5, 3.5, 1.0)
+        ren.WorldToDisplay()
+        x, y, _ = ren.GetDisplayPoint()
+        row, col = height - 1 - round(y), round(x)
+        out.append(int(image[max(row - 3, 0) : row + 4, max(col - 3, 0) : col + 4].max()))
+    return out
+
+
+@pytest.mark.parametrize("method", ["shadow_volume", "cone_traced"])
+def test_eight_illuminated_volumes_in_one_renderer_all_render(method):
+    """Texture units are a shared budget (32 on llvmpipe): a technique's textures hold a unit
+    only while its own volume draws, so eight volumes do not exhaust them (before: with
+    cone_traced every volume went black, VTK only logging 'Hardware does not support the
+    number of textures defined')."""
+    rw, ren, illuminators = eight_volume_scene(method)
+    errors: list[str] = []
+    for il in illuminators:
+        il.on_error = errors.append
+    grab(rw)
+    image = grab(rw)
+    assert errors == [] and all(il.failed_method is None for il in illuminators)
+    manager = rw.GetTextureUnitManager()
+    held = sum(manager.IsAllocated(u) for u in range(manager.GetNumberOfTextureUnits()))
+    assert held <= len(illuminators)  # between frames: at most a private scratch texture each
+    brightness = brightest_at_each_volume(ren, image, len(illuminators))
+    assert min(brightness) > 20, brightness
+    for il in illuminators:
+        il.release()
+    rw.Finalize()
+
+
+def test_illuminate_does_not_force_shading_on_for_local_lighting():
+    """The default call (local lighting, the renderer's lights) leaves an unshaded volume as
+    VTK showed it; a shadow technique needs VTK's shaded variant and switches shading on until
+    release()."""
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    prop = volume.GetProperty()
+    prop.ShadeOff()  # PyVista's add_volume default
+    before = grab(rw)
+    il = vtkvol.illuminate(volume, ren)
+    assert [prop.GetShade(c) for c in range(4)] == [0, 0, 0, 0]
+    assert np.array_equal(grab(rw), before)
+    il.set_method("shadow_volume")
+    assert prop.GetShade(0) == 1
+    il.set_method("local")
+    assert prop.GetShade(0) == 0
+    il.release()
+    shadows = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    assert prop.GetShade(0) == 1
+    shadows.release()
+    assert prop.GetShade(0) == 0
+    rw.Finalize()

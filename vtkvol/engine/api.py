@@ -31,8 +31,9 @@ def illuminate(
 
     Supported: point scalars (cell data is refused with what to do), every cropping mode and
     clipping planes (what they hide casts no shadow), ``vtkSmartVolumeMapper`` (rendered through
-    a GPU ray-cast mapper set up the same way until ``release()``). Shading is switched on for
-    surface techniques and restored by ``release()``.
+    a GPU ray-cast mapper set up the same way until ``release()``). ``"local"`` lighting keeps
+    the property's shading flags; the shadow techniques switch shading on (they shade through
+    VTK's shaded variant), the medium ones off, and ``release()`` restores the flags.
 
     Parameters
     ----------
@@ -64,7 +65,8 @@ def illuminate(
         if not isinstance(renderer, vtk.vtkRenderer):
             raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
     return Illuminator(volume, renderer, method=method,
-                       lights="renderer" if lights is None else lights, parameters=parameters)
+                       lights="renderer" if lights is None else lights, parameters=parameters,
+                       keep_local_shading=True)
 
 
 def render_image(

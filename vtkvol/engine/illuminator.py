@@ -114,6 +114,10 @@ class Illuminator:
         one directional light.
     parameters
         Technique parameter values; missing ones take the declared defaults.
+    keep_local_shading
+        With ``"local"`` lighting, leave the property's shading flags as they were (VTK's own
+        shading is the local model); otherwise shading is switched on for surface techniques
+        and off for medium ones. Either way ``release()`` restores the flags.
 
     Attributes
     ----------
@@ -137,7 +141,9 @@ class Illuminator:
         method: str = "local",
         lights: Sequence[Light] | Literal["renderer"] | None = None,
         parameters: Mapping[str, Any] | None = None,
+        keep_local_shading: bool = False,
     ) -> None:
+        self._keep_local_shading = keep_local_shading
         self._user_mapper: vtk.vtkVolumeMapper | None = None
         mapper = volume.GetMapper()
         if isinstance(mapper, vtk.vtkSmartVolumeMapper):
@@ -205,6 +211,13 @@ class Illuminator:
         self._capture = _capture_source(self)  # keep a reference: VTK holds it weakly
         self._shader_tag = volume.GetMapper().AddObserver(
             vtk.vtkCommand.UpdateShaderEvent, self._capture
+        )
+        # Our textures hold texture units only while this volume draws: units are one budget
+        # for the whole window (32 on llvmpipe), and eight illuminated volumes holding theirs
+        # all frame long left VTK none for its own textures (every volume went black).
+        self._draw_tags = (
+            mapper.AddObserver(vtk.vtkCommand.VolumeMapperRenderStartEvent, self._on_draw_start),
+            mapper.AddObserver(vtk.vtkCommand.VolumeMapperRenderEndEvent, self._on_draw_end),
         )
 
     # -- public state ---------------------------------------------------------------------------
@@ -590,8 +603,9 @@ class Illuminator:
         # unshaded variant skips it (the medium model uses no gradient).
         prop = self.volume.GetProperty()
         shade = 1 if self.spec.lighting == "surface" else 0
+        keep = self._keep_local_shading and self.method == "local"
         for c in range(4):
-            prop.SetShade(c, shade)
+            prop.SetShade(c, self._user_shade[c] if keep else shade)
 
     @property
     def fragment_source(self) -> str:
@@ -670,11 +684,21 @@ class Illuminator:
             self._detach_requested = False
             self._technique = self._technique_cls(self)
             self._prepare_and_install(Changes(first=True, opacity=True, lights=True))
-        # Keep our textures bound to their units (another pass may have re-bound units).
+        self._on_draw_end()  # preparing activated them; they get units again to draw
+        self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+
+    def _on_draw_start(self, *_args: Any) -> None:
+        """Just before the volume draws: our textures take units, the samplers name them."""
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name, (texture, _sampler) in self._textures.items():
-            fu.SetUniformi(name, texture.activate())
-        self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+            if texture.tex is not None:
+                fu.SetUniformi(name, texture.activate())
+
+    def _on_draw_end(self, *_args: Any) -> None:
+        """After the volume drew (and after preparing): give the units back."""
+        for texture, _sampler in self._textures.values():
+            if texture.tex is not None:
+                texture.tex.Deactivate()
 
     def _prepare_and_install(self, changes: Changes) -> None:
         tech = self._technique
@@ -868,6 +892,8 @@ class Illuminator:
         self.renderer.RemoveObserver(self._start_tag)
         self.volume.GetMapper().RemoveObserver(self._shader_tag)
         self.volume.GetMapper().RemoveObserver(self._error_tag)
+        for tag in self._draw_tags:
+            self.volume.GetMapper().RemoveObserver(tag)
         if self._user_mapper is not None:
             self.volume.SetMapper(self._user_mapper)
             self._user_mapper = None
