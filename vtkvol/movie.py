@@ -1,0 +1,378 @@
+"""Turntable movies rendered offscreen: MP4 (H.264), PNG sequences, multi-page TIFF for Fiji.
+
+Library code, no Qt. :func:`turntable_frames` renders the frames through the same path as
+:func:`vtkvol.engine.api.render_image` (one scene, built once; a progressive technique refines
+each frame until it converges or ``max_seconds`` pass); :func:`write_movie` encodes them by the
+output's suffix:
+
+* ``.mp4``, ``.mov``, ``.m4v``: H.264 in yuv420p (what QuickTime, PowerPoint and browsers play)
+  through ``imageio-ffmpeg``, which ships its own ffmpeg (optional extra ``movie``). H.264 in
+  yuv420p needs even frame sizes: odd sizes are rounded up by :func:`even_size`.
+* ``.png``: one PNG per frame. ``spin.png`` writes ``spin_0000.png``, ``spin_0001.png``…; a name
+  with a printf field (``spin_%03d.png``) chooses the numbering.
+* no suffix: a folder of ``frame_0000.png``….
+* ``.tif``/``.tiff``: one multi-page RGB ImageJ TIFF (Fiji opens it as a stack).
+
+Every output is written atomically: into a temporary file (or folder) beside the target, moved
+into place when the last frame is done, and removed on error or cancel. An existing output is
+replaced only with ``overwrite=True``.
+
+The turntable turns the camera around the vertical axis through the focal point: the data's z
+axis for the default view (z up, the elevation stays constant: a real turntable), the view-up of
+a session's camera otherwise. ``degrees / frames`` separate two frames, so a 360° turn loops
+without a repeated frame.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import re
+import shutil
+import tempfile
+from collections.abc import Callable, Iterable, Iterator
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+    from vtkvol.model.scene import SceneModel
+
+__all__ = [
+    "MOVIE_SUFFIXES",
+    "MovieCancelled",
+    "even_size",
+    "movie_kind",
+    "turntable_frames",
+    "write_movie",
+]
+
+#: Suffixes encoded as H.264 video.
+MOVIE_SUFFIXES = (".mp4", ".mov", ".m4v")
+_PRINTF = re.compile(r"%0?(\d*)d")
+
+ProgressCallback = Callable[[int, int], None]
+"""``progress(frames_done, frames_total)``."""
+
+
+class MovieCancelled(Exception):
+    """``cancel()`` returned True; nothing was written."""
+
+
+def even_size(size: tuple[int, int]) -> tuple[int, int]:
+    """``(w, h)`` rounded up to even numbers (H.264 in yuv420p subsamples colour 2 × 2)."""
+    w, h = (int(v) for v in size)
+    return w + (w % 2), h + (h % 2)
+
+
+def movie_kind(path: str | os.PathLike[str]) -> str:
+    """``"video"``, ``"png"``, ``"tiff"`` or ``"folder"`` (a folder of PNGs), by suffix."""
+    suffix = Path(path).suffix.lower()
+    if suffix in MOVIE_SUFFIXES:
+        return "video"
+    if suffix == ".png":
+        return "png"
+    if suffix in (".tif", ".tiff"):
+        return "tiff"
+    if suffix == "":
+        return "folder"
+    raise ValueError(f"{Path(path).name}: unknown movie format {suffix!r}; use "
+                     f"{', '.join(MOVIE_SUFFIXES)}, .png (a sequence), .tif (a stack) or a folder")
+
+
+def _frame_names(path: Path, n: int) -> tuple[Path, list[str]]:
+    """The folder and the file names of a PNG sequence (see the module docstring)."""
+    if movie_kind(path) == "folder":
+        return path, [f"frame_{i:04d}.png" for i in range(n)]
+    width = max(4, len(str(n - 1)))
+    match = _PRINTF.search(path.name)
+    if match:
+        pattern = path.name[:match.start()] + "{:0" + str(int(match.group(1) or 0)) + "d}" + \
+            path.name[match.end():]
+        return path.parent, [pattern.format(i) for i in range(n)]
+    return path.parent, [f"{path.stem}_{i:0{width}d}.png" for i in range(n)]
+
+
+def _existing(path: Path, n: int) -> list[Path]:
+    """What writing ``n`` frames to ``path`` would replace."""
+    kind = movie_kind(path)
+    if kind in ("video", "tiff"):
+        return [path] if path.exists() else []
+    folder, names = _frame_names(path, n)
+    return [folder / name for name in names if (folder / name).exists()]
+
+
+def turntable_frames(
+    data: VolumeData,
+    *,
+    frames: int,
+    degrees: float = 360.0,
+    model: SceneModel | None = None,
+    size: tuple[int, int] = (800, 600),
+    method: str | None = None,
+    preset: str | None = None,
+    azimuth: float | None = None,
+    elevation: float | None = None,
+    parameters: dict[str, Any] | None = None,
+    max_seconds: float | None = 60.0,
+    on_error: Callable[[str], None] | None = None,
+) -> Iterator[np.ndarray]:
+    """Yield ``frames`` images ``(h, w, 3)`` uint8 of a turn by ``degrees`` (see the module
+    docstring for the axis). Arguments as :func:`vtkvol.engine.api.render_image`;
+    ``max_seconds`` bounds the refinement of each frame of a progressive technique.
+    """
+    import vtk
+
+    from vtkvol.engine.offscreen import grab, make_render_window
+    from vtkvol.engine.scene import VolumeScene
+    from vtkvol.model.defaults import scene_for
+    from vtkvol.model.presets import apply_preset
+    from vtkvol.model.scene import SceneModel
+
+    if frames < 1:
+        raise ValueError(f"frames must be at least 1, got {frames}")
+    model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
+    if preset is not None:
+        for channel in model.channels:
+            apply_preset(channel.tf, preset, tint=channel.color)
+    if method is not None:
+        model.illumination.method = method
+    for name, value in (parameters or {}).items():
+        model.illumination.set_value(name, value)
+    rw = make_render_window(size)
+    renderer = vtk.vtkRenderer()
+    rw.AddRenderer(renderer)
+    has_camera = model.camera.position is not None
+    scene = VolumeScene(renderer, model, data, request_render=lambda: None)
+    if on_error is not None:
+        scene.error.connect(on_error)
+    try:
+        if has_camera:
+            if azimuth or elevation:
+                scene.orbit(azimuth or 0.0, elevation or 0.0)
+        else:
+            scene.reset_camera(azimuth=30.0 if azimuth is None else azimuth,
+                               elevation=20.0 if elevation is None else elevation)
+        cam = renderer.GetActiveCamera()
+        focal = np.array(cam.GetFocalPoint())
+        position0 = np.array(cam.GetPosition())
+        up0 = np.array(cam.GetViewUp())
+        axis = up0 if has_camera else np.array([0.0, 0.0, 1.0])
+        step = float(degrees) / frames
+        for i in range(frames):
+            if i:
+                turn = vtk.vtkTransform()
+                turn.RotateWXYZ(i * step, *axis)
+                cam.SetPosition(*(focal + np.array(turn.TransformVector(*(position0 - focal)))))
+                cam.SetViewUp(*turn.TransformVector(*up0))
+                renderer.ResetCameraClippingRange()
+                scene.sync_camera_to_model()  # lights that follow the camera follow it here too
+            image = grab(rw)
+            illuminator = scene.illuminator
+            if i == 0 and illuminator is not None and illuminator.failed_method is not None:
+                image = grab(rw)  # the failed build showed nothing; this frame is local shading
+            if illuminator is not None and illuminator.wants_frame:
+                illuminator.converge(max_seconds=max_seconds)
+                image = grab(rw, render=False)
+            yield image
+    finally:
+        scene.close()
+        rw.Finalize()
+
+
+def write_movie(
+    frames: Iterable[np.ndarray],
+    path: str | os.PathLike[str],
+    *,
+    n_frames: int,
+    fps: float = 30.0,
+    overwrite: bool = False,
+    progress: ProgressCallback | None = None,
+    cancel: Callable[[], bool] | None = None,
+) -> list[Path]:
+    """Write ``n_frames`` RGB frames ``(h, w, 3)`` uint8 to ``path`` (kind by suffix, see the
+    module docstring), atomically. Returns the files written.
+
+    Raises
+    ------
+    FileExistsError
+        The output (or a frame file of the sequence) exists and ``overwrite`` is False.
+    ValueError
+        Unknown suffix, frames of different sizes, odd sizes for a video, fps ≤ 0.
+    MovieCancelled
+        ``cancel()`` returned True (checked before each frame).
+    """
+    path = Path(path)
+    kind = movie_kind(path)
+    if not fps > 0:
+        raise ValueError(f"fps must be > 0, got {fps}")
+    if n_frames < 1:
+        raise ValueError(f"n_frames must be at least 1, got {n_frames}")
+    existing = _existing(path, n_frames)
+    if existing and not overwrite:
+        shown = existing[0] if len(existing) == 1 else f"{existing[0]} and {len(existing) - 1} more"
+        raise FileExistsError(f"{shown} exists; pass --overwrite (overwrite=True) to replace it")
+    if kind == "video":
+        import importlib
+
+        try:
+            importlib.import_module("imageio_ffmpeg")
+        except ImportError:
+            raise ValueError(f"{path.name}: writing MP4 needs the optional package "
+                             "'imageio-ffmpeg': pip install 'vtkvol[movie]'") from None
+    folder = path if kind == "folder" else path.parent
+    folder.mkdir(parents=True, exist_ok=True)
+    writer = {"video": _VideoWriter, "tiff": _TiffWriter}.get(kind, _PngWriter)(path, n_frames, fps)
+    shape: tuple[int, ...] | None = None
+    done = 0
+    try:
+        for frame in frames:
+            if cancel is not None and cancel():
+                raise MovieCancelled("cancelled")
+            frame = np.ascontiguousarray(frame, dtype=np.uint8)
+            if frame.ndim != 3 or frame.shape[2] != 3:
+                raise ValueError(f"frames must be (h, w, 3) RGB, got {frame.shape}")
+            if shape is None:
+                shape = frame.shape
+                if kind == "video" and (shape[0] % 2 or shape[1] % 2):
+                    raise ValueError(f"H.264 in yuv420p needs even frame sizes, got "
+                                     f"{shape[1]}×{shape[0]}; render at even_size(...)")
+            elif frame.shape != shape:
+                raise ValueError(f"frame {done} is {frame.shape}, the first was {shape}")
+            writer.add(frame)
+            done += 1
+            if progress is not None:
+                progress(done, n_frames)
+            if done == n_frames:
+                break
+        if done != n_frames:
+            raise ValueError(f"{n_frames} frames announced, {done} given")
+        return writer.finish(overwrite)
+    finally:
+        writer.discard()
+
+
+class _VideoWriter:
+    """H.264/yuv420p through imageio-ffmpeg into a temporary file, renamed when complete."""
+
+    def __init__(self, path: Path, n: int, fps: float) -> None:
+        self.path, self.fps = path, fps
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+        os.close(fd)
+        self.tmp: Path | None = Path(tmp)
+        self.gen: Any = None
+
+    def add(self, frame: np.ndarray) -> None:
+        if self.gen is None:
+            import imageio_ffmpeg
+
+            h, w, _ = frame.shape
+            self.gen = imageio_ffmpeg.write_frames(
+                str(self.tmp), (w, h), fps=self.fps, codec="libx264", pix_fmt_in="rgb24",
+                pix_fmt_out="yuv420p", quality=None, macro_block_size=2,
+                # crf 18: visually lossless; faststart: playable while downloading.
+                output_params=["-crf", "18", "-movflags", "+faststart"],
+                ffmpeg_log_level="error",
+            )
+            self.gen.send(None)
+        self.gen.send(frame.tobytes())
+
+    def finish(self, overwrite: bool) -> list[Path]:
+        self.gen.close()  # waits for ffmpeg to write the file's index
+        self.gen = None
+        _publish(self.tmp, self.path)
+        self.tmp = None
+        return [self.path]
+
+    def discard(self) -> None:
+        if self.gen is not None:
+            with contextlib.suppress(Exception):
+                self.gen.close()
+        if self.tmp is not None:
+            self.tmp.unlink(missing_ok=True)
+
+
+class _TiffWriter:
+    """A multi-page RGB ImageJ TIFF (a stack for Fiji), written page by page."""
+
+    def __init__(self, path: Path, n: int, fps: float) -> None:
+        import tifffile
+
+        self.path, self.fps = path, fps
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
+        os.close(fd)
+        self.tmp: Path | None = Path(tmp)
+        self.tif = tifffile.TiffWriter(tmp, imagej=True)
+        self.n = n
+
+    def add(self, frame: np.ndarray) -> None:
+        # contiguous: one ImageJ series of n RGB frames; finterval gives Fiji the frame rate.
+        self.tif.write(frame, photometric="rgb", contiguous=True,
+                       metadata={"finterval": 1.0 / self.fps})
+
+    def finish(self, overwrite: bool) -> list[Path]:
+        self.tif.close()
+        _publish(self.tmp, self.path)
+        self.tmp = None
+        return [self.path]
+
+    def discard(self) -> None:
+        with contextlib.suppress(Exception):
+            self.tif.close()
+        if self.tmp is not None:
+            self.tmp.unlink(missing_ok=True)
+
+
+class _PngWriter:
+    """PNG frames into a temporary folder beside the sequence, moved into place at the end."""
+
+    def __init__(self, path: Path, n: int, fps: float) -> None:
+        self.folder, self.names = _frame_names(path, n)
+        self.tmp: Path | None = Path(tempfile.mkdtemp(prefix=".frames.", dir=self.folder))
+        self.count = 0
+
+    def add(self, frame: np.ndarray) -> None:
+        _write_png(frame, self.tmp / self.names[self.count])
+        self.count += 1
+
+    def finish(self, overwrite: bool) -> list[Path]:
+        written = []
+        for name in self.names:
+            target = self.folder / name
+            _publish(self.tmp / name, target)
+            written.append(target)
+        return written
+
+    def discard(self) -> None:
+        if self.tmp is not None:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+            self.tmp = None
+
+
+def _write_png(frame: np.ndarray, path: Path) -> None:
+    """An ``(h, w, 3)`` uint8 image, top row first, as a PNG (VTK's writer: no extra package)."""
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk
+
+    h, w, _ = frame.shape
+    image = vtk.vtkImageData()
+    image.SetDimensions(w, h, 1)
+    image.GetPointData().SetScalars(numpy_to_vtk(frame[::-1].reshape(-1, 3).copy(), deep=True))
+    writer = vtk.vtkPNGWriter()
+    writer.SetFileName(str(path))
+    writer.SetInputData(image)
+    writer.Write()
+    if writer.GetErrorCode():
+        raise OSError(f"{path.name}: the PNG could not be written (VTK error "
+                      f"{writer.GetErrorCode()})")
+
+
+def _publish(tmp: Path | None, target: Path) -> None:
+    """Give ``tmp`` the usual permissions (mkstemp makes 0600) and move it onto ``target``."""
+    assert tmp is not None
+    umask = os.umask(0)
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    os.replace(tmp, target)
