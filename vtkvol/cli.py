@@ -1,4 +1,5 @@
-"""The ``vtkvol`` command: ``open`` (the app), ``render`` (headless PNG), ``info``, ``bench``."""
+"""The ``vtkvol`` command: ``open`` (the app), ``render`` (headless PNG or turntable movie),
+``info``, ``bench``."""
 
 from __future__ import annotations
 
@@ -27,7 +28,9 @@ def _parser() -> argparse.ArgumentParser:
 
     p_render = sub.add_parser("render", help="render a volume or session to PNG, headless")
     p_render.add_argument("file", help="volume file/folder, session file, or 'sample'")
-    p_render.add_argument("-o", "--output", required=True, help="PNG file to write")
+    p_render.add_argument("-o", "--output", required=True,
+                          help="PNG file to write; with --turntable: .mp4, a .png sequence "
+                               "(spin.png → spin_0000.png…), a .tif stack or a folder of PNGs")
     p_render.add_argument("--size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"))
     p_render.add_argument("--azimuth", type=float, default=None,
                           help="degrees from the front view (default 30; sessions: orbit)")
@@ -42,6 +45,12 @@ def _parser() -> argparse.ArgumentParser:
     p_render.add_argument("--time", type=int, default=0, help="time point to render")
     p_render.add_argument("--overwrite", action="store_true",
                           help="replace the output file if it exists")
+    p_render.add_argument("--turntable", type=float, default=None, metavar="DEG",
+                          help="render a movie turning the view by DEG degrees (360: a loop)")
+    p_render.add_argument("--frames", type=int, default=120, metavar="N",
+                          help="frames of the turntable movie (default 120)")
+    p_render.add_argument("--fps", type=float, default=30.0,
+                          help="frames per second of the movie (default 30)")
 
     p_info = sub.add_parser("info", help="describe a volume file")
     p_info.add_argument("file")
@@ -88,7 +97,12 @@ def cmd_render(args: argparse.Namespace) -> int:
     from vtkvol.engine.api import render_image
 
     out = Path(args.output)
-    if out.exists() and not args.overwrite:
+    if args.turntable is not None:
+        problem = _movie_problem(args, out)
+        if problem:
+            print(f"vtkvol: {problem}", file=sys.stderr)
+            return 2
+    elif out.exists() and not args.overwrite:
         print(f"vtkvol: {out} exists; pass --overwrite to replace it", file=sys.stderr)
         return 2
     model = None
@@ -110,6 +124,8 @@ def cmd_render(args: argparse.Namespace) -> int:
             print(f"vtkvol: --param needs NAME=VALUE, got {item!r}", file=sys.stderr)
             return 2
         params[name] = _parse_value(value)
+    if args.turntable is not None:
+        return _render_turntable(args, out, data, model, params)
     image = render_image(
         data, model=model, size=tuple(args.size), method=args.method, preset=args.preset,
         azimuth=args.azimuth, elevation=args.elevation, parameters=params or None,
@@ -117,6 +133,53 @@ def cmd_render(args: argparse.Namespace) -> int:
     )
     _write_png(image, out)
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")
+    return 0
+
+
+def _movie_problem(args: argparse.Namespace, out: Path) -> str | None:
+    """What is wrong with the movie options, before anything is read or rendered."""
+    from vtkvol.movie import existing_outputs, movie_kind
+
+    if args.frames < 1:
+        return f"--frames must be at least 1, got {args.frames}"
+    if not (args.fps > 0 and args.fps < 1000):
+        return f"--fps must be between 0 and 1000, got {args.fps}"
+    try:
+        movie_kind(out)
+    except ValueError as exc:
+        return str(exc)
+    existing = existing_outputs(out, args.frames)
+    if existing and not args.overwrite:
+        more = f" (and {len(existing) - 1} more frame files)" if len(existing) > 1 else ""
+        return f"{existing[0]} exists{more}; pass --overwrite to replace it"
+    return None
+
+
+def _render_turntable(args: argparse.Namespace, out: Path, data, model, params) -> int:
+    """``--turntable``: render the frames and write them; progress on stderr."""
+    from vtkvol.movie import even_size, movie_kind, turntable_frames, write_movie
+
+    size = tuple(args.size)
+    if movie_kind(out) == "video" and even_size(size) != size:
+        size = even_size(size)
+        print(f"vtkvol: H.264 needs even sizes: rendering {size[0]}×{size[1]}", file=sys.stderr)
+    frames = turntable_frames(
+        data, frames=args.frames, degrees=args.turntable, model=model, size=size,
+        method=args.method, preset=args.preset, azimuth=args.azimuth, elevation=args.elevation,
+        parameters=params or None,
+        on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
+    )
+    end = "\r" if sys.stderr.isatty() else "\n"
+
+    def progress(done: int, total: int) -> None:
+        print(f"frame {done}/{total}", end=end if done < total else "\n", file=sys.stderr,
+              flush=True)
+
+    written = write_movie(frames, out, n_frames=args.frames, fps=args.fps,
+                          overwrite=args.overwrite, progress=progress)
+    where = out if len(written) == 1 else f"{written[0]} … {written[-1].name}"
+    print(f"wrote {where} ({args.frames} frames, {size[0]}×{size[1]}, "
+          f"{args.frames / args.fps:.2f} s at {args.fps:g} fps)")
     return 0
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "MOVIE_SUFFIXES",
     "MovieCancelled",
     "even_size",
+    "existing_outputs",
     "movie_kind",
     "turntable_frames",
     "write_movie",
@@ -95,8 +96,8 @@ def _frame_names(path: Path, n: int) -> tuple[Path, list[str]]:
     return path.parent, [f"{path.stem}_{i:0{width}d}.png" for i in range(n)]
 
 
-def _existing(path: Path, n: int) -> list[Path]:
-    """What writing ``n`` frames to ``path`` would replace."""
+def existing_outputs(path: Path, n: int) -> list[Path]:
+    """The files that writing ``n`` frames to ``path`` would replace (none: safe to write)."""
     kind = movie_kind(path)
     if kind in ("video", "tiff"):
         return [path] if path.exists() else []
@@ -210,7 +211,7 @@ def write_movie(
         raise ValueError(f"fps must be > 0, got {fps}")
     if n_frames < 1:
         raise ValueError(f"n_frames must be at least 1, got {n_frames}")
-    existing = _existing(path, n_frames)
+    existing = existing_outputs(path, n_frames)
     if existing and not overwrite:
         shown = existing[0] if len(existing) == 1 else f"{existing[0]} and {len(existing) - 1} more"
         raise FileExistsError(f"{shown} exists; pass --overwrite (overwrite=True) to replace it")
