@@ -177,7 +177,7 @@ def test_refines_until_converged_lights_the_scene_and_ignores_the_camera(backend
     from vtkvol.model.scene import Light
 
     rw, ren, il = kd_scene(backend, max_iterations=20)
-    frames = il.converge(max_iterations=50)
+    frames = il.converge(max_frames=50)
     assert frames == 4 and not il.wants_frame
     image = grab(rw).astype(float)
     assert image.max() > 40 and il.last_error is None
@@ -233,7 +233,7 @@ def test_edge_cases_converge_without_errors(shape, spacing, lights):
     il = Illuminator(volume, _ren, method="convection_diffusion", lights=chosen)
     errors: list[str] = []
     il.on_error = errors.append
-    il.converge(max_iterations=400)
+    il.converge(max_frames=400)
     image = grab(rw)
     assert errors == [] and il.method == "convection_diffusion" and not il.wants_frame
     stats = il.technique.stats()

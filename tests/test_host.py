@@ -207,7 +207,7 @@ def test_progressive_technique_refines_until_converged_and_never_restarts_on_cam
     progress: list[tuple[int, bool]] = []
     il.on_progress = lambda i, done: progress.append((i, done))
     assert il.wants_frame
-    assert il.converge(max_iterations=20) == 4
+    assert il.converge(max_frames=20) == 4
     assert not il.wants_frame and progress[-1] == (4, True)
     ren.GetActiveCamera().Azimuth(40)
     il.converge()
@@ -215,7 +215,7 @@ def test_progressive_technique_refines_until_converged_and_never_restarts_on_cam
     il.set_lights([Light(direction=(1.0, 0.0, 0.0))])
     assert il.converge() == 4  # the light moved: restart
     il.set_parameters(quality=0.5)
-    assert il.converge(max_iterations=2) == 2 and il.wants_frame
+    assert il.converge(max_frames=2) == 2 and il.wants_frame
     assert il.converge(max_seconds=0.0) == 1
     il.set_lights([Light(direction=(1.0, 0.0, 0.0), intensity=2.0)])
     il.converge()

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -51,6 +52,12 @@ def _parser() -> argparse.ArgumentParser:
                           help="frames of the turntable movie (default 120)")
     p_render.add_argument("--fps", type=float, default=30.0,
                           help="frames per second of the movie (default 30)")
+    p_render.add_argument("--iterations", type=int, default=None, metavar="N",
+                          help="progressive methods (multiple scattering): refine to N "
+                               "iterations (default: the method's own end)")
+    p_render.add_argument("--time-budget", type=float, default=300.0, metavar="SECONDS",
+                          help="progressive methods: stop refining after this many seconds "
+                               "(default 300)")
 
     p_info = sub.add_parser("info", help="describe a volume file")
     p_info.add_argument("file")
@@ -126,10 +133,26 @@ def cmd_render(args: argparse.Namespace) -> int:
         params[name] = _parse_value(value)
     if args.turntable is not None:
         return _render_turntable(args, out, data, model, params)
+    if args.iterations is not None and args.iterations < 1:
+        print(f"vtkvol: --iterations must be at least 1, got {args.iterations}", file=sys.stderr)
+        return 2
+    if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
+        print(f"vtkvol: --time-budget must be a number of seconds >= 0, got {args.time_budget}",
+              file=sys.stderr)
+        return 2
+
+    def refined(iterations: int, converged: bool, seconds: float) -> None:
+        how = "converged" if converged else "stopped by the time budget"
+        if args.iterations is not None and iterations >= args.iterations:
+            how = "as asked"
+        print(f"refined to {iterations} iterations in {seconds:.1f} s ({how})")
+
     image = render_image(
         data, model=model, size=tuple(args.size), method=args.method, preset=args.preset,
         azimuth=args.azimuth, elevation=args.elevation, parameters=params or None,
+        iterations=args.iterations, max_seconds=args.time_budget,
         on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
+        on_refined=refined,
     )
     _write_png(image, out)
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+import time
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -14,6 +16,7 @@ from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.presets import apply_preset
 from vtkvol.model.scene import Light, SceneModel
+from vtkvol.model.techniques import get_spec
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -80,7 +83,9 @@ def render_image(
     elevation: float | None = None,
     parameters: dict[str, Any] | None = None,
     max_seconds: float | None = 300.0,
+    iterations: int | None = None,
     on_error: Callable[[str], None] | None = None,
+    on_refined: Callable[[int, bool, float], None] | None = None,
 ) -> np.ndarray:
     """Render ``data`` offscreen and return an ``(h, w, 3)`` uint8 image.
 
@@ -88,10 +93,17 @@ def render_image(
     ``method``/``preset``/``parameters`` override it. ``azimuth``/``elevation`` (degrees): with a
     model whose camera is set, they orbit from that view; otherwise they place the camera from the
     front view (looking along +y, z up; default 30°/20°, the app's opening view). A progressive
-    technique refines until it has converged or ``max_seconds`` have passed (None: no limit).
-    ``on_error`` receives the one-line message when the technique fails (the image then shows
-    local shading).
+    technique refines until it has converged, has run ``iterations`` iterations (which also
+    becomes its ``max_iterations``, where it declares one, so it may go past its default end)
+    or ``max_seconds`` have passed (None: no limit); ``on_refined(iterations, converged,
+    seconds)`` is then told where it stopped. ``on_error`` receives the one-line message when
+    the technique fails (the image then shows local shading).
     """
+    if iterations is not None and (isinstance(iterations, bool) or int(iterations) < 1):
+        raise ValueError(f"iterations must be a whole number >= 1, not {iterations!r}")
+    if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds >= 0):
+        raise ValueError(f"the time budget must be a finite number of seconds >= 0, "
+                         f"not {max_seconds!r}")
     model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
     if preset is not None:
         for channel in model.channels:
@@ -101,6 +113,9 @@ def render_image(
     if parameters:
         for name, value in parameters.items():
             model.illumination.set_value(name, value)
+    if iterations is not None and any(p.name == "max_iterations"
+                                      for p in get_spec(model.illumination.method).parameters):
+        model.illumination.set_value("max_iterations", int(iterations))
     rw = make_render_window(size)
     renderer = vtk.vtkRenderer()
     rw.AddRenderer(renderer)
@@ -122,8 +137,12 @@ def render_image(
         if illuminator is not None and illuminator.failed_method is not None:
             image = grab(rw)  # the failed build showed nothing; this frame is local shading
         if illuminator is not None and illuminator.wants_frame:
-            illuminator.converge(max_seconds=max_seconds)
+            t0 = time.perf_counter()
+            illuminator.converge(max_seconds=max_seconds, iterations=iterations)
             image = grab(rw, render=False)
+            tech = illuminator.technique
+            if on_refined is not None and tech is not None:
+                on_refined(int(tech.iteration), bool(tech.converged), time.perf_counter() - t0)
         return image
     finally:
         scene.close()

@@ -395,10 +395,12 @@ class Illuminator:
             return self.spec.has("progressive")
         return not tech.converged
 
-    def converge(self, max_iterations: int | None = None, max_seconds: float | None = None) -> int:
-        """Render until the technique has converged, ``max_iterations`` frames have been
-        rendered or ``max_seconds`` have passed (batch rendering, scripts). Returns the number
-        of frames rendered. Non-progressive techniques need one frame."""
+    def converge(self, max_frames: int | None = None, max_seconds: float | None = None, *,
+                 iterations: int | None = None) -> int:
+        """Render until the technique has converged, has reached ``iterations`` of its own
+        iterations, ``max_frames`` frames have been rendered or ``max_seconds`` have passed
+        (batch rendering, scripts). Returns the number of frames rendered. Non-progressive
+        techniques need one frame."""
         window = self.renderer.GetRenderWindow()
         if window is None:
             raise RuntimeError("the renderer is not in a render window")
@@ -409,7 +411,10 @@ class Illuminator:
             frames += 1
             if not self.wants_frame:
                 break
-            if max_iterations is not None and frames >= max_iterations:
+            tech = self._technique
+            if iterations is not None and tech is not None and tech.iteration >= iterations:
+                break
+            if max_frames is not None and frames >= max_frames:
                 break
             if max_seconds is not None and time.perf_counter() - t0 >= max_seconds:
                 break
