@@ -302,7 +302,8 @@ def test_lights_model_updates_view(window):
     light.color = (1.0, 0.5, 0.0)
     assert dock.color.rgb() == (1.0, 0.5, 0.0)
     light.kind = "point"
-    assert dock.position_row.isVisibleTo(dock) and not dock.azimuth.isVisibleTo(dock)
+    assert all(b.isVisibleTo(dock) for b in dock.position_boxes)
+    assert not dock.azimuth.isVisibleTo(dock)
     light.kind = "directional"
     window.model.lights = [*window.model.lights, type(light)()]
     assert dock.light_list.count() == 2

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import dataclasses
 import os
 import sys
 import tempfile
@@ -45,7 +46,7 @@ from PySide6.QtWidgets import (
 )
 
 from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
-from vtkvol.io.volume_data import format_bytes
+from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
 from vtkvol.model.session import (
@@ -66,12 +67,16 @@ from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.undo import UndoRecorder, apply_state
+from vtkvol.ui.view_actions import ViewActions
 from vtkvol.ui.viewport import Viewport
+from vtkvol.ui.voxel_size import ask_voxel_size, user_note
 
 APP_NAME = "vtkvol"
 MAX_RECENT = 10
 RECENT_KEY = "recentFiles"
 SCREENSHOT_SCALES = (1, 2, 4)
+#: Shortcut of File → Save screenshot → 1×.
+SCREENSHOT_SHORTCUT = "Ctrl+Alt+S"
 #: Progress dialogs appear only for reads longer than this (ms): quick opens do not flash.
 PROGRESS_DELAY_MS = 400
 #: ``window["sample"]`` in a session marks the built-in sample (it has no file to point to).
@@ -148,6 +153,7 @@ class BackgroundTask(QObject):
         # worker's thread would wait for the read to finish, which is what Cancel must stop.
         self.dialog.canceled.connect(self.cancel)
         self._label = label
+        self._done = False
 
     def start(self) -> None:
         self.thread.start()
@@ -157,12 +163,20 @@ class BackgroundTask(QObject):
         self.worker.cancel()
 
     def _on_progress(self, fraction: float, message: str) -> None:
+        if self._done:
+            return
         self.dialog.setValue(int(fraction * 1000))
         if message:
             self.dialog.setLabelText(f"{self._label}\n{message}")
 
     def _finish(self) -> None:
+        # reset() stops the dialog's own show-after-minimumDuration timer: close() alone
+        # leaves it running, and a read shorter than PROGRESS_DELAY_MS then brought up an
+        # empty progress window afterwards, while the main thread built the new view.
+        self._done = True
+        self.dialog.reset()
         self.dialog.close()
+        self.dialog.deleteLater()
         self.thread.quit()
         self.thread.wait()
 
@@ -203,6 +217,12 @@ class MainWindow(QMainWindow):
         self._sample_args: dict[str, Any] | None = None
         self._task: BackgroundTask | None = None
         self._closing = False
+        #: The file's own voxel size (x, y, z µm) and whether the file stored it; None when
+        #: the data was opened with a voxel size given (the file's is then not known).
+        self._file_voxel: tuple[Spacing, bool] | None = None
+        #: Changes the undo history does not hold (a new voxel size) since the last save.
+        self._unsaved_data_edit = False
+        self._confirmed_close = False
         self.setWindowTitle(APP_NAME)
         self.setAcceptDrops(True)
         self.setDockNestingEnabled(True)
@@ -213,6 +233,7 @@ class MainWindow(QMainWindow):
         # A failed method set back to local shading by the engine amends the user's choice.
         self.viewport.engine_edit = self.recorder.amending
         self.setCentralWidget(self.viewport)
+        self.view_actions = ViewActions(self.model, self)
         self._make_docks()
         self._make_actions()
         self._make_menus()
@@ -312,14 +333,18 @@ class MainWindow(QMainWindow):
         self.save_session_as_action = self._action(
             "Save session &as…", lambda: self.save_session_interactive(choose=True),
             QKeySequence.StandardKey.SaveAs, "Save the view to a new session file")
-        self.quit_action = self._action("&Quit", self.close, QKeySequence.StandardKey.Quit)
+        self.quit_action = self._action("&Quit", self.request_quit, QKeySequence.StandardKey.Quit)
         self.undo_action = self.recorder.stack.createUndoAction(self, "&Undo")
         self.undo_action.setShortcuts([QKeySequence.StandardKey.Undo])
         self.redo_action = self.recorder.stack.createRedoAction(self, "&Redo")
         self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
-        self.reset_camera_action = self._action("&Reset camera", self.viewport.reset_camera,
-                                                QKeySequence("Ctrl+R"),
-                                                "Frame the whole volume from the default angle")
+        self.reset_camera_action = self._action(
+            "&Reset view", self.viewport.reset_camera, QKeySequence("Ctrl+R"),
+            "Frame what is visible (voxels the transfer functions do not make transparent) "
+            "from the default angle")
+        self.voxel_size_action = self._action(
+            "&Voxel size…", self.choose_voxel_size, None,
+            "The distance between voxel centres along x, y and z (µm)")
         self.gizmo_action = QAction("Light &handle", self)
         self.gizmo_action.setCheckable(True)
         self.gizmo_action.setChecked(True)
@@ -353,7 +378,9 @@ class MainWindow(QMainWindow):
             action = self._action(f"{scale}×", lambda s=scale: self.save_screenshot_interactive(s))
             self.screenshot_menu.addAction(action)
             self.screenshot_actions[scale] = action
-        self.screenshot_actions[1].setShortcut(QKeySequence("Ctrl+Shift+S"))
+        # Not Ctrl+Shift+S: that is Save session as (QKeySequence.SaveAs), and a key bound to
+        # two actions triggers neither.
+        self.screenshot_actions[1].setShortcut(QKeySequence(SCREENSHOT_SHORTCUT))
         self.screenshot_menu.aboutToShow.connect(self._label_screenshot_actions)
         file_menu.addSeparator()
         file_menu.addAction(self.quit_action)
@@ -363,11 +390,17 @@ class MainWindow(QMainWindow):
         edit = bar.addMenu("&Edit")
         edit.addAction(self.undo_action)
         edit.addAction(self.redo_action)
+        edit.addSeparator()
+        edit.addAction(self.voxel_size_action)
 
         view = bar.addMenu("&View")
         view.addAction(self.reset_camera_action)
         view.addAction(self.gizmo_action)
         view.addAction(self.reduce_action)
+        view.addSeparator()
+        for action in self.view_actions.overlay_actions.values():
+            view.addAction(action)
+        view.addAction(self.view_actions.background_action)
         view.addSeparator()
         for dock in self.docks:
             view.addAction(dock.toggleViewAction())
@@ -425,7 +458,7 @@ class MainWindow(QMainWindow):
         self.data_label.setText(
             f"{name} — {x}×{y}×{z}{channels}, {data.array.dtype}, voxel {sx:.3g}×{sy:.3g}×"
             f"{sz:.3g} µm, {format_bytes(data.nbytes)}")
-        self.data_label.setToolTip(data.describe())
+        self.data_label.setToolTip(user_note(data.describe()))
 
     def _data_name(self) -> str:
         if self.data is None:
@@ -447,6 +480,7 @@ class MainWindow(QMainWindow):
         for action in (self.save_session_action, self.save_session_as_action):
             action.setEnabled(has_data)
         self.screenshot_menu.setEnabled(has_data)
+        self.voxel_size_action.setEnabled(has_data)
 
     def _on_reduce_toggled(self, on: bool) -> None:
         self.viewport.reduce_while_moving = on
@@ -551,6 +585,8 @@ class MainWindow(QMainWindow):
         ``sample_args`` marks the built-in sample (so a session can regenerate it)."""
         fresh = scene_for(data)
         fresh.volume.voxel_size_um = voxel_size
+        self._file_voxel = (None if voxel_size is not None
+                            else (data.voxel_size_um, data.voxel_size_from_metadata))
         with self.model.batch():
             apply_state(self.model, {
                 "volume": fresh.volume.model_dump(),
@@ -574,6 +610,7 @@ class MainWindow(QMainWindow):
 
     def _after_open(self) -> None:
         self.recorder.reset()
+        self._unsaved_data_edit = False
         # Next event-loop pass: new channel rows are shown (and measurable) only then.
         QTimer.singleShot(0, self.fit_channels_dock)
         self._show_data_info()
@@ -583,7 +620,8 @@ class MainWindow(QMainWindow):
             # The full notes are in the data label's tooltip (describe()); the bar shows the
             # first, elided so it does not run under the permanent labels.
             more = len(self.data.notes) - 1
-            text = self.data.notes[0] + (f" (+{more} more: see the data's tooltip)" if more else "")
+            text = user_note(self.data.notes[0]) + (
+                f" (+{more} more: see the data's tooltip)" if more else "")
             width = max(120, self.statusBar().width() - self.data_label.sizeHint().width()
                         - self.frame_label.sizeHint().width() - 48)
             metrics = self.statusBar().fontMetrics()
@@ -652,6 +690,8 @@ class MainWindow(QMainWindow):
         with self.model.batch():
             apply_state(self.model, model.model_dump())
             self._set_data(data, reset_channels=False, sample_args=sample_args)
+        self._file_voxel = (None if model.volume.voxel_size_um is not None
+                            else (data.voxel_size_um, data.voxel_size_from_metadata))
         self.session_path = Path(path)
         self._restore_window(window)
         self._add_recent(str(path))
@@ -701,6 +741,8 @@ class MainWindow(QMainWindow):
             errors.show_error(self, exc, action="Could not save the session")
             return None
         self.session_path = written
+        self.recorder.stack.setClean()
+        self._unsaved_data_edit = False
         self._add_recent(str(written))
         self._update_title()
         self.statusBar().showMessage(f"Saved {written}", 6000)
@@ -841,16 +883,90 @@ class MainWindow(QMainWindow):
             "Points mode: click to add a node, drag to move, right-click or Delete to remove."
             "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
             "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
-            "camera · Ctrl+O: open · Ctrl+S: save session")
+            "view · Ctrl+O: open · Ctrl+S: save session · Ctrl+Shift+S: save session as · "
+            f"{SCREENSHOT_SHORTCUT}: screenshot")
+
+    # -- voxel size -----------------------------------------------------------------------------
+    def choose_voxel_size(self) -> None:
+        """Edit → Voxel size…: ask for (x, y, z) in µm and apply it."""
+        if self.data is None:
+            return
+        file_size, from_file = self._file_voxel if self._file_voxel is not None else (None, False)
+        size = ask_voxel_size(self, self.data.voxel_size_um, file_size, from_file)
+        if size is not None:
+            self.set_voxel_size(size)
+
+    def set_voxel_size(self, size: tuple[float, float, float]) -> None:
+        """Show the same voxels with voxel size ``size`` (x, y, z µm).
+
+        Transfer functions, channels, slice weights and illumination stay; crop ranges keep
+        the same voxels (their µm scale with the axis); the view is framed again. The model's
+        ``volume.voxel_size_um`` records the override for sessions (None when it equals the
+        file's own value). Like opening data, this starts a fresh undo history; the window
+        counts it as an unsaved change.
+        """
+        data = self.data
+        if data is None:
+            return
+        new = Spacing(*(float(v) for v in size))
+        if tuple(new) == tuple(data.voxel_size_um):
+            return
+        old = data.voxel_size_um
+        file_size = self._file_voxel[0] if self._file_voxel is not None else None
+        override = None if file_size is not None and tuple(file_size) == tuple(new) else tuple(new)
+        crop = {axis: None if (r := getattr(self.model.crop, axis)) is None else
+                (r[0] * new[i] / old[i], r[1] * new[i] / old[i])
+                for i, axis in enumerate("xyz")}
+        resized = dataclasses.replace(data, voxel_size_um=new)
+        with self.model.batch():
+            self.model.volume.voxel_size_um = override
+            self.model.crop.update(crop)
+            self.model.camera.update(Camera().model_dump())  # framed again for the new shape
+            self._set_data(resized, reset_channels=False, sample_args=self._sample_args)
+        # The old steps would restore crop ranges in the old µm on the new data.
+        self.recorder.reset()
+        self._unsaved_data_edit = True
+        self._show_data_info()
+        self.statusBar().showMessage(f"Voxel size {new.x:.4g} × {new.y:.4g} × {new.z:.4g} µm",
+                                     6000)
 
     # -- closing --------------------------------------------------------------------------------
+    def has_unsaved_changes(self) -> bool:
+        """Whether the view changed since it was opened or saved (camera moves aside)."""
+        return self.data is not None and (
+            not self.recorder.stack.isClean() or self._unsaved_data_edit)
+
+    def request_quit(self) -> None:
+        """File → Quit: ask about unsaved changes, then close."""
+        if self.confirm_discard():
+            self._confirmed_close = True
+            self.close()
+
+    def confirm_discard(self) -> bool:
+        """True when the window may close: nothing unsaved, or the user saved or discarded
+        it; False when the user cancelled (or the save was cancelled or failed)."""
+        if not self.has_unsaved_changes():
+            return True
+        answer = errors.ask_unsaved_changes(self, self._data_name())
+        if answer == "save":
+            self.save_session_interactive()
+            return not self.has_unsaved_changes()
+        return answer == "discard"
+
     def closeEvent(self, event: QCloseEvent) -> None:
+        # The user closing the window (the title bar's button: a spontaneous event) is asked
+        # about unsaved changes; File → Quit asked already. Closing from code is not asked.
+        confirmed, self._confirmed_close = self._confirmed_close, False
+        if event.spontaneous() and not confirmed and not self.confirm_discard():
+            event.ignore()
+            return
         if self._task is not None:
             # Readers check for cancellation at every slice or chunk, so this is short; a
             # QThread destroyed while running would abort the process.
             self._task.cancel()
             self._task.thread.wait()
         self._closing = True
+        self.view_actions.release()
         for dock in self.docks:
             dock.release()
         self.recorder.close()

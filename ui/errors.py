@@ -122,6 +122,27 @@ def ask_locate(parent: QWidget | None, exc: MissingDataError) -> bool:
     return box.clickedButton() is locate
 
 
+def ask_unsaved_changes(parent: QWidget | None, name: str) -> str:
+    """Closing with unsaved changes: ``"save"``, ``"discard"`` or ``"cancel"``."""
+    box = QMessageBox(parent)
+    box.setWindowTitle(APP_NAME)
+    box.setIcon(QMessageBox.Icon.Question)
+    box.setText(f"Save the view of {name} before closing?" if name
+                else "Save the view before closing?")
+    box.setInformativeText("Settings changed since the view was opened or saved (transfer "
+                           "functions, lights, crop, …). Without saving them as a session, "
+                           "they are lost.")
+    buttons = QMessageBox.StandardButton
+    box.setStandardButtons(buttons.Save | buttons.Discard | buttons.Cancel)
+    box.setDefaultButton(buttons.Save)
+    answer = run_dialog(box)
+    if answer == buttons.Save:
+        return "save"
+    if answer == buttons.Discard:
+        return "discard"
+    return "cancel"
+
+
 class ExceptionDialogHook:
     """``sys.excepthook`` for the app: exceptions raised in Qt slots or VTK observers (which
     VTK reports through the hook) become dialogs instead of a silent console traceback.

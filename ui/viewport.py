@@ -31,7 +31,7 @@ os.environ.setdefault("QT_API", "pyside6")  # pyvistaqt (through qtpy) must pick
 
 import numpy as np
 import vtk
-from PySide6.QtCore import QTimer, Signal
+from PySide6.QtCore import QEvent, QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
@@ -187,6 +187,8 @@ class Viewport(QWidget):
         self._settle_timer.timeout.connect(self._settle)
 
         self._gizmo = LightGizmo(self.interactor, self.renderer, self)
+        # Sees the view's mouse events first: a handle drag whose release was lost ends here.
+        self.plotter.installEventFilter(self)
         self._gizmo_light: int | None = 0
         self._gizmo_wanted = True
         self._gizmo_radius = 1.0
@@ -376,6 +378,31 @@ class Viewport(QWidget):
         self._gizmo.set_visible(bool(show))
         self.request_render()
 
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        """End a handle drag whose left-button release never reached VTK.
+
+        VTK's handle widget keeps the mouse from its press until the left button's release;
+        when that release is lost (a dialog took the mouse, the button came up outside the
+        window), every later move dragged the light, with no button held, instead of
+        turning the camera. A move without the left button, or a new left press, while a
+        drag is on means the release was lost: send VTK the release first.
+        """
+        if watched is self.plotter and self._gizmo.dragging:
+            kind = event.type()
+            moved = kind == QEvent.Type.MouseMove and not (
+                event.buttons() & Qt.MouseButton.LeftButton)  # type: ignore[attr-defined]
+            pressed = kind == QEvent.Type.MouseButtonPress and (
+                event.button() == Qt.MouseButton.LeftButton)  # type: ignore[attr-defined]
+            if moved or pressed:
+                self._end_lost_drag()
+        return super().eventFilter(watched, event)
+
+    def _end_lost_drag(self) -> None:
+        self.interactor.LeftButtonReleaseEvent()  # the widget ends its drag, lets the mouse go
+        if self._gizmo.dragging:  # the widget was not in a drag after all: forget ours
+            self._gizmo.dragging = False
+            self._interaction_ended()
+
     def _gizmo_moved(self, handle: np.ndarray) -> None:
         """The user dragged the handle: write the light's direction or position."""
         i = self._gizmo_light
@@ -406,6 +433,7 @@ class Viewport(QWidget):
         self._closed = True
         self._render_timer.stop()
         self._settle_timer.stop()
+        self.plotter.removeEventFilter(self)
         self.model.changed.disconnect(self._on_model_changed)
         rw = self.render_window
         if rw is not None:

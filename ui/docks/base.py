@@ -103,6 +103,17 @@ def number_box(
     return box
 
 
+def um_decimals(voxel_um: float) -> int:
+    """Decimals for positions in µm along an axis with voxels ``voxel_um`` apart: the ranges
+    dock and the slice-contribution axis write positions the same way."""
+    return 2 if voxel_um >= 0.01 else 3
+
+
+def format_um(value: float, voxel_um: float) -> str:
+    """``"25.40 µm"``: a position along an axis, with :func:`um_decimals` decimals."""
+    return f"{value:.{um_decimals(voxel_um)}f} µm"
+
+
 def hint_label(text: str) -> QLabel:
     """A small, wrapped explanatory label."""
     label = QLabel(text)

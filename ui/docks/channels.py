@@ -2,8 +2,9 @@
 
 Edits ``model.channels[i]`` and ``model.render`` (blend mode, channel mixing, isosurface
 value). Contrast limits are the transfer function's value span: changing them stretches the
-TF's nodes (:meth:`~vtkvol.model.TransferFunction.rescale`); "Auto" takes the 0.5th and
-99.8th percentiles of the channel's data.
+TF's nodes (:meth:`~vtkvol.model.TransferFunction.rescale`); "Auto" sets the limits a freshly
+opened channel gets (:func:`vtkvol.model.defaults.contrast_limits`: background plus three
+robust standard deviations to the 99.9th percentile), so it agrees with the first view.
 """
 
 from __future__ import annotations
@@ -21,13 +22,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
+from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
 from vtkvol.ui.binding import Bindings, signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
-#: Percentiles (0…100) that "Auto" contrast uses: the default TF's, robust to hot pixels.
-AUTO_PERCENTILES = (0.5, 99.8)
 BLEND_LABELS = {
     "composite": "Composite (emission–absorption)",
     "mip": "Maximum intensity projection",
@@ -102,8 +102,9 @@ class ChannelRow(QFrame):
         self.auto = QPushButton("Auto")
         self.auto.setObjectName(f"channel_auto_{index}")
         self.auto.setToolTip(
-            f"Contrast limits from the data: the {AUTO_PERCENTILES[0]:g}th to "
-            f"{AUTO_PERCENTILES[1]:g}th percentile of this channel")
+            "Contrast limits from the data, as when it was opened: from just above the "
+            "background (its level plus three standard deviations of its noise) to the "
+            "99.9th percentile of this channel")
         self.auto.setEnabled(dock.data is not None)
         grid.addWidget(QLabel("Contrast"), 1, 0)
         grid.addWidget(self.minimum, 1, 1)
@@ -168,13 +169,12 @@ class ChannelRow(QFrame):
         tf.rescale(lo, hi)
 
     def auto_contrast(self) -> None:
-        """Contrast limits from the data's percentiles."""
+        """The contrast limits a freshly opened channel gets (the same rule, so Auto after an
+        edit returns to the first view's contrast)."""
         data = self.dock.data
         if data is None:
             return
-        lo, hi = data.percentiles(min(self.index, data.n_channels - 1), *AUTO_PERCENTILES)
-        if not hi > lo:
-            lo, hi = data.channel_range(min(self.index, data.n_channels - 1))
+        lo, hi = contrast_limits(data, min(self.index, data.n_channels - 1))
         if hi > lo:
             self._tf().rescale(lo, hi)
 

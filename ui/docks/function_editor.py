@@ -164,7 +164,10 @@ class FunctionEditor(QWidget):
         # gesture state
         self._drag_index: int | None = None
         self._selected: int | None = None
-        self._painting: tuple[list[float], list[float], Points, Points] | None = None
+        #: While drawing: the sample positions and values across the window, the curve's nodes
+        #: before the stroke, and the first and last sample the stroke has touched.
+        self._painting: tuple[list[float], list[float], Points] | None = None
+        self._touched: tuple[int, int] | None = None
         self._last_sample: tuple[int, float] | None = None
         self._in_gesture = False
         self._pending: Points | None = None
@@ -480,10 +483,7 @@ class FunctionEditor(QWidget):
             return
         curve = self._curves.get(self._active) if self._active else None
         if self._painting is not None and curve is not None:
-            lo, hi = self._domain
-            _, _, left, right = self._painting
-            dense = [pt for pt in curve.points if lo <= pt[0] <= hi]
-            curve.points = left + simplify(dense, 0.003) + right
+            curve.points = self._stroke_points(simplified=True)
             self._pending = list(curve.points)
         self._painting = None
         self._drag_index = None
@@ -529,17 +529,47 @@ class FunctionEditor(QWidget):
         src_x = [pt[0] for pt in curve.points]
         src_y = [pt[1] for pt in curve.points]
         ys = list(np.interp(xs, src_x, src_y)) if curve.points else [0.0] * CURVE_SAMPLES
-        left = [pt for pt in curve.points if pt[0] < lo]
-        right = [pt for pt in curve.points if pt[0] > hi]
-        self._painting = ([float(v) for v in xs], [float(v) for v in ys], left, right)
+        self._painting = ([float(v) for v in xs], [float(v) for v in ys], list(curve.points))
+        self._touched = None
         self._last_sample = None
+
+    def _stroke_points(self, *, simplified: bool) -> Points:
+        """The curve with the stretch the stroke touched replaced by the drawn samples.
+
+        Only that stretch changes: nodes left and right of it stay as they were, with a node
+        on each side where the old curve meets the stroke (inside the old nodes' span only).
+        Redrawing the whole window would move the end nodes to the window's edges, and with
+        them the contrast limits (the TF's value span).
+        """
+        assert self._painting is not None
+        xs, ys, original = self._painting
+        if self._touched is None:
+            return list(original)
+        first, last = self._touched
+        stroke = list(zip(xs[first:last + 1], ys[first:last + 1], strict=True))
+        if simplified:
+            stroke = simplify(stroke, 0.003)
+        x0, x1 = xs[first], xs[last]
+        left = [pt for pt in original if pt[0] < x0]
+        right = [pt for pt in original if pt[0] > x1]
+        if original:
+            span_lo, span_hi = original[0][0], original[-1][0]
+            ox = [pt[0] for pt in original]
+            oy = [pt[1] for pt in original]
+            before = xs[first - 1] if first > 0 else None
+            after = xs[last + 1] if last + 1 < len(xs) else None
+            if before is not None and span_lo <= before and (not left or left[-1][0] < before):
+                left.append((before, float(np.interp(before, ox, oy))))
+            if after is not None and after <= span_hi and (not right or right[0][0] > after):
+                right.insert(0, (after, float(np.interp(after, ox, oy))))
+        return left + stroke + right
 
     def _paint_at(self, pos: QPointF, curve: Curve) -> None:
         assert self._painting is not None
-        xs, ys, left, right = self._painting
+        _, ys, _ = self._painting
         lo, hi = self._domain
         x, y = self.from_pixel(pos, curve)
-        i = round((x - lo) / (hi - lo) * (CURVE_SAMPLES - 1))
+        i = min(max(round((x - lo) / (hi - lo) * (CURVE_SAMPLES - 1)), 0), CURVE_SAMPLES - 1)
         if self._last_sample is None:
             ys[i] = y
         else:
@@ -551,7 +581,9 @@ class FunctionEditor(QWidget):
                 t = (k - j) / (i - j) if i != j else 1.0
                 ys[k] = yj + t * (y - yj)
         self._last_sample = (i, y)
-        curve.points = left + list(zip(xs, ys, strict=True)) + right
+        touched = self._touched or (i, i)
+        self._touched = (min(touched[0], i), max(touched[1], i))
+        curve.points = self._stroke_points(simplified=False)
         self._queue()
 
     def _begin_gesture(self) -> None:

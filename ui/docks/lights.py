@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
@@ -29,7 +29,6 @@ from PySide6.QtWidgets import (
     QListWidget,
     QListWidgetItem,
     QPushButton,
-    QScrollArea,
     QSlider,
     QSpinBox,
     QVBoxLayout,
@@ -43,8 +42,16 @@ from vtkvol.model.techniques import TechniqueSpec, technique_specs
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
+if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
+
 MAX_LIGHTS = 4
 SLIDER_STEPS = 1000  #: resolution of the sliders next to float parameters
+#: Narrowest number box (px): wide ranges (±10⁶ µm) would otherwise size the dock past its
+#: default width.
+NUMBER_WIDTH = 70
+#: A new point light's distance from the data's centre, in half-diagonals of its box.
+POINT_LIGHT_DISTANCE = 1.5
 
 
 # -- direction <-> angles (pure) ----------------------------------------------------------------
@@ -63,6 +70,20 @@ def angles_to_direction(azimuth: float, elevation: float) -> tuple[float, float,
     return (math.cos(el) * math.cos(az), math.cos(el) * math.sin(az), math.sin(el))
 
 
+def point_light_position(direction: tuple[float, float, float],
+                         data: VolumeData) -> tuple[float, float, float]:
+    """Where a point light goes when a light becomes one: from the data's centre along
+    ``direction`` (towards the light), :data:`POINT_LIGHT_DISTANCE` half-diagonals of the
+    data's box (voxel centres, µm) away."""
+    z, y, x = data.shape_zyx
+    extent = [(n - 1) * s for n, s in zip((x, y, z), data.voxel_size_um, strict=True)]
+    centre = [0.5 * e for e in extent]
+    half_diagonal = 0.5 * math.sqrt(sum(e * e for e in extent)) or 1.0
+    norm = math.sqrt(sum(c * c for c in direction)) or 1.0
+    return tuple(c + POINT_LIGHT_DISTANCE * half_diagonal * d / norm  # type: ignore[return-value]
+                 for c, d in zip(centre, direction, strict=True))
+
+
 # -- parameter widgets generated from Param declarations ------------------------------------------
 def param_label(param: Param) -> str:
     """``"Shadow cone angle (°)"``: the declared label with its unit."""
@@ -77,12 +98,28 @@ def param_tooltip(param: Param) -> str:
         parts.append(f"Range {param.range[0]:g}…{param.range[1]:g}{unit}; default "
                      f"{param.default}{unit}.")
     elif param.kind == "choice":
-        parts.append(f"One of {', '.join(param.choices)}; default {param.default}.")
+        names = ", ".join(param.choice_label(c) for c in param.choices)
+        parts.append(f"One of {names}; default {param.choice_label(param.default)}.")
     else:
         parts.append(f"Default {param.default}.")
     if param.scale == "log":
         parts.append("Logarithmic slider.")
     return "\n".join(parts)
+
+
+class ChoiceCombo(QComboBox):
+    """A combo box of declared choices: shows labels, emits the chosen identifier."""
+
+    choiceChanged = Signal(str)
+
+    def __init__(self, parent: QWidget | None = None) -> None:
+        super().__init__(parent)
+        self.currentIndexChanged.connect(self._emit)
+
+    def _emit(self, index: int) -> None:
+        value = self.itemData(index)
+        if value is not None:
+            self.choiceChanged.emit(str(value))
 
 
 class FloatParamWidget(QWidget):
@@ -160,11 +197,13 @@ def make_param_widget(param: Param) -> tuple[QWidget, Any, Callable[[Any], None]
         box.setToolTip(tooltip)
         return box, box.toggled, lambda v: box.setChecked(bool(v))
     if param.kind == "choice":
-        combo = QComboBox()
-        combo.addItems(list(param.choices))
+        # The declared labels are shown; the stored value is the identifier (item data).
+        combo = ChoiceCombo()
+        for choice in param.choices:
+            combo.addItem(param.choice_label(choice), choice)
         combo.setToolTip(tooltip)
-        signal = combo.currentTextChanged
-        return combo, signal, lambda v: combo.setCurrentIndex(max(0, combo.findText(str(v))))
+        return combo, combo.choiceChanged, lambda v: combo.setCurrentIndex(
+            max(0, combo.findData(str(v))))
     if param.kind == "int":
         spin = QSpinBox()
         lo, hi = param.range if param.range is not None else (-(2**31), 2**31 - 1)
@@ -247,24 +286,25 @@ class LightsDock(ModelDock):
         self.azimuth_label, self.elevation_label = QLabel("Azimuth"), QLabel("Elevation")
         form.addRow(self.azimuth_label, self.azimuth)
         form.addRow(self.elevation_label, self.elevation)
+        # One row per axis, in the rows azimuth and elevation use for a directional light:
+        # three boxes side by side do not fit the dock's width.
         self.position_boxes = []
-        position_row = QHBoxLayout()
-        position_row.setContentsMargins(0, 0, 0, 0)
+        self.position_labels = []
         for axis in "xyz":
-            box = number_box(minimum=-1e6, maximum=1e6, decimals=1, step=1, suffix="µm",
+            box = number_box(minimum=-1e6, maximum=1e6, decimals=2, step=1, suffix="µm",
                              object_name=f"light_pos_{axis}",
                              tooltip=f"{axis} position of the point light (µm)")
+            box.setMinimumWidth(NUMBER_WIDTH)
+            label = QLabel(f"Position {axis}")
             self.position_boxes.append(box)
-            position_row.addWidget(box)
-        self.position_label = QLabel("Position")
-        self.position_row = QWidget()
-        self.position_row.setLayout(position_row)
-        form.addRow(self.position_label, self.position_row)
+            self.position_labels.append(label)
+            form.addRow(label, box)
         self.color = ColorButton("Light colour")
         self.color.setObjectName("light_color")
         self.intensity = number_box(minimum=0, maximum=100, decimals=2, step=0.1,
                                     object_name="light_intensity",
                                     tooltip="Brightness multiplier of the light (1 = nominal)")
+        self.intensity.setMinimumWidth(NUMBER_WIDTH)
         color_row = QHBoxLayout()
         color_row.addWidget(self.color)
         color_row.addWidget(QLabel("Intensity"))
@@ -279,10 +319,9 @@ class LightsDock(ModelDock):
         self.falloff.setObjectName("light_falloff")
         self.falloff.setToolTip("Point light: brightness falls with the squared distance "
                                 "(the intensity is the brightness at the volume's centre)")
-        size_row = QHBoxLayout()
-        size_row.addWidget(self.size, 1)
-        size_row.addWidget(self.falloff)
-        form.addRow("Size", size_row)
+        self.size.setMinimumWidth(NUMBER_WIDTH)
+        form.addRow("Size", self.size)
+        form.addRow("", self.falloff)
         lights_layout.addLayout(form)
         layout.addWidget(lights_box)
 
@@ -312,21 +351,19 @@ class LightsDock(ModelDock):
         material.addRow("Scattering albedo", self.albedo)
         material.addRow("Phase asymmetry g", self.phase_g)
         method_layout.addWidget(self.material_box)
+        # The parameters are part of the dock's body, which scrolls as a whole: a scroll area
+        # of its own would show them a few rows at a time inside the scrolling dock.
         self.param_form_host = QWidget()
         self.param_form = QFormLayout(self.param_form_host)
         self.param_form.setContentsMargins(0, 0, 0, 0)
         self.param_form.setFieldGrowthPolicy(QFormLayout.FieldGrowthPolicy.AllNonFixedFieldsGrow)
-        scroll = QScrollArea()
-        scroll.setWidgetResizable(True)
-        scroll.setFrameShape(QScrollArea.Shape.NoFrame)
-        scroll.setWidget(self.param_form_host)
-        scroll.setMinimumHeight(150)  # at least five parameter rows before it scrolls
-        method_layout.addWidget(scroll, 1)
+        method_layout.addWidget(self.param_form_host)
         self.reset_params = QPushButton("Defaults")
         self.reset_params.setObjectName("illum_defaults")
         self.reset_params.setToolTip("Set this method's parameters to their declared defaults")
         method_layout.addWidget(self.reset_params, 0, Qt.AlignmentFlag.AlignRight)
-        layout.addWidget(method_box, 1)
+        layout.addWidget(method_box)
+        layout.addStretch(1)
         self.set_body(body)
 
         b = self.bindings
@@ -335,7 +372,7 @@ class LightsDock(ModelDock):
         b.connect_qt(self.add_button.clicked, self.add_light)
         b.connect_qt(self.remove_button.clicked, self.remove_light)
         b.connect_qt(self.kind.currentIndexChanged,
-                     lambda i: self._edit(kind=self.kind.itemData(i)))
+                     lambda i: self._set_kind(self.kind.itemData(i)))
         b.connect_qt(self.azimuth.valueChanged, self._on_angles)
         b.connect_qt(self.elevation.valueChanged, self._on_angles)
         for box in self.position_boxes:
@@ -369,6 +406,17 @@ class LightsDock(ModelDock):
             light.update(values)
         except ValueError:
             self._show_light()
+
+    def _set_kind(self, kind: str) -> None:
+        """Switch the light's kind; a new point light is placed where the directional light
+        came from, just outside the data (not at a fixed position, off-screen for small data)."""
+        light = self.light()
+        if light is None:
+            return
+        if kind == "point" and light.kind != "point" and self.data is not None:
+            self._edit(kind=kind, position=point_light_position(light.direction, self.data))
+        else:
+            self._edit(kind=kind)
 
     def _on_angles(self, _value: float) -> None:
         self._edit(direction=angles_to_direction(self.azimuth.value(), self.elevation.value()))
@@ -542,8 +590,8 @@ class LightsDock(ModelDock):
         self.falloff.setVisible(point)
         for w in (self.azimuth, self.elevation, self.azimuth_label, self.elevation_label):
             w.setVisible(not point)
-        self.position_row.setVisible(point)
-        self.position_label.setVisible(point)
+        for w in (*self.position_boxes, *self.position_labels):
+            w.setVisible(point)
 
     def _show_illumination(self) -> None:
         method = self.model.illumination.method

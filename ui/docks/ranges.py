@@ -22,7 +22,7 @@ from superqt import QDoubleRangeSlider
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel
 from vtkvol.ui.binding import signals_blocked
-from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
+from vtkvol.ui.docks.base import ModelDock, hint_label, number_box, um_decimals
 
 AXES = ("x", "y", "z")
 
@@ -127,7 +127,7 @@ class RangesDock(ModelDock):
                 slider.setRange(lo, max(hi, lo + step))
                 slider.setSingleStep(step)
                 slider.setValue(current)
-                decimals = 2 if step >= 0.01 else 3
+                decimals = um_decimals(step)
                 for box, value in ((lo_box, current[0]), (hi_box, current[1])):
                     box.setDecimals(decimals)
                     box.setRange(lo, max(hi, lo + step))

@@ -24,7 +24,7 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel, SliceWeights
-from vtkvol.ui.docks.base import ModelDock, hint_label
+from vtkvol.ui.docks.base import ModelDock, format_um, hint_label
 from vtkvol.ui.docks.function_editor import Curve, FunctionEditor
 
 AXES = (("x", "X", (235, 80, 80)), ("y", "Y", (80, 210, 90)), ("z", "Z", (90, 140, 255)))
@@ -117,12 +117,18 @@ class SliceWeightsDock(ModelDock):
         b.connect_qt(self.reset_all.clicked, self._on_reset_all)
 
     def _format_position(self, t: float) -> str:
-        """Axis labels in µm along the edited axis when the data is known, else in %."""
+        """Axis labels in µm along the edited axis when the data is known, else in %.
+
+        The same rule as the ranges dock and the engine: positions 0…1 span the voxel
+        centres, 0 … (n − 1)·s µm (the weights are applied over the data's point bounds).
+        """
         axis = self.editor.active or "x"
         if self.data is None:
             return f"{100 * t:.0f} %"
-        extent = self.data.extent_um["xyz".index(axis)]
-        return f"{t * extent:.3g} µm"
+        i = "xyz".index(axis)
+        n = self.data.shape_zyx[::-1][i]
+        size = float(self.data.voxel_size_um[i])
+        return format_um(t * (n - 1) * size, size)
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if touches(paths, "slice_weights"):
