@@ -152,6 +152,12 @@ def test_wrong_metadata(tmp_path):
         read_volume(plain)
     assert "without OME-Zarr 'multiscales' metadata" in _one_line(exc, "plain.zarr")
 
+    plate = tmp_path / "plate.zarr"
+    zarr.open_group(str(plate), mode="w").attrs["ome"] = {"version": "0.5", "plate": {}}
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(plate)
+    assert "high-content-screening plate" in _one_line(exc, "plate.zarr")
+
     path = _write(tmp_path / "axes.zarr", _cells(1), "czyx", version="0.5", levels=1)
     meta = json.loads((path / "zarr.json").read_text())
     meta["attributes"]["ome"]["multiscales"][0]["axes"].pop(0)  # 3 axes for 4-D arrays

@@ -216,6 +216,12 @@ def read_ome_zarr(
             group, multiscales = child, child_ms
             notes.append("bioformats2raw layout: image 0 read")
     if not multiscales:
+        ome = attrs.get("ome") if isinstance(attrs.get("ome"), dict) else attrs
+        for kind, example in (("plate", "A/1/0"), ("well", "0")):
+            if kind in ome:
+                raise VolumeReadError(path, f"an OME-Zarr high-content-screening {kind}, not an "
+                                            f"image: open one image folder inside it (e.g. "
+                                            f"{example})")
         raise VolumeReadError(path, "a Zarr group without OME-Zarr 'multiscales' metadata "
                                     "(not an OME-Zarr image)")
     if not isinstance(multiscales, list) or not isinstance(multiscales[0], dict):
