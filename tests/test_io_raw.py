@@ -17,7 +17,8 @@ def _vol(shape=(6, 5, 4), dtype=np.uint16):
 
 # -- name pattern ----------------------------------------------------------------------------
 @pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32, np.int16])
-def test_named_raw_round_trip_is_memory_mapped(tmp_path, dtype):
+def test_named_raw_round_trip_is_memory_mapped(tmp_path, monkeypatch, dtype):
+    monkeypatch.setattr("vtkvol.io.limits.COPY_MAPPED_UP_TO", 0)  # keep even small files mapped
     a = _vol((6, 5, 4), dtype)  # z, y, x
     name = f"bonsai_4x5x6_{np.dtype(dtype).name}.raw"
     path = tmp_path / name
@@ -180,7 +181,8 @@ def test_dat_errors(tmp_path, text, message):
 
 
 # -- NRRD ------------------------------------------------------------------------------------
-def test_nhdr_3d_with_spacings_and_units(tmp_path):
+def test_nhdr_3d_with_spacings_and_units(tmp_path, monkeypatch):
+    monkeypatch.setattr("vtkvol.io.limits.COPY_MAPPED_UP_TO", 0)  # keep even small files mapped
     a = _vol()
     a.astype("<u2").tofile(tmp_path / "vol.raw")
     (tmp_path / "vol.nhdr").write_text(

@@ -75,7 +75,8 @@ def test_channel_selection_by_index_and_name(tmp_path):
         read_volume(path, channels=[5])
 
 
-def test_uncompressed_single_channel_imagej_is_memory_mapped(tmp_path):
+def test_uncompressed_single_channel_imagej_is_memory_mapped(tmp_path, monkeypatch):
+    monkeypatch.setattr("vtkvol.io.limits.COPY_MAPPED_UP_TO", 0)  # keep even small files mapped
     a = _ramp((5, 16, 16), np.uint8)
     path = tmp_path / "mm.tif"
     tifffile.imwrite(path, a, imagej=True, metadata={"axes": "ZYX"})

@@ -30,7 +30,7 @@ from typing import IO, Any
 import numpy as np
 
 from vtkvol.io.errors import VolumeReadError
-from vtkvol.io.limits import check_declared_bytes, check_inside
+from vtkvol.io.limits import check_data_file, check_declared_bytes
 from vtkvol.io.progress import Progress, slabs
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.units import unit_scale_um
@@ -553,7 +553,7 @@ def _nrrd_layout(
                 "string) is not supported; concatenate into one file",
             )
         file = (path.parent / data_file).resolve()
-        check_inside(path, file)
+        check_data_file(path, file)
         header_bytes = int(fields.get("byte skip", "0"))
         line_skip = int(fields.get("line skip", "0"))
     else:
@@ -677,7 +677,7 @@ def parse_dat(path: Path) -> RawLayout:
             raise VolumeReadError(path, f"the descriptor has no {required!r} entry")
     file_name = values["file"].strip().strip("'\"")
     file = (path.parent / file_name).resolve()
-    check_inside(path, file)
+    check_data_file(path, file)
     try:
         size = tuple(int(v) for v in values["size"].replace(",", " ").split())
     except ValueError as exc:

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from vtkvol.io.errors import VolumeReadError
 from vtkvol.io.fit import FIT_STRATEGIES, FitStrategy, fit_volume
-from vtkvol.io.limits import check_path
+from vtkvol.io.limits import check_path, detach_from_file, file_backed
 from vtkvol.io.progress import CancelCallback, Progress, ProgressCallback
 from vtkvol.io.registry import VoxelSizeArg, available_readers, get_reader
 from vtkvol.io.volume_data import VolumeData
@@ -64,15 +64,18 @@ def read_volume(
     Returns
     -------
     VolumeData
-        ``array`` 4-D ``[c, z, y, x]`` (uint8/uint16/int16/float32, possibly memory-mapped),
+        ``array`` 4-D ``[c, z, y, x]`` (uint8/uint16/int16/float32; in memory, or
+        memory-mapped when larger than a quarter of this machine's memory: then the file must
+        not be overwritten in place while the data is used),
         ``voxel_size_um`` (x, y, z) in µm, channel names, metadata and user-visible notes.
 
     Raises
     ------
     VolumeReadError
         The file is missing, of an unknown type, corrupt, truncated, ambiguous, empty, all
-        NaN, of an unsupported dtype, or does not fit with ``fit="none"``. The message names
-        the file and the problem.
+        NaN, of an unsupported dtype, declares more data than this machine's memory, cannot
+        be read in the memory that is free, or does not fit with ``fit="none"``. The message
+        names the file and the problem.
     ReadCancelled
         ``cancel()`` returned True.
     ValueError
@@ -94,20 +97,28 @@ def read_volume(
     reader = get_reader(p)
     if reader is None:
         raise VolumeReadError(p, _unknown_type(p))
-    data = reader(
-        p,
-        voxel_size_um=voxel_size_um,
-        time_index=time_index,
-        channels=channels,
-        progress=prog.sub(0.0, 0.9),
-    )
-    data = fit_volume(
-        data,
-        max_texture_size=max_texture_size,
-        memory_budget_bytes=memory_budget_bytes,
-        strategy=fit,
-        progress=prog.sub(0.9, 1.0),
-    )
+    try:
+        data = reader(
+            p,
+            voxel_size_um=voxel_size_um,
+            time_index=time_index,
+            channels=channels,
+            progress=prog.sub(0.0, 0.9),
+        )
+        data = fit_volume(
+            data,
+            max_texture_size=max_texture_size,
+            memory_budget_bytes=memory_budget_bytes,
+            strategy=fit,
+            progress=prog.sub(0.9, 1.0),
+        )
+        data.array = detach_from_file(data.array)
+        data.metadata["memory_mapped"] = file_backed(data.array)
+    except MemoryError as exc:  # the one failure every reader can meet; never a traceback
+        raise VolumeReadError(
+            p, "there is not enough free memory to read it; close other programs, or read "
+               "fewer channels (channels=[...]) or a smaller part (memory_budget_bytes)",
+        ) from exc
     if data.n_channels > MAX_CHANNELS:
         raise VolumeReadError(
             p,

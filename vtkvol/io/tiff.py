@@ -30,6 +30,7 @@ import numpy as np
 import tifffile
 
 from vtkvol.io.errors import ReadCancelled, VolumeReadError
+from vtkvol.io.limits import check_declared_bytes
 from vtkvol.io.progress import Progress, slabs
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.units import length_to_um, unit_scale_um
@@ -523,6 +524,16 @@ def _memmap(tif: tifffile.TiffFile, series: Any, path: Path) -> np.memmap | None
         return None
     shape = tuple(series.get_shape(False))
     dtype = np.dtype(series.dtype).newbyteorder(tif.byteorder)
+    counts = page.databytecounts
+    if counts is not None and 0 < sum(int(c) for c in counts) < page.nbytes:
+        # The strips hold less than the page: mapping it would show the bytes that follow
+        # (other tags, the next page) as voxels.
+        raise VolumeReadError(
+            path,
+            f"corrupt TIFF: page 0 declares {sum(int(c) for c in counts)} bytes of image data, "
+            f"but a {'×'.join(str(n) for n in page.shape)} {np.dtype(page.dtype).name} page "
+            f"needs {page.nbytes}",
+        )
     expected = offset + math.prod(shape) * dtype.itemsize
     actual = path.stat().st_size
     if actual < expected:
@@ -694,6 +705,12 @@ def _read_tiff_file(
         array = _materialize(view, channel_index, progress, "reading")
     else:
         _check_page_bounds(series, path)
+        # Decoding allocates what the header declares (for one time point); refuse a lie
+        # before numpy fails with a MemoryError.
+        check_declared_bytes(
+            path, math.prod(shape) // max(plan.n_time, 1) * np.dtype(series.dtype).itemsize,
+            f"{'×'.join(str(n) for n in shape)} {np.dtype(series.dtype).name} (axes {axes})",
+        )
         k = _page_split(series, shape, axes)
         if k is None:
             progress(0.0, "reading image data")

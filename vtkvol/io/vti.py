@@ -15,10 +15,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from vtkvol.io.errors import VolumeReadError
-from vtkvol.io.limits import check_declared_bytes, check_inside
+from vtkvol.io.limits import check_data_file, check_declared_bytes
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.volume_data import Spacing, VolumeData, normalize_volume, resolve_channels
+from vtkvol.io.xml_arrays import check_xml_arrays
 
 if TYPE_CHECKING:
     from vtkmodules.vtkCommonDataModel import vtkImageData
@@ -138,17 +139,46 @@ def _vtk_reader_for(path: Path) -> Any:
 
 
 def _check_declared_extent(reader: Any, path: Path) -> None:
-    """Refuse a header whose extent alone (one byte per voxel) exceeds this machine's memory:
-    VTK would abort the process allocating it."""
+    """Refuse a header whose grid, at the bytes per voxel its arrays declare (type ×
+    components, all point arrays), exceeds this machine's memory: VTK would abort the process
+    allocating it (``std::bad_alloc``)."""
     from vtkmodules.vtkCommonExecutionModel import vtkStreamingDemandDrivenPipeline
 
     reader.UpdateInformation()
-    extent = reader.GetOutputInformation(0).Get(vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT())
+    info = reader.GetOutputInformation(0)
+    extent = info.Get(vtkStreamingDemandDrivenPipeline.WHOLE_EXTENT())
     if extent is None:
         return
     dims = [int(extent[2 * a + 1]) - int(extent[2 * a]) + 1 for a in range(3)]
     voxels = int(np.prod([max(d, 0) for d in dims], dtype=object))
-    check_declared_bytes(path, voxels, f"a {dims[0]}×{dims[1]}×{dims[2]} grid")
+    per_voxel, what = _declared_bytes_per_voxel(info)
+    check_declared_bytes(path, voxels * per_voxel, f"a {dims[0]}×{dims[1]}×{dims[2]} grid{what}")
+
+
+def _declared_bytes_per_voxel(info: Any) -> tuple[int, str]:
+    """Bytes per voxel of the point arrays the reader's header declares (at least 1), and
+    their description (``" of float64 × 4"``) for the message."""
+    from vtkmodules.vtkCommonCore import vtkDataArray
+    from vtkmodules.vtkCommonDataModel import vtkDataObject
+
+    arrays = info.Get(vtkDataObject.POINT_DATA_VECTOR())
+    total, parts = 0, []
+    for i in range(arrays.GetNumberOfInformationObjects() if arrays is not None else 0):
+        field = arrays.GetInformationObject(i)
+        kind = field.Get(vtkDataObject.FIELD_ARRAY_TYPE())
+        if kind is None:
+            continue
+        comps = max(1, field.Get(vtkDataObject.FIELD_NUMBER_OF_COMPONENTS()) or 1)
+        total += vtkDataArray.GetDataTypeSize(kind) * comps
+        name = _VTK_TYPE_NAMES.get(kind, "values")
+        parts.append(f"{name} × {comps}" if comps > 1 else name)
+    return max(total, 1), (f" of {' + '.join(parts)}" if parts else "")
+
+
+#: VTK's scalar type codes (vtkType.h) as numpy dtypes, for messages.
+_VTK_TYPE_NAMES = {2: "int8", 3: "uint8", 4: "int16", 5: "uint16", 6: "int32", 7: "uint32",
+                   8: "int64", 9: "uint64", 10: "float32", 11: "float64", 12: "int64",
+                   13: "uint64", 15: "int8", 16: "int64", 17: "uint64"}
 
 
 _XML_SPACING = re.compile(rb"<ImageData\b[^>]*?\bSpacing\s*=\s*\"([^\"]*)\"", re.DOTALL)
@@ -184,7 +214,7 @@ def _check_metaimage_data_file(path: Path) -> None:
     name = match.group(1)
     if name.upper() in ("LOCAL",) or name.upper().startswith("LIST"):
         return
-    check_inside(path, path.parent / name.split()[0])
+    check_data_file(path, path.parent / name.split()[0])
 
 
 def read_vtk_image_file(
@@ -234,6 +264,8 @@ def read_vtk_image_file(
     vtkLogger.SetStderrVerbosity(vtkLogger.VERBOSITY_OFF)
     try:
         _check_declared_extent(reader, path)
+        if path.suffix.lower() == ".vti":
+            check_xml_arrays(path)
         reader.Update()
     finally:
         vtkOutputWindow.SetInstance(previous)

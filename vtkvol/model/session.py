@@ -345,7 +345,10 @@ def _with_suffix(path: Path) -> Path:
 def _is_replaceable(path: Path) -> bool:
     """Whether ``path`` may be overwritten: an empty file or a readable vtkvol session."""
     try:
-        size = path.stat().st_size
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):
+            return False
+        size = info.st_size
         if size == 0:
             return True
         if size > MAX_SESSION_BYTES:
@@ -563,7 +566,10 @@ def _load_json(path: Path) -> dict[str, Any]:
     try:
         if path.is_dir():
             raise SessionError(path, "is a folder, not a session file")
-        size = path.stat().st_size
+        info = path.stat()
+        if not stat.S_ISREG(info.st_mode):  # a pipe would block the read forever
+            raise SessionError(path, "is not a regular file (a pipe, socket or device)")
+        size = info.st_size
         if size > MAX_SESSION_BYTES:
             raise SessionError(
                 path,
@@ -903,6 +909,8 @@ def _fingerprint_change(path: Path, size: int | None, digest: str | None) -> str
     """What differs from the recorded size and checksum, in words ('' when nothing does)."""
     if size is None and digest is None:
         return ""
+    if not (path.is_file() or path.is_dir()):
+        return ""  # a pipe or device: reading it could block; read_volume says what it is
     try:
         now_size, now_digest = _fingerprint(path)
     except OSError:
