@@ -13,7 +13,7 @@ zarr = pytest.importorskip("zarr")
 writer = pytest.importorskip("ome_zarr.writer")
 ome_format = pytest.importorskip("ome_zarr.format")
 
-from vtkvol.io import VolumeReadError, read_volume  # noqa: E402
+from vtkvol.io import ReadCancelled, VolumeReadError, read_volume  # noqa: E402
 from vtkvol.io.ome_zarr import OME_ZARR_READER, choose_level, read_ome_zarr  # noqa: E402
 from vtkvol.io.registry import get_reader  # noqa: E402
 
@@ -183,3 +183,15 @@ def test_no_level_fits_the_budget(tmp_path):
     path = _write(tmp_path / "huge.zarr", _cells(1), "czyx")
     with pytest.raises(VolumeReadError, match=r"no pyramid level fits: even the coarsest"):
         read_ome_zarr(path, memory_budget_bytes=16)
+
+
+def test_cancel_stops_the_read(tmp_path):
+    path = _write(tmp_path / "c.zarr", _cells(), "czyx", levels=1)
+    calls = []
+
+    def cancel() -> bool:
+        calls.append(1)
+        return len(calls) > 3  # after the header, during the chunk reads
+
+    with pytest.raises(ReadCancelled):
+        read_volume(path, cancel=cancel)

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.errors import ReadCancelled, VolumeReadError
 from vtkvol.io.limits import check_declared_bytes, physical_memory_bytes
 from vtkvol.io.optional import require
 from vtkvol.io.progress import Progress
@@ -307,7 +307,7 @@ def read_ome_zarr(
                 block = np.asarray(arr[tuple(index_tuple)])
                 out[k, sl] = block.reshape(sl.stop - sl.start, y_n, x_n) if "z" in pos else block
                 progress((k + sl.stop / z_n) / len(chosen), f"reading OME-Zarr level {index}")
-    except VolumeReadError:
+    except (VolumeReadError, ReadCancelled):
         raise
     except Exception as exc:  # codec errors on truncated chunks, missing stores…
         raise VolumeReadError(path, f"level {datasets[index]['path']!r} cannot be read: the "
