@@ -170,25 +170,38 @@ class BackgroundTask(QObject):
             self.dialog.setLabelText(f"{self._label}\n{message}")
 
     def _finish(self) -> None:
-        # reset() stops the dialog's own show-after-minimumDuration timer: close() alone
-        # leaves it running, and a read shorter than PROGRESS_DELAY_MS then brought up an
-        # empty progress window afterwards, while the main thread built the new view.
         self._done = True
+        self.thread.quit()
+        self.thread.wait()
+
+    def _close_dialog(self) -> None:
+        # reset() also stops the dialog's show-after-minimumDuration timer.
         self.dialog.reset()
         self.dialog.close()
         self.dialog.deleteLater()
-        self.thread.quit()
-        self.thread.wait()
 
     # ``finished`` goes out before the callback: the window forgets this task first, so a
     # callback may start the next one (the retry after "Locate…").
     def _on_succeeded(self, result: Any) -> None:
         self._finish()
+        if self.dialog.isVisible():
+            # The new view is built on this thread next (seconds for a large stack: its
+            # statistics, textures, first frame). A dialog closed now stays on screen until
+            # the event loop runs again, unpainted: a blank window. So it says what is
+            # happening, painted at once, and closes when the view is there.
+            self.dialog.setCancelButton(None)  # nothing to cancel on this thread
+            self.dialog.setValue(self.dialog.maximum())
+            self.dialog.setLabelText(f"{self._label}\nPreparing the view…")
+            self.dialog.repaint()
         self.finished.emit()
-        self._on_success(result)
+        try:
+            self._on_success(result)
+        finally:
+            self._close_dialog()
 
     def _on_failed(self, exc: BaseException) -> None:
         self._finish()
+        self._close_dialog()
         self.finished.emit()
         self._on_failure(exc)
 

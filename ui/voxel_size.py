@@ -8,6 +8,7 @@ applies it (:meth:`vtkvol.ui.app.MainWindow.set_voxel_size`).
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 from PySide6.QtWidgets import (
@@ -35,12 +36,18 @@ _NOTE_ADVICE = {
     "pass voxel_size_um to set it": "set it with Edit → Voxel size…",
 }
 
+#: "using 1 × 1 × 1 µm" / "using 1 µm": a reader assumed a voxel size.
+_ASSUMED = re.compile(r"using 1( × 1 × 1)? µm(?! \()")
+
 
 def user_note(note: str) -> str:
     """A reader note with its advice for library callers (an argument name) phrased for the
-    app's user (the menu entry that does it)."""
+    app's user (the menu entry that does it); a note that a voxel size was assumed gets that
+    advice when it has none."""
     for api, words in _NOTE_ADVICE.items():
         note = note.replace(api, words)
+    if _ASSUMED.search(note) and "Voxel size…" not in note:
+        note = _ASSUMED.sub(lambda m: f"{m.group(0)} (set it with Edit → Voxel size…)", note)
     return note
 
 

@@ -50,8 +50,9 @@ SLIDER_STEPS = 1000  #: resolution of the sliders next to float parameters
 #: Narrowest number box (px): wide ranges (±10⁶ µm) would otherwise size the dock past its
 #: default width.
 NUMBER_WIDTH = 70
-#: A new point light's distance from the data's centre, in half-diagonals of its box.
-POINT_LIGHT_DISTANCE = 1.5
+#: A new point light's distance from the data's centre, in half-diagonals of its box: just
+#: outside the data, where the view (framed on the data) still shows its handle.
+POINT_LIGHT_DISTANCE = 1.05
 
 
 # -- direction <-> angles (pure) ----------------------------------------------------------------
