@@ -239,3 +239,24 @@ def test_a_session_that_is_a_pipe_or_names_one_is_refused_without_blocking(tmp_p
     """, timeout=30)
     assert_refused(result, "v.npy: is not a regular file or folder")
     assert snapshot(tmp_path) == before
+
+
+def test_an_nrrd_header_that_never_ends_is_refused_without_reading_the_file(tmp_path):
+    """No blank line after the header and 256 MiB of data without a newline: the header
+    reader took the whole file as one line (all of it in memory)."""
+    path = tmp_path / "endless.nrrd"
+    with path.open("wb") as fh:
+        fh.write(b"NRRD0004\ntype: uchar\ndimension: 3\nsizes: 2 2 2\nencoding: raw\n")
+        fh.truncate(256 * 2**20)  # sparse: zeros, and no newline
+    result = read_in_child(path, timeout=30, memory_bytes=2 * 2**30)
+    assert_refused(result, "endless.nrrd: no end of the NRRD header within 1024 KiB")
+
+
+def test_a_tiff_whose_pages_link_in_a_circle_is_read_once(tmp_path):
+    """Already fine (tifffile stops at the loop): the pages before it, with a note."""
+    path = lying_tiff(tmp_path / "circle.tif", pages=3, circular=True, data=bytes(16))
+    result = read_in_child(path, timeout=30, extra="""
+        print("NOTES", data.notes)
+    """)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "OK (1, 1, 4, 4)" in result.stdout and "circular reference" in result.stdout

@@ -410,6 +410,19 @@ _NRRD_ENCODINGS = {
 }  # fmt: skip
 
 
+#: Longest NRRD header line and header accepted (headers are a few hundred bytes).
+_NRRD_MAX_LINE = 64 * 1024
+_NRRD_MAX_HEADER = 1024 * 1024
+
+
+def _header_text(raw: bytes) -> str:
+    """A header line as text: UTF-8 (``µm`` written by most tools), else Latin-1."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError:
+        return raw.decode("latin-1")
+
+
 def parse_nrrd_header(path: Path) -> tuple[dict[str, str], dict[str, str], int]:
     """Fields, key/value pairs and the byte offset just after the header of an NRRD file."""
     fields: dict[str, str] = {}
@@ -419,10 +432,16 @@ def parse_nrrd_header(path: Path) -> tuple[dict[str, str], dict[str, str], int]:
         if not magic.startswith(b"NRRD"):
             raise VolumeReadError(path, "not an NRRD header (the first line must be NRRD000x)")
         while True:
-            raw_line = fh.readline()
+            raw_line = fh.readline(_NRRD_MAX_LINE + 1)
             if not raw_line:
                 break
-            line = raw_line.decode("latin-1").rstrip("\r\n")
+            if len(raw_line) > _NRRD_MAX_LINE or fh.tell() > _NRRD_MAX_HEADER:
+                # Binary data without the blank line would otherwise be read as one "line".
+                raise VolumeReadError(
+                    path, f"no end of the NRRD header within {_NRRD_MAX_HEADER // 1024} KiB (a "
+                          "header ends at an empty line); the file is corrupt",
+                )
+            line = _header_text(raw_line).rstrip("\r\n")
             if not line.strip():
                 break  # blank line: end of header, attached data follow
             if line.startswith("#"):

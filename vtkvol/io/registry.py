@@ -157,9 +157,33 @@ class ReaderSpec:
         data.metadata.setdefault("reader", self.name)
         data.metadata.setdefault("time_points", 1)
         data.metadata.setdefault("time_index", 0)
+        if override is None or None in override:
+            _check_plausible_voxel_size(data)
         if override is not None:
             _apply_voxel_override(data, override)
         return normalize_volume(data, prog.sub(0.8, 1.0))
+
+
+#: Voxel sizes a file may declare (µm): 1 pm to 1 m, at most 10⁴ times larger on one axis
+#: than on another. Outside them the header is wrong (1e30 µm, a unit mistaken by 10⁹), and the
+#: renderer's steps and camera would be meaningless.
+PLAUSIBLE_VOXEL_UM = (1e-6, 1e6)
+MAX_ANISOTROPY = 1e4
+
+
+def _check_plausible_voxel_size(data: VolumeData) -> None:
+    """Replace an implausible voxel size from the file by 1 × 1 × 1 µm, with a note."""
+    size = data.voxel_size_um
+    lo, hi = PLAUSIBLE_VOXEL_UM
+    if all(lo <= v <= hi for v in size) and max(size) <= MAX_ANISOTROPY * min(size):
+        return
+    data.notes.append(
+        f"the file's voxel size ({size.x:g}, {size.y:g}, {size.z:g}) µm is not plausible "
+        f"(each axis 1 pm … 1 m, at most {MAX_ANISOTROPY:g}× another): using 1 × 1 × 1 µm "
+        "(pass voxel_size_um to set it)"
+    )
+    data.voxel_size_um = Spacing(1.0, 1.0, 1.0)
+    data.voxel_size_from_metadata = False
 
 
 def _voxel_override(value: VoxelSizeArg) -> tuple[float | None, float | None, float | None] | None:
