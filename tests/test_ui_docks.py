@@ -10,6 +10,7 @@ import pytest
 from PySide6.QtCore import QPoint, Qt
 
 from vtkvol.io import VolumeData, confocal_phantom
+from vtkvol.model.defaults import contrast_limits
 from vtkvol.ui.docks import base as dock_base
 from vtkvol.ui.docks.lights import angles_to_direction
 from vtkvol.ui.undo import apply_state
@@ -262,7 +263,8 @@ def test_channels_view_updates_model_and_the_image(window, pick):
     row.minimum.setValue(500.0)
     assert channel.tf.value_span[0] == pytest.approx(500.0)
     row.auto.click()
-    assert channel.tf.value_span == pytest.approx(window.data.percentiles(0, 0.5, 99.8))
+    # Auto: the contrast a freshly opened channel gets (issue 15: they used to disagree).
+    assert channel.tf.value_span == pytest.approx(contrast_limits(window.data, 0))
     dock.blend.setCurrentIndex(dock.blend.findData("mip"))
     assert window.model.render.blend_mode == "mip"
     mip = shot(window)
