@@ -58,6 +58,9 @@ def test_write_docs_screenshots(qapp, qtbot, tmp_path):
     with qtbot.waitSignal(window.dataShown, timeout=60_000):
         window.open_sample(shape_zyx=(32, 80, 80), voxel_size_um=(0.3, 0.3, 0.9))
     window.viewport.scene.orbit(-15.0, 5.0)
+    # The day-one overlays (issue 15): scale bar, orientation axes, colour legend.
+    window.model.overlays.update({"scale_bar": True, "orientation_axes": True,
+                                  "color_legend": True})
     qtbot.wait(100)  # layouts settle (the channel rows, the dock sizes)
     OUT.mkdir(parents=True, exist_ok=True)
     written = []
@@ -75,6 +78,7 @@ def test_write_docs_screenshots(qapp, qtbot, tmp_path):
     window.slice_dock.axis_buttons["z"].click()
     window.model.slice_weights.z = [(0.0, 0.0), (0.15, 1.0), (0.85, 1.0), (1.0, 0.0)]
     window.model.crop.x = (3.0, 21.0)
+    window.model.overlays.update({"bounding_box": True, "color_legend": False})
     qtbot.wait(50)
     save(window, "main-window-slices-ranges")
     # Each dock on its own: a second instance bound to the same model and data, at a size
