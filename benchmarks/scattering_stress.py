@@ -38,8 +38,11 @@ def sphere(alpha: float, spacing: Sequence[float] = (1.0, 1.0, 1.0)) -> np.ndarr
     return (r2 <= 64.0).astype(np.float32) * np.float32(alpha)
 
 
-def run_case(alpha: np.ndarray, spacing: Sequence[float], light: object) -> dict[str, dict]:
-    """KD and HD against the references for one volume and light (a reference light object)."""
+def run_case(alpha: np.ndarray, spacing: Sequence[float], light: object, *,
+             n_points: int = 600, n_paths: int = 256,
+             hd_iterations: int = HD_ITERATIONS) -> dict[str, dict]:
+    """KD and HD against the references for one volume and light (a reference light object),
+    at up to ``n_points`` voxels with ``n_paths`` reference paths each."""
     grid = kd.Grid(alpha.shape, tuple(spacing))
     unit = float(min(spacing))
     sigma_t = kd.extinction(alpha, unit)
@@ -57,7 +60,7 @@ def run_case(alpha: np.ndarray, spacing: Sequence[float], light: object) -> dict
 
     rho_d = np.zeros((*alpha.shape, 3), np.float32)
     rho_s = np.zeros_like(rho_d)
-    for k in range(HD_ITERATIONS):
+    for k in range(hd_iterations):
         sample = hd.direct_sample(sigma_t, grid, [source], [(1.0, 1.0, 1.0)], iteration=k,
                                   seed=0, estimator="ratio", light_sampling="one")
         rho_d += (sample - rho_d) / np.float32(k + 1)
@@ -65,11 +68,11 @@ def run_case(alpha: np.ndarray, spacing: Sequence[float], light: object) -> dict
 
     mask = alpha > 0.01
     zyx = np.argwhere(mask)
-    zyx = zyx[:: max(1, len(zyx) // 600)]
+    zyx = zyx[:: max(1, len(zyx) // n_points)]
     pts = zyx[:, ::-1] * np.asarray(spacing)
     idx = tuple(zyx.T)
     exact = transmittance(alpha, spacing, light, unit_distance=unit)[idx]
-    indirect = inscattered_mc(alpha, spacing, light, albedo=ALBEDO, n_paths=256, points=pts,
+    indirect = inscattered_mc(alpha, spacing, light, albedo=ALBEDO, n_paths=n_paths, points=pts,
                               unit_distance=unit, max_bounces=48)
     out = {}
     for name, direct, scattered in (("KD", kd_direct, kd_scattered),
