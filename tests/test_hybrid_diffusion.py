@@ -137,7 +137,7 @@ def test_refines_to_the_end_and_memory_does_not_grow_with_lights():
     for count in (1, 3):
         lights = [Light(direction=d) for d in ((0, 0, 1), (1, 0, 0), (0, 1, 1))[:count]]
         rw, ren, il = hd_scene("auto", lights=lights, max_iterations=9)
-        assert il.converge(max_iterations=20) == 3 and not il.wants_frame
+        assert il.converge(max_frames=20) == 3 and not il.wants_frame
         image = grab(rw)
         assert image.max() > 40 and il.last_error is None
         ren.GetActiveCamera().Azimuth(40)
@@ -147,3 +147,28 @@ def test_refines_to_the_end_and_memory_does_not_grow_with_lights():
         il.release()
         rw.Finalize()
     assert sizes[1] == sizes[3] > 0
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("method", ["hybrid_diffusion", "convection_diffusion"])
+def test_a_transfer_function_edit_restarts_the_accumulation_a_camera_move_does_not(method):
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.engine.offscreen import grab, simple_volume_scene
+    from vtkvol.model.scene import Light
+
+    arr = np.zeros((16, 16, 16), np.float32)
+    arr[4:12, 4:12, 4:12] = 1.0
+    rw, ren, volume = simple_volume_scene(arr, size=(48, 48), opacity=[(0.0, 0.0), (1.0, 0.3)])
+    il = Illuminator(volume, ren, method=method, lights=[Light(direction=(0.0, 0.0, 1.0))],
+                     parameters={"iterations_per_frame": 2, "max_iterations": 6})
+    il.converge(max_frames=10)
+    assert il.technique.iteration == 6 and il.technique.stats()["recomputes"] == 1
+    ren.GetActiveCamera().Elevation(25)
+    grab(rw)
+    assert il.technique.iteration == 6 and il.technique.stats()["recomputes"] == 1
+    # the user edits the opacity transfer function: the light it computed no longer applies
+    volume.GetProperty().GetScalarOpacity().AddPoint(0.5, 0.6)
+    grab(rw)
+    assert il.technique.stats()["recomputes"] == 2 and il.technique.iteration == 2
+    il.release()
+    rw.Finalize()
