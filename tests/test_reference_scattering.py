@@ -236,3 +236,18 @@ def test_rejects_bad_phase_and_albedo(kwargs: dict, message: str) -> None:
 def test_rejects_a_negative_falloff_distance() -> None:
     with pytest.raises(ValueError, match="falloff distance"):
         PointLight((0.0, 0.0, 0.0), falloff_distance=-1.0)
+
+
+def test_light_colours_weigh_each_light_on_the_same_paths() -> None:
+    vol = phantom_sphere_over_slab(12)
+    pts = voxel_centres(vol.shape, (1, 1, 1))[::31]
+    side = DirectionalLight((1.0, 0.0, 0.3))
+    both = inscattered_mc(vol, (1, 1, 1), [UP, side], light_colors=[(1, 0, 0), (0, 0.5, 0)],
+                          n_paths=8, max_bounces=5, points=pts)
+    assert both.shape == (pts.shape[0], 3)
+    up_only = inscattered_mc(vol, (1, 1, 1), UP, n_paths=8, max_bounces=5, points=pts)
+    np.testing.assert_allclose(both[:, 0], up_only, rtol=1e-5, atol=1e-7)
+    assert np.all(both[:, 2] == 0) and both[:, 1].max() > 0
+    with pytest.raises(ValueError, match="light_colors"):
+        inscattered_mc(vol, (1, 1, 1), [UP, side], light_colors=[(1, 0, 0)], n_paths=1,
+                       points=pts)

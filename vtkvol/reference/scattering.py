@@ -102,6 +102,7 @@ def inscattered_mc(
     max_bounces: int = 16,
     min_bounces: int = 1,
     points: np.ndarray | None = None,
+    light_colors: Sequence[Sequence[float]] | None = None,
 ) -> np.ndarray:
     """Monte-Carlo in-scattered light per voxel centre (or per point); see the module docstring.
 
@@ -133,12 +134,15 @@ def inscattered_mc(
         scattered exactly once.
     points
         Optional world positions (N, 3) in µm, order (x, y, z), instead of every voxel centre.
+    light_colors
+        Optional (R, G, B) irradiance of each light (≥ 0) instead of unit white lights; makes
+        the result RGB.
 
     Returns
     -------
     float32 light in units of the lights' irradiance (≥ 0; without fall-off and with g = 0 at
     most n_lights · Σ_{k=min_bounces}^{max_bounces} albedo^k): ``[z, y, x]``, or (N,) with
-    ``points``; a trailing axis of 3 with an RGB albedo.
+    ``points``; a trailing axis of 3 with an RGB albedo or light colours.
     """
     light_list = as_light_list(lights)
     albedo_rgb = np.atleast_1d(np.asarray(albedo, dtype=np.float64))
@@ -147,26 +151,34 @@ def inscattered_mc(
     if not (-1.0 < float(phase_g) < 1.0):
         raise ValueError(f"phase_g {phase_g} must be in (-1, 1)")
     g = float(phase_g)
+    colors = np.ones((len(light_list), 1))
+    if light_colors is not None:
+        colors = np.asarray(light_colors, dtype=np.float64)
+        if colors.shape != (len(light_list), 3) or not np.all(np.isfinite(colors) & (colors >= 0)):
+            raise ValueError("light_colors must give one finite, non-negative (R, G, B) per light")
+    channels = max(albedo_rgb.size, colors.shape[1])
+    albedo_rgb = np.broadcast_to(albedo_rgb, (channels,))
+    colors = np.broadcast_to(colors, (len(light_list), channels))
     n_paths = check_count(n_paths, "n_paths")
     if int(min_bounces) != min_bounces or int(max_bounces) != max_bounces or min_bounces < 0:
         raise ValueError("min_bounces and max_bounces must be integers >= 0")
     field = ExtinctionField(opacity, spacing, unit_distance)
     where = EvalPoints.of(field, points)
-    channels = albedo_rgb.size
     out = np.zeros((where.n, channels))
     if max_bounces >= min_bounces:
         for start, stop, pts in where.chunks(max(1, PATH_CHUNK // n_paths)):
-            out[start:stop] = _paths(field, pts, light_list, albedo_rgb, g, n_paths, seed,
-                                     int(min_bounces), int(max_bounces))
+            out[start:stop] = _paths(field, pts, light_list, colors, albedo_rgb, g, n_paths,
+                                     seed, int(min_bounces), int(max_bounces))
     if channels == 1:
         return where.finish(out[:, 0])
     return np.stack([where.finish(out[:, c]) for c in range(channels)], axis=-1)
 
 
 def _paths(field: ExtinctionField, pts: np.ndarray, light_list: Sequence[Light],
-           albedo: np.ndarray, g: float, n_paths: int, seed: int, min_bounces: int,
-           max_bounces: int) -> np.ndarray:
-    """The mean score of ``n_paths`` paths from each of ``pts`` (M, 3): (M, channels)."""
+           colors: np.ndarray, albedo: np.ndarray, g: float, n_paths: int, seed: int,
+           min_bounces: int, max_bounces: int) -> np.ndarray:
+    """The mean score of ``n_paths`` paths from each of ``pts`` (M, 3): (M, channels);
+    ``colors`` (lights, channels) weighs each light, ``albedo`` (channels,) each bounce."""
     m = pts.shape[0]
     owner = np.repeat(np.arange(m), n_paths)
     keys = stream_keys(np.repeat(point_keys(pts, seed), n_paths), np.tile(np.arange(n_paths), m))
@@ -176,7 +188,7 @@ def _paths(field: ExtinctionField, pts: np.ndarray, light_list: Sequence[Light],
     weight = np.ones(albedo.size)
     for k in range(max_bounces + 1):
         if k >= min_bounces:
-            score = np.zeros(pos.shape[0])
+            score = np.zeros((pos.shape[0], albedo.size))
             for li, light in enumerate(light_list):
                 dirs, t_end = light_rays(pos, light)
                 contribution = ratio_tracking(
@@ -184,9 +196,9 @@ def _paths(field: ExtinctionField, pts: np.ndarray, light_list: Sequence[Light],
                 ) * falloff(light, t_end)
                 if k >= 1 and g != 0.0:
                     contribution *= hg_4pi(np.einsum("ij,ij->i", dirs, travel), g)
-                score += contribution
+                score += contribution[:, None] * colors[li]
             for c in range(albedo.size):
-                acc[:, c] += np.bincount(owner, weights=weight[c] * score, minlength=m)
+                acc[:, c] += np.bincount(owner, weights=weight[c] * score[:, c], minlength=m)
         weight = weight * albedo
         if k == max_bounces or not weight.any():
             break  # no further order can contribute
