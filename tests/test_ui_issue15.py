@@ -491,3 +491,31 @@ def test_pyvista_blend_mode_names(window):
     assert combo.itemData(combo.currentIndex()) == "minip"
     combo.setCurrentIndex(combo.findData("composite"))  # widget → model
     assert window.model.render.blend_mode == "composite"
+
+
+def test_magnified_screenshot_measures_like_the_view(window):
+    """A 2× screenshot is rendered in tiles; its scale bar is where, and as long, as in the
+    view, in the image's pixels."""
+    window.model.render.background = (0.0, 0.0, 0.0)
+    window.model.channels[0].visible = False  # only the overlay is bright
+    window.model.overlays.scale_bar = True
+    shot(window)
+    overlays = window.viewport.scene.overlays
+    length_px = overlays.bar_length_px
+
+    def longest_bright_run(image: np.ndarray, rows: slice) -> int:
+        bright = image[rows].min(axis=-1) > 150
+        best = 0
+        for row in bright:
+            run = 0
+            for value in row:
+                run = run + 1 if value else 0
+                best = max(best, run)
+        return best
+
+    single = window.viewport.screenshot(1)
+    double = window.viewport.screenshot(2)
+    assert longest_bright_run(single, slice(230, 256)) == pytest.approx(length_px, abs=3)
+    assert longest_bright_run(double, slice(460, 512)) == pytest.approx(2 * length_px, abs=5)
+    # In the lower-right corner of the large image, not repeated in other tiles.
+    assert longest_bright_run(double, slice(200, 300)) < 10

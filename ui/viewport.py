@@ -300,8 +300,12 @@ class Viewport(QWidget):
             # moved, or none yet if the widget was resized since (its buffers are new).
             self._render_timer.stop()
             self.plotter.render()
+            # Tiles keep the overlays' layout of that frame (VTK scales it to the image).
+            self.scene.overlays.magnify(scale)
             image = self.plotter.screenshot(None, return_img=True, scale=scale)
         finally:
+            if self.scene is not None:
+                self.scene.overlays.magnify(1)
             self._gizmo.set_visible(gizmo)
             self.request_render()
         return np.ascontiguousarray(image[..., :3], dtype=np.uint8)

@@ -35,6 +35,8 @@ SCALE_BAR_SHARE = 0.2
 AXES_VIEWPORT = (0.0, 0.0, 0.2, 0.2)
 #: Margin of the scale bar from the view's lower-right corner, pixels.
 MARGIN_PX = 14
+#: Font size of the scale bar's label, pixels.
+FONT_PX = 14
 
 
 def round_length(length: float) -> float:
@@ -88,28 +90,28 @@ class SceneOverlays:
         self.axes_renderer.InteractiveOff()  # clicks in the corner still move the main camera
         self.axes_renderer.AddActor(self.axes_actor)
 
-        self._bar = vtk.vtkPolyData()
-        points = vtk.vtkPoints()
-        points.SetNumberOfPoints(2)
-        self._bar.SetPoints(points)
-        lines = vtk.vtkCellArray()
-        lines.InsertNextCell(2, [0, 1])
-        self._bar.SetLines(lines)
-        bar_mapper = vtk.vtkPolyDataMapper2D()
-        bar_mapper.SetInputData(self._bar)
-        self.bar_actor = vtk.vtkActor2D()
-        self.bar_actor.SetMapper(bar_mapper)
+        # A 2-D axis without ticks or labels: a line between its two position coordinates,
+        # which tiled (magnified) screenshots scale with the image, unlike polygon points.
+        self.bar_actor = vtk.vtkAxisActor2D()
+        for coordinate in (self.bar_actor.GetPositionCoordinate(),
+                           self.bar_actor.GetPosition2Coordinate()):
+            coordinate.SetCoordinateSystemToNormalizedViewport()
+        self.bar_actor.TickVisibilityOff()
+        self.bar_actor.LabelVisibilityOff()
+        self.bar_actor.TitleVisibilityOff()
         self.bar_actor.GetProperty().SetLineWidth(4.0)
         self.bar_actor.PickableOff()
         self.bar_text = vtk.vtkTextActor()
         text = self.bar_text.GetTextProperty()
-        text.SetFontSize(14)
+        text.SetFontSize(FONT_PX)
         text.SetJustificationToCentered()
         text.SetVerticalJustificationToBottom()
+        self.bar_text.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
         self.bar_text.PickableOff()
         #: Length (µm) and pixel length of the bar in the last frame (tests read them).
         self.bar_length_um = 0.0
         self.bar_length_px = 0.0
+        self._hold = False
 
         self.legends: list[vtk.vtkScalarBarActor] = []
         self._legend_sources: list[tuple[str, vtk.vtkScalarsToColors]] = []
@@ -189,7 +191,19 @@ class SceneOverlays:
             self.legends.append(legend)
 
     # -- per frame ------------------------------------------------------------------------------
+    def magnify(self, scale: int) -> None:
+        """Prepare a screenshot ``scale`` times the view's size (1: back to normal).
+
+        A magnified screenshot renders the view in tiles with a narrowed camera, and VTK
+        moves and scales the 2-D props (given in normalised viewport coordinates) from the
+        layout of the last normal frame; so the per-frame updates pause meanwhile. (The scale
+        bar's label keeps its pixel size there: VTK does not scale that font.)
+        """
+        self._hold = scale > 1
+
     def _before_frame(self, *_: object) -> None:
+        if self._hold:
+            return
         if self._state.orientation_axes:
             self._orient_axes()
         if self._state.scale_bar:
@@ -224,13 +238,11 @@ class SceneOverlays:
         x1 = width - MARGIN_PX
         x0 = x1 - pixels
         y = MARGIN_PX
-        points = self._bar.GetPoints()
-        points.SetPoint(0, x0, y, 0.0)
-        points.SetPoint(1, x1, y, 0.0)
-        points.Modified()
-        self._bar.Modified()
+        # Normalised viewport coordinates: what tiled screenshots place and scale correctly.
+        self.bar_actor.GetPositionCoordinate().SetValue(x0 / width, y / height, 0.0)
+        self.bar_actor.GetPosition2Coordinate().SetValue(x1 / width, y / height, 0.0)
         self.bar_text.SetInput(format_length(length))
-        self.bar_text.SetPosition(0.5 * (x0 + x1), y + 5)
+        self.bar_text.SetPosition(0.5 * (x0 + x1) / width, (y + 5) / height)
         self.bar_length_um, self.bar_length_px = length, pixels
 
     def close(self) -> None:
