@@ -77,3 +77,17 @@ def test_camera_moves_keep_it_light_moves_restart_it_and_it_brightens_the_image(
     for ill, window in ((il, rw), (single, single_rw)):
         ill.release()
         window.Finalize()
+
+
+def test_a_volume_too_large_falls_back_to_local_shading_with_a_message(monkeypatch):
+    from vtkvol.plugins.path_traced import technique
+
+    monkeypatch.setattr(technique, "MAX_VOXELS", 1000)
+    rw, _, il = scene()
+    errors: list[str] = []
+    il.on_error = errors.append
+    grab(rw)
+    assert il.method == "local" and il.failed_method == "path_traced"
+    assert len(errors) == 1 and "at most 1,000 voxels" in errors[0] and "14×14×14" in errors[0]
+    il.release()
+    rw.Finalize()
