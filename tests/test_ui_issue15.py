@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
-from PySide6.QtGui import QMouseEvent
+from PySide6.QtGui import QCloseEvent, QMouseEvent
 from PySide6.QtWidgets import QApplication, QScrollArea
 
 from vtkvol.model.defaults import contrast_limits
@@ -299,6 +299,15 @@ def test_closing_with_unsaved_changes_asks(window, monkeypatch, tmp_path):
     assert window.has_unsaved_changes()
     window.quit_action.trigger()
     assert asked == ["nuclei.npy"] and closed == [True]  # cancelled: still open
+
+    class ClosedByUser(QCloseEvent):  # the title bar's close button: a spontaneous event
+        def spontaneous(self) -> bool:
+            return True
+
+    event = ClosedByUser()
+    window.closeEvent(event)
+    assert len(asked) == 2 and not event.isAccepted()  # asked again, and stays open
+    assert window.viewport.scene is not None
     answer["value"] = "discard"
     window.quit_action.trigger()
     assert closed == [True, True]
@@ -519,3 +528,46 @@ def test_magnified_screenshot_measures_like_the_view(window):
     assert longest_bright_run(double, slice(460, 512)) == pytest.approx(2 * length_px, abs=5)
     # In the lower-right corner of the large image, not repeated in other tiles.
     assert longest_bright_run(double, slice(200, 300)) < 10
+
+
+# -- the engine without the app -----------------------------------------------------------------
+def test_visible_bounds_follow_tf_crop_links_and_noise():
+    from vtkvol.engine.framing import visible_bounds
+    from vtkvol.io import VolumeData
+    from vtkvol.model.defaults import scene_for
+
+    rng = np.random.default_rng(0)
+    arr = rng.integers(0, 20, (2, 32, 40, 50)).astype(np.uint16)
+    arr[0, 10:20, 5:15, 30:45] = 1000  # channel 0: a block
+    arr[0, 2, 35, 3] = 5000  # one hot pixel far away (noise above the TF's low limit)
+    arr[1, 25:30, 30:38, 2:8] = 1000  # channel 1: another block
+    data = VolumeData.from_array(arr, (0.5, 1.0, 2.0), ["a", "b"])
+    model = scene_for(data)
+    model.channels[1].visible = False
+    assert visible_bounds(data, model) == pytest.approx((15.0, 22.0, 5.0, 14.0, 20.0, 38.0))
+    model.crop.x = (16.0, 20.0)
+    assert visible_bounds(data, model)[:2] == pytest.approx((16.0, 20.0))
+    model.crop.x = None
+    model.channels[1].visible = True
+    both = visible_bounds(data, model)
+    assert both[0] == pytest.approx(1.0) and both[5] == pytest.approx(58.0)
+    model.channels[0].tf.opacity = [(0.0, 0.0), (1e6, 0.0)]  # channel 0 transparent
+    assert visible_bounds(data, model)[:2] == pytest.approx((1.0, 3.5))
+    model.channels[0].tf_linked_to = 1  # follows channel 1's TF again
+    assert visible_bounds(data, model) == pytest.approx(both)
+    for channel in model.channels:
+        channel.visible = False
+    assert visible_bounds(data, model) is None
+
+
+def test_overlays_in_offscreen_renders(small_volume):
+    """`vtkvol render` of a session with overlays draws them (no app, no interactor)."""
+    from vtkvol.engine.api import render_image
+    from vtkvol.model.defaults import scene_for
+
+    model = scene_for(small_volume)
+    plain = render_image(small_volume, model=model, size=(128, 128)).astype(float)
+    for name in ("bounding_box", "orientation_axes", "scale_bar", "color_legend"):
+        model.overlays = Overlays(**{name: True})
+        image = render_image(small_volume, model=model, size=(128, 128)).astype(float)
+        assert changed_pixels(plain, image).sum() > 15, name
