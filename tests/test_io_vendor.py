@@ -59,6 +59,22 @@ def test_czi_without_scaling_uses_1um_with_a_note(tmp_path):
     assert any("no scaling" in n for n in vol.notes)
 
 
+def test_czi_bgr_planes_become_red_green_blue(tmp_path):
+    pyczi = pytest.importorskip("pylibCZIrw.czi")
+    path = tmp_path / "brightfield.czi"
+    with pyczi.create_czi(str(path), exist_ok=True) as w:
+        for z in range(3):
+            bgr = np.empty((6, 7, 3), np.uint8)
+            bgr[..., 0], bgr[..., 1], bgr[..., 2] = 10 + z, 20 + z, 30 + z  # B, G, R in memory
+            w.write(bgr, plane={"Z": z})
+        w.write_metadata("rgb", scale_x=1e-6, scale_y=1e-6, scale_z=2e-6)
+    vol = read_volume(path)
+    assert vol.channel_names == ["red", "green", "blue"]
+    np.testing.assert_array_equal(vol.array[:, :, 0, 0], [[30, 31, 32], [20, 21, 22],
+                                                          [10, 11, 12]])
+    assert vol.voxel_size_um == pytest.approx((1.0, 1.0, 2.0))
+
+
 def test_czi_truncated_and_garbage(tmp_path):
     good = _write_czi(tmp_path / "good.czi", n_t=1).read_bytes()
     (tmp_path / "cut.czi").write_bytes(good[: len(good) // 2])
