@@ -8,7 +8,14 @@ import pytest
 import tifffile
 
 from vtkvol.cli import main
-from vtkvol.movie import even_size, existing_outputs, movie_kind, turntable_frames, write_movie
+from vtkvol.movie import (
+    MovieCancelled,
+    even_size,
+    existing_outputs,
+    movie_kind,
+    turntable_frames,
+    write_movie,
+)
 
 imageio_ffmpeg = pytest.importorskip("imageio_ffmpeg")
 
@@ -145,3 +152,20 @@ def test_cli_checks_movie_options_before_reading(tmp_path, capsys):
     assert main(["render", "no-such-file.tif", "-o", str(tmp_path / "a.gif"),
                  "--turntable", "360"]) == 2
     assert "unknown movie format" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("name", ["c.mp4", "c.tif", "c.png", "folder"])
+def test_cancel_leaves_nothing(tmp_path, name):
+    asked = []
+
+    def cancel() -> bool:
+        asked.append(1)
+        return len(asked) > 2  # after two frames
+
+    done = []
+    with pytest.raises(MovieCancelled):
+        write_movie(iter(_frames(4)), tmp_path / name, n_frames=4, cancel=cancel,
+                    progress=lambda i, n: done.append((i, n)))
+    assert done == [(1, 4), (2, 4)]
+    left = [p for p in tmp_path.rglob("*") if p.is_file()]
+    assert left == []
