@@ -249,7 +249,8 @@ def test_indirect_light_adds_the_materials_colour():
     # A dim light, so that no channel saturates.
     light = Light(direction=(0, -1, 0.3)).model_copy(update={"intensity": 0.3})
     il = Illuminator(volume, ren, method="translucency", lights=[light],
-                     parameters={"indirect_strength": 0.0, "tint": 1.0})
+                     parameters={"indirect_strength": 0.0, "tint": 1.0,
+                                 "indirect_normalised": False})
     try:
         without = grab(rw).astype(float)
         il.set_parameters(indirect_strength=1.0)
@@ -262,6 +263,31 @@ def test_indirect_light_adds_the_materials_colour():
         r, g, b = added[lit].mean(axis=0)
         # The albedo's own ratio is 4 : 1; the indirect light's colour raises it further.
         assert r > 4.0 * g and r > 4.0 * b, (r, g, b)
+    finally:
+        il.release()
+
+
+@pytest.mark.gl
+def test_normalised_light_is_the_irradiance_once_where_nothing_occludes():
+    # A nearly transparent volume: T ≈ T_i ≈ 1 everywhere. Normalised, the indirect term
+    # changes nothing there (the light is the irradiance once, as with w = 0); eq. 2.44's plain
+    # sum doubles the diffuse light.
+    rw, ren, volume = simple_volume_scene(_blobs(), spacing=(1.0, 0.8, 2.0), size=(96, 96),
+                                          opacity=[(0.0, 0.0), (1.0, 0.02)])
+    light = Light(direction=(0.3, -1, 0.4)).model_copy(update={"intensity": 0.4})
+    il = Illuminator(volume, ren, method="translucency", lights=[light],
+                     parameters={"indirect_strength": 0.0})
+    try:
+        direct = grab(rw).astype(float)
+        il.set_parameters(indirect_strength=1.0)
+        normalised = grab(rw).astype(float)
+        il.set_parameters(indirect_normalised=False)
+        summed = grab(rw).astype(float)
+        assert il.method == "translucency", il.last_error
+        assert direct.max() > 20  # something is lit
+        assert np.abs(normalised - direct).max() <= 2.0
+        lit = direct > 10
+        assert (summed[lit] / direct[lit]).mean() > 1.4
     finally:
         il.release()
 

@@ -47,9 +47,17 @@ PARAMETERS: tuple[Param, ...] = (
     Param(
         "indirect_strength", 1.0, "Indirect strength",
         "Weight of the indirect term in the light reaching a sample, I_l = T + w·T_i (eq. 2.44 "
-        "has w = 1: unoccluded samples then receive twice the light's irradiance). 0 = direct "
-        "light only, i.e. the shadow volume's transmittance.",
+        "has w = 1), divided by 1 + w when normalised. 0 = direct light only, i.e. the shadow "
+        "volume's transmittance.",
         range=(0.0, 2.0), step=0.05,
+    ),
+    Param(
+        "indirect_normalised", True, "Normalise to the irradiance",
+        "Divide the light by 1 + w, so that an unoccluded sample receives the light's "
+        "irradiance once, as with every other technique, and the indirect term redistributes "
+        "light into shadows instead of adding it everywhere. Off: eq. 2.44's sum T + w·T_i "
+        "(twice the irradiance in empty space at w = 1). Project default: on.",
+        kind="bool",
     ),
     Param(
         "surface_factor", "gradient", "Surface shading",

@@ -15,11 +15,13 @@
 //   vec3  vv_translucency_cellTex               one light-grid cell in data texture coordinates
 //   float vv_translucency_offset                h0: lookup offset towards the light, cells
 //   float vv_translucency_indirect_strength     w in I_l = T + w T_i (eq. 2.44: w = 1)
+//   int   vv_translucency_indirect_normalised   1: I_l divided by 1 + w
 //   float vv_translucency_gradient_low/_high    g0, g1 of the surface-shading factor S
 //
-// Shading: the host's surface model with T_i(x) := T + w T_i,rgb (eq. 2.44: C is multiplied by
-// the sum of the transmittances). With surface_factor = gradient, surface_factor.glsl replaces
-// the host's binary oriented/unoriented rule by Kniss's S(t) (vv_translucency_surfaceFactor).
+// Shading: the host's surface model with T_i(x) := (T + w T_i,rgb) / (1 + w) (eq. 2.44: C is
+// multiplied by the sum of the transmittances; the division only while indirect_normalised is
+// on). With surface_factor = gradient, surface_factor.glsl replaces the host's binary
+// oriented/unoriented rule by Kniss's S(t) (vv_translucency_surfaceFactor).
 
 //@inject //VTK::ComputeLighting::Dec pre before
 #ifndef VV_TL_LIGHTS
@@ -57,7 +59,10 @@ vec3 vv_light_transmittance_rgb(int light, vec3 texPos, vec3 dirDS)
 #else
   vec4 t = vec4(1.0);   // no light volume: nothing attenuates
 #endif
-  return vec3(t.a) + vv_translucency_indirect_strength * t.rgb;
+  // Eq. 2.44's sum; normalised by 1 + w so that unoccluded light is the irradiance once.
+  float w = vv_translucency_indirect_strength;
+  float norm = vv_translucency_indirect_normalised != 0 ? 1.0 / (1.0 + w) : 1.0;
+  return norm * (vec3(t.a) + w * t.rgb);
 }
 
 // Kniss's surface-shading factor S in 0..1 from the gradient magnitude g (change of the value
