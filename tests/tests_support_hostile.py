@@ -63,7 +63,7 @@ def lying_tiff(
 
 def npy_with_header(path: Path, header: str, payload: bytes = b"", version: int = 1) -> Path:
     """A ``.npy`` file with this header text (padded as numpy pads it) and payload."""
-    text = header.encode("latin-1")
+    text = header.encode("utf-8")
     prefix = 10 if version == 1 else 12
     pad = (-(prefix + len(text) + 1)) % 64
     text = text + b" " * pad + b"\n"

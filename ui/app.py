@@ -15,7 +15,6 @@ import contextlib
 import dataclasses
 import os
 import sys
-import tempfile
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -24,7 +23,17 @@ from typing import Any
 os.environ.setdefault("QT_API", "pyside6")  # before pyvistaqt/qtpy are imported
 
 import numpy as np
-from PySide6.QtCore import QByteArray, QObject, QSettings, Qt, QThread, QTimer, Signal
+from PySide6.QtCore import (
+    QBuffer,
+    QByteArray,
+    QIODevice,
+    QObject,
+    QSettings,
+    Qt,
+    QThread,
+    QTimer,
+    Signal,
+)
 from PySide6.QtGui import (
     QAction,
     QCloseEvent,
@@ -46,6 +55,7 @@ from PySide6.QtWidgets import (
 )
 
 from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
+from vtkvol.io.atomic import write_atomic
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
@@ -1006,20 +1016,19 @@ def _sample_kwargs(stored: dict[str, Any]) -> dict[str, Any]:
 
 
 def write_png(image: np.ndarray, path: Path) -> None:
-    """Write an (h, w, 3) uint8 image as PNG via a temporary file and a rename."""
+    """Write an (h, w, 3) uint8 image as PNG: encoded in memory, then written atomically (a
+    failed write raises OSError, leaving any previous file as it was)."""
     rgb = np.ascontiguousarray(image[..., :3], dtype=np.uint8)
     h, w, _ = rgb.shape
     qimage = QImage(rgb.data, w, h, 3 * w, QImage.Format.Format_RGB888)
+    encoded = QByteArray()
+    buffer = QBuffer(encoded)
+    buffer.open(QIODevice.OpenModeFlag.WriteOnly)
+    if not qimage.save(buffer, "PNG"):
+        raise OSError(f"{path}: the image could not be encoded as PNG")
+    buffer.close()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}-", suffix=".png", dir=path.parent)
-    os.close(fd)
-    try:
-        if not qimage.save(tmp, "PNG"):
-            raise OSError(f"{path}: the PNG could not be written")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    write_atomic(path, encoded.data())
 
 
 def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None) -> int:

@@ -119,6 +119,10 @@ def cmd_render(args: argparse.Namespace) -> int:
         model, data = load_session_with_data(args.file)
     else:
         data = _load(args.file, args.voxel_size, args.time)
+    inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
+    if out.resolve() in inputs:
+        print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
+        return 2
     if args.blend:
         from vtkvol.model.defaults import scene_for
 
@@ -154,7 +158,12 @@ def cmd_render(args: argparse.Namespace) -> int:
         on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
         on_refined=refined,
     )
-    _write_png(image, out)
+    try:
+        _write_png(image, out)
+    except OSError as exc:
+        print(f"vtkvol: could not write {out}: {exc.strerror or exc} (an existing file is left "
+              "as it was)", file=sys.stderr)
+        return 1
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")
     return 0
 
@@ -207,28 +216,27 @@ def _render_turntable(args: argparse.Namespace, out: Path, data, model, params) 
 
 
 def _write_png(image, path: Path) -> None:
-    """Write atomically: a failed write never leaves a truncated PNG behind."""
-    import os
-    import tempfile
+    """Encode in memory, then write atomically (vtkvol.io.atomic): a failed write raises
+    OSError and never leaves a truncated PNG, nor replaces the previous one."""
+    import errno
 
     import vtk
-    from vtk.util.numpy_support import numpy_to_vtk
+    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+    from vtkvol.io.atomic import write_atomic
 
     h, w, _ = image.shape
     img = vtk.vtkImageData()
     img.SetDimensions(w, h, 1)
     img.GetPointData().SetScalars(numpy_to_vtk(image[::-1].reshape(-1, 3).copy(), deep=True))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(suffix=".png", dir=path.parent)
-    os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
-    os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; a PNG gets the usual permissions
     writer = vtk.vtkPNGWriter()
-    writer.SetFileName(tmp)
+    writer.WriteToMemoryOn()
     writer.SetInputData(img)
     writer.Write()
-    os.replace(tmp, path)
+    if path.parent.exists() and not path.parent.is_dir():
+        raise NotADirectoryError(errno.ENOTDIR, f"{path.parent} is not a folder")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, vtk_to_numpy(writer.GetResult()).tobytes())
 
 
 def cmd_info(args: argparse.Namespace) -> int:

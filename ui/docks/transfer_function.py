@@ -19,7 +19,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -45,6 +44,7 @@ from PySide6.QtWidgets import (
 )
 from superqt import QDoubleRangeSlider
 
+from vtkvol.io.atomic import write_atomic
 from vtkvol.model.evented import touches
 from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
 from vtkvol.model.scene import SceneModel
@@ -124,19 +124,11 @@ class HistogramCache:
 
 
 def write_tf_file(path: str | os.PathLike[str], tf: TransferFunction) -> Path:
-    """Save one transfer function as JSON, atomically (a failed write leaves no file)."""
+    """Save one transfer function as JSON, atomically (vtkvol.io.atomic: a failed write raises
+    OSError and leaves any previous file as it was)."""
     target = Path(path)
     document = {"format": TF_FILE_FORMAT, "version": TF_FILE_VERSION, **tf.copy_state()}
-    text = json.dumps(document, indent=2) + "\n"
-    fd, tmp = tempfile.mkstemp(prefix=".tf-", suffix=".json.tmp", dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, target)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-    return target
+    return write_atomic(target, json.dumps(document, indent=2) + "\n")
 
 
 def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:

@@ -22,12 +22,10 @@ Paths to data are stored relative to the session's folder when the data lies in 
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import json
 import math
 import os
-import secrets
 import stat
 import warnings
 from collections.abc import Callable, Iterable, Mapping
@@ -39,6 +37,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 import pydantic
 from pydantic import BaseModel, ConfigDict, Field
 
+from vtkvol.io.atomic import write_atomic
 from vtkvol.model.migrations import FORMAT, VERSION, migrate
 from vtkvol.model.params import Param
 from vtkvol.model.scene import SceneModel
@@ -283,7 +282,7 @@ def save_session(
         raise SessionError(target, f"cannot save: a value is not JSON data ({exc})") from exc
 
     try:
-        _write_atomic(target, text)
+        write_atomic(target, text)
     except OSError as exc:
         raise SessionError(target, f"could not be written: {exc.strerror or exc}") from exc
 
@@ -417,38 +416,6 @@ def _fingerprint(path: Path) -> tuple[int, str]:
         with head.open("rb") as fh:
             digest.update(fh.read(HEAD_BYTES))
     return size, digest.hexdigest()
-
-
-def _write_atomic(target: Path, text: str) -> None:
-    """Write ``text`` to a temporary file beside ``target``, then rename it over ``target``.
-
-    The rename is atomic on one file system, so readers see the old file or the new one,
-    never a mix; on any failure the temporary file is removed and ``target`` is untouched.
-    """
-    tmp = target.with_name(f".{target.name}.{secrets.token_hex(6)}.tmp")
-    # O_EXCL: never follow or reuse something already there. Mode 0o666 lets the umask decide
-    # the permissions, as for any newly created file (mkstemp would force 0o600).
-    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o666)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        if target.exists():
-            # Replacing a session keeps its permissions (e.g. group-readable in a shared folder).
-            os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))
-        os.replace(tmp, target)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
-    # Make the rename itself durable; not possible (nor needed) on every platform.
-    with contextlib.suppress(OSError, AttributeError):
-        dir_fd = os.open(target.parent, os.O_RDONLY)
-        try:
-            os.fsync(dir_fd)
-        finally:
-            os.close(dir_fd)
 
 
 # -- reading ------------------------------------------------------------------------------------
