@@ -195,3 +195,13 @@ def test_cancel_stops_the_read(tmp_path):
 
     with pytest.raises(ReadCancelled):
         read_volume(path, cancel=cancel)
+
+
+def test_bioformats2raw_layout_reads_image_0(tmp_path):
+    root = tmp_path / "converted.zarr"
+    group = zarr.open_group(str(root), mode="w", zarr_format=3)
+    group.attrs["ome"] = {"version": "0.5", "bioformats2raw.layout": 3}
+    _write(root / "0", _cells(1, 4, 8, 8), "czyx", labels=["nuclei"], levels=1)
+    vol = read_volume(root)
+    assert vol.channel_names == ["nuclei"] and vol.array.shape == (1, 4, 8, 8)
+    assert "bioformats2raw layout: image 0 read" in vol.notes
