@@ -22,12 +22,13 @@ the project defaults (k = 0.5, tint 0.75, θ = 15°, colour = the albedo) and a 
 physics (τ_i,c = τ·(1 − g·a_c), i.e. k = 1, tint = g, colour = a: the extinction of
 forward-scattered light that stays in the beam, as in similarity scaling; θ = arccos g, the
 angle of the phase function's mean cosine). Reported: means of T_i and E, the RMSE of the total
-light T + T_i against T + E (what the surface model multiplies the colour by, with the
-default weight w = 1), the weight w* that fits w·T_i to E best (least squares) with the RMSE
-left after it, and the correlation of T_i with E (shape agreement regardless of scale). The
-last two columns read T_i alone as the *total* light (direct + scattered), the reading under
-which a lower extinction for forward-scattered light is physically motivated (similarity
-scaling: light scattered forward stays in the beam, so the beam decays with τ·(1 − g·a)).
+light T + T_i against T + E (what the surface model multiplies the colour by with the weight w =
+1, without and with the default normalisation by 1 + w), the weight w* that fits w·T_i to E best
+(least squares) with the RMSE left after it, and the correlation of T_i with E (shape agreement
+regardless of scale). The last two columns read T_i alone as the *total* light (direct +
+scattered), the reading under which a lower extinction for forward-scattered light is physically
+motivated (similarity scaling: light scattered forward stays in the beam, so the beam decays
+with τ·(1 − g·a)).
 """
 
 from __future__ import annotations
@@ -94,6 +95,8 @@ def compare(name: str, opacity: np.ndarray, g: float, scattered: np.ndarray,
                 "mean T_i": float(ti.mean()), "mean E": float(e.mean()),
                 "RMSE T+T_i vs T+E": float(np.sqrt(np.mean((t_direct + ti - direct[mask] - e)
                                                            ** 2))),
+                "RMSE (T+T_i)/2 vs T+E": float(np.sqrt(np.mean(
+                    (0.5 * (t_direct + ti) - direct[mask] - e) ** 2))),
                 "w*": w,
                 "RMSE w*·T_i vs E": float(np.sqrt(np.mean((w * ti - e) ** 2))),
                 "corr(T_i, E)": _corr(ti, e),
