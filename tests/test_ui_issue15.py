@@ -395,6 +395,8 @@ def test_voxel_size_dialog_applies_to_view_and_model(window, qtbot, monkeypatch)
     assert window.viewport.scene.bounds[5] == pytest.approx((z - 1) * 3.0)
     assert window.ranges_dock.full_range("z") == (0.0, pytest.approx((z - 1) * 3.0))
     assert "voxel 1×1×3 µm" in window.data_label.text()
+    assert "set in the app" in window.data_label.toolTip()
+    assert "using 1 × 1 × 1 µm" not in window.data_label.toolTip()  # that note is moot now
     assert window.has_unsaved_changes()
     after = shot(window)
     (w0, h0), (w1, h1) = foreground_box(before, background), foreground_box(after, background)
@@ -403,7 +405,8 @@ def test_voxel_size_dialog_applies_to_view_and_model(window, qtbot, monkeypatch)
     monkeypatch.setattr(app_module, "ask_voxel_size", lambda *a: (1.0, 1.0, 1.0))
     window.voxel_size_action.trigger()
     assert window.model.volume.voxel_size_um is None
-    assert window.data.voxel_size_um == (1.0, 1.0, 1.0)
+    assert window.data is data  # the data exactly as read, its note included
+    assert "Edit → Voxel size…" in window.data_label.toolTip()
 
 
 def test_voxel_size_dialog_shows_the_files_value(qtbot):

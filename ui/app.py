@@ -79,7 +79,7 @@ from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.undo import UndoRecorder, apply_state
 from vtkvol.ui.view_actions import ViewActions
 from vtkvol.ui.viewport import Viewport
-from vtkvol.ui.voxel_size import ask_voxel_size, user_note
+from vtkvol.ui.voxel_size import ask_voxel_size, is_assumed_size_note, user_note
 
 APP_NAME = "vtkvol"
 MAX_RECENT = 10
@@ -243,6 +243,8 @@ class MainWindow(QMainWindow):
         #: The file's own voxel size (x, y, z µm) and whether the file stored it; None when
         #: the data was opened with a voxel size given (the file's is then not known).
         self._file_voxel: tuple[Spacing, bool] | None = None
+        #: The data as read (before a voxel size set in the app), its notes and metadata whole.
+        self._as_read: VolumeData | None = None
         #: Changes the undo history does not hold (a new voxel size) since the last save.
         self._unsaved_data_edit = False
         self._confirmed_close = False
@@ -610,6 +612,7 @@ class MainWindow(QMainWindow):
         fresh.volume.voxel_size_um = voxel_size
         self._file_voxel = (None if voxel_size is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
+        self._as_read = data
         with self.model.batch():
             apply_state(self.model, {
                 "volume": fresh.volume.model_dump(),
@@ -715,6 +718,7 @@ class MainWindow(QMainWindow):
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self._file_voxel = (None if model.volume.voxel_size_um is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
+        self._as_read = data
         self.session_path = Path(path)
         self._restore_window(window)
         self._add_recent(str(path))
@@ -940,7 +944,15 @@ class MainWindow(QMainWindow):
         crop = {axis: None if (r := getattr(self.model.crop, axis)) is None else
                 (r[0] * new[i] / old[i], r[1] * new[i] / old[i])
                 for i, axis in enumerate("xyz")}
-        resized = dataclasses.replace(data, voxel_size_um=new)
+        read = self._as_read if self._as_read is not None else data
+        if override is None:
+            resized = read  # the file's own value: the data exactly as read
+        else:
+            resized = dataclasses.replace(
+                read, voxel_size_um=new,
+                metadata={**read.metadata, "voxel_size_source": "set in the app"},
+                # The reader's "assumed 1 µm" note no longer holds once the user set a size.
+                notes=[n for n in read.notes if not is_assumed_size_note(n)])
         with self.model.batch():
             self.model.volume.voxel_size_um = override
             self.model.crop.update(crop)

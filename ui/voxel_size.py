@@ -51,6 +51,11 @@ def user_note(note: str) -> str:
     return note
 
 
+def is_assumed_size_note(note: str) -> bool:
+    """Whether a reader note says that it assumed a voxel size (moot once the user set one)."""
+    return _ASSUMED.search(note) is not None
+
+
 def format_size(size: Sequence[float]) -> str:
     """``"0.5 × 0.5 × 2 µm"``."""
     return " × ".join(f"{float(v):.4g}" for v in size) + " µm"
