@@ -574,3 +574,26 @@ def test_overlays_in_offscreen_renders(small_volume):
         model.overlays = Overlays(**{name: True})
         image = render_image(small_volume, model=model, size=(128, 128)).astype(float)
         assert changed_pixels(plain, image).sum() > 15, name
+
+
+@pytest.mark.parametrize("method", ["shadow_volume", "cone_traced", "convection_diffusion",
+                                    "hybrid_diffusion"])
+def test_built_in_choices_are_words_not_identifiers(method):
+    from vtkvol.model.techniques import technique_specs
+    from vtkvol.ui.docks.lights import LightsDock
+
+    specs = technique_specs()
+    model = SceneModel()
+    model.illumination.method = method
+    dock = LightsDock(model, techniques=specs)
+    try:
+        for param in specs[method].parameters:
+            if param.kind != "choice" or all(c.isdigit() for c in param.choices):
+                continue
+            combo = dock.param_widget(param.name)
+            shown = [combo.itemText(i) for i in range(combo.count())]
+            assert shown == list(param.choice_labels), param.name
+            assert [combo.itemData(i) for i in range(combo.count())] == list(param.choices)
+    finally:
+        dock.release()
+        dock.deleteLater()

@@ -32,6 +32,7 @@ PARAMETERS: tuple[Param, ...] = (
         "point light), so the penumbra is the light's own; custom: the angle below for every "
         "light.",
         kind="choice", choices=("light size", "custom"), invalidates=Invalidates.SHADER,
+        choice_labels=("Light size", "Custom"),
         uniform=False, applies_when=(("shadows", (True,)),),
     ),
     Param(

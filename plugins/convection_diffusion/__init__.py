@@ -36,12 +36,14 @@ PARAMETERS: tuple[Param, ...] = (
         "exp(−σ·distance) (tanh(σh)); vpt: half the opacity of a voxel, as the authors' code "
         "does (for reproduction).",
         kind="choice", choices=("matched", "vpt"), invalidates=_RESTART, uniform=False,
+        choice_labels=("Matched to exp(−σ·distance)", "As the authors' code (VPT)"),
     ),
     Param(
         "convection_extinction", "total", "Convected extinction",
         "total: the convected light is attenuated by the full extinction σ_t, as the references "
         "assume; paper: by the absorbed part (1 − albedo)·σ_t only (seed 003's eq. 8).",
         kind="choice", choices=("total", "paper"), invalidates=_RESTART, uniform=False,
+        choice_labels=("Total extinction", "Absorbed part (paper)"),
     ),
     backend_param(_RESTART),
 )

@@ -34,12 +34,14 @@ PARAMETERS: tuple[Param, ...] = (
         "ratio: ratio tracking, unbiased with less noise (project default); delta: the paper's "
         "Woodcock tracking, where a path either reaches the light or is absorbed.",
         kind="choice", choices=("ratio", "delta"), invalidates=_RESTART, uniform=False,
+        choice_labels=("Ratio tracking", "Delta tracking (paper)"),
     ),
     Param(
         "light_sampling", "one", "Lights per sample",
         "one: each sample tracks towards one light chosen at random (cost independent of the "
         "number of lights, as in the paper); all: towards every light.",
         kind="choice", choices=("one", "all"), invalidates=_RESTART, uniform=False,
+        choice_labels=("One, chosen at random", "All"),
     ),
     Param(
         "seed", 0, "Seed", "Random seed of the sample streams.",

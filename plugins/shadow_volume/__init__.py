@@ -21,6 +21,7 @@ PARAMETERS: tuple[Param, ...] = (
         "oblique path through each slice. seed000: the thesis's additive, clamped opacity "
         "with a fixed unit Gaussian over 8×8 neighbours (for reproduction).",
         kind="choice", choices=("transmittance", "seed000"), invalidates=_ILLUM,
+        choice_labels=("Transmittance (physical)", "Thesis (seed 000)"),
         uniform=False,
     ),
     Param(
@@ -28,6 +29,7 @@ PARAMETERS: tuple[Param, ...] = (
         "Light-volume cells per axis relative to the data: full, half or quarter. Lower "
         "resolution recomputes 8× or 64× faster and blurs the shadow edge accordingly.",
         kind="choice", choices=tuple(RESOLUTIONS), invalidates=_ILLUM, uniform=False,
+        choice_labels=tuple(name.capitalize() for name in RESOLUTIONS),
     ),
     Param(
         "softness_from", "light size", "Softness from",
@@ -35,6 +37,7 @@ PARAMETERS: tuple[Param, ...] = (
         "the geometric penumbra half-way through the volume (docs/shadow-volume.md); custom: "
         "the softness below for every light.",
         kind="choice", choices=("light size", "custom"), invalidates=_ILLUM, uniform=False,
+        choice_labels=("Light size", "Custom"),
         applies_when=(("model", ("transmittance",)),),
     ),
     Param(
@@ -61,6 +64,7 @@ PARAMETERS: tuple[Param, ...] = (
         "auto: compute shader when the OpenGL context has them, else numpy; cpu: always "
         "numpy (verification).",
         kind="choice", choices=("auto", "cpu"), invalidates=_ILLUM, uniform=False,
+        choice_labels=("GPU when available", "CPU (numpy)"),
     ),
 )
 

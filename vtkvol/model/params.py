@@ -106,7 +106,8 @@ def backend_param(invalidates: Invalidates) -> Param:
         "backend", "auto", "Compute on",
         "auto: compute shaders when the OpenGL context has them, else numpy; cpu: always numpy "
         "(verification).",
-        kind="choice", choices=("auto", "cpu"), invalidates=invalidates, uniform=False,
+        kind="choice", choices=("auto", "cpu"), choice_labels=("GPU when available", "CPU (numpy)"),
+        invalidates=invalidates, uniform=False,
     )
 
 
