@@ -511,7 +511,8 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     assert checkpoints(10) == [1, 2, 4, 8, 10] and checkpoints(8) == [1, 2, 4, 8]
     scene = phantom_scenes(16)[0]
     result = run(StudyConfig(mode="test", size=16, image_size=64, max_seconds=30.0), tmp_path,
-                 [scene], budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
+                 [scene], ["convection_diffusion", "hybrid_diffusion"],
+                 budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
                  stream=io.StringIO())
     recs = result["records"]
     assert {(r["method"], r["lights"]) for r in recs} == {

@@ -115,10 +115,9 @@ def _run_to(rig: Any, target: int) -> float:
     return time.perf_counter() - t0
 
 
-def reference_images(rig: Any, cache: ReferenceCache, scene: Scene,
-                     render: Any) -> dict[str, np.ndarray]:
-    """The ``ss``, ``ms``, ``ms_a`` and ``ms_b`` reference images of ``scene`` (loaded in
-    ``rig``); ``render(reference)`` renders one reference object's image."""
+def reference_images(render: Any) -> dict[str, np.ndarray]:
+    """The ``ss``, ``ms``, ``ms_a`` and ``ms_b`` reference images of the loaded scene;
+    ``render(reference)`` renders one reference object's image."""
     return {
         "ss": render(MediumReference(orders="single")),
         "ms_a": render(MediumReference(seeds=(0,))),
@@ -128,50 +127,62 @@ def reference_images(rig: Any, cache: ReferenceCache, scene: Scene,
 
 
 def study_scene(rig: Any, cache: ReferenceCache, scene: Scene, methods: Sequence[str],
-                config: StudyConfig, render: Any, base: dict[str, Any]) -> list[dict[str, Any]]:
-    """Every method × light count on one scene: one record per checkpoint."""
+                config: StudyConfig, render: Any, base: dict[str, Any],
+                stream: Any = None) -> list[dict[str, Any]]:
+    """Every method × light count on one scene: one record per checkpoint. A method that fails
+    is named on ``stream`` and left out; the others go on."""
     records: list[dict[str, Any]] = []
     for count in config.light_counts:
         lit = with_lights(scene, count)
         rig.load(lit)
-        refs = reference_images(rig, cache, lit, render)
-        floor = _psnr(refs["ms_a"], refs["ms_b"]) + TWO_ESTIMATE_FLOOR_DB
-        gap = _psnr(refs["ss"], refs["ms"])  # how much the scattered light shows at all
-        voxels = int(np.prod(lit.shape))
+        refs = reference_images(render)
+        common = {
+            **base, "scene": scene.name, "scene_kind": scene.kind, "size": lit.size_label,
+            "lights": count, "albedo": lit.albedo, "phase_g": lit.phase_g,
+            "floor_psnr": _psnr(refs["ms_a"], refs["ms_b"]) + TWO_ESTIMATE_FLOOR_DB,
+            # how much the scattered light shows in the image at all
+            "single_vs_multiple_psnr": _psnr(refs["ss"], refs["ms"]),
+        }
         for method in methods:
-            rig.set_method(method, {"max_iterations": 1})
-            rig.rw.Render()  # build: shaders, textures, first iteration
-            limit = _iteration_limit(rig)
-            spec = rig.illuminator.spec  # the declared short name (first bench setting's label)
-            short = spec.bench[0].label if spec.bench else method
-            rig.illuminator.invalidate()  # restart: the timed run starts from nothing
-            spent = 0.0
-            for target in checkpoints(limit):
-                spent += _run_to(rig, target)
-                tech = rig.illuminator.technique
-                image = rig.image()
-                ms = image_metrics(image, refs["ms"])
-                ss = image_metrics(image, refs["ss"])
-                stats = tech.stats()
-                records.append({
-                    **base, "scene": scene.name, "scene_kind": scene.kind,
-                    "size": lit.size_label, "method": method, "short": short,
-                    "lights": count,
-                    "iteration": int(tech.iteration), "seconds": spent,
-                    "iterations_per_s": tech.iteration / spent if spent > 0 else None,
-                    "rmse_ms": ms["rmse"], "psnr_ms": ms["psnr"],
-                    "rmse_ss": ss["rmse"], "psnr_ss": ss["psnr"], "floor_psnr": floor,
-                    "single_vs_multiple_psnr": gap,
-                    "texture_bytes": stats.get("texture_bytes"),
-                    "bytes_per_voxel": (stats["texture_bytes"] / voxels
-                                        if stats.get("texture_bytes") else None),
-                    "backend": stats.get("backend"), "final": target == limit,
-                    "albedo": lit.albedo, "phase_g": lit.phase_g,
-                })
-                if spent > config.max_seconds:
-                    records[-1]["final"] = True
-                    break
+            try:
+                records += _study_method(rig, method, refs, config, common,
+                                         voxels=int(np.prod(lit.shape)))
+            except Exception as exc:  # one failing method must not end the study
+                if stream is not None:
+                    print(f"vtkvol bench --scattering: {method} on {scene.name} "
+                          f"({count} lights) failed: {exc}", file=stream)
         cache.clear_scene(lit)
+    return records
+
+
+def _study_method(rig: Any, method: str, refs: dict[str, np.ndarray], config: StudyConfig,
+                  common: dict[str, Any], voxels: int) -> list[dict[str, Any]]:
+    """Restart ``method`` and record every checkpoint up to its end (or the time limit)."""
+    rig.set_method(method, {"max_iterations": 1})
+    rig.rw.Render()  # build: shaders, textures, first iteration
+    limit = _iteration_limit(rig)
+    spec = rig.illuminator.spec  # the declared short name (first bench setting's label)
+    short = spec.bench[0].label if spec.bench else method
+    rig.illuminator.invalidate()  # restart: the timed run starts from nothing
+    records: list[dict[str, Any]] = []
+    spent = 0.0
+    for target in checkpoints(limit):
+        spent += _run_to(rig, target)
+        tech = rig.illuminator.technique
+        image = rig.image()
+        ms = image_metrics(image, refs["ms"])
+        ss = image_metrics(image, refs["ss"])
+        texture_bytes = tech.stats().get("texture_bytes")
+        records.append({
+            **common, "method": method, "short": short, "iteration": int(tech.iteration),
+            "seconds": spent, "iterations_per_s": tech.iteration / spent if spent > 0 else None,
+            "rmse_ms": ms["rmse"], "psnr_ms": ms["psnr"], "rmse_ss": ss["rmse"],
+            "psnr_ss": ss["psnr"], "texture_bytes": texture_bytes,
+            "bytes_per_voxel": texture_bytes / voxels if texture_bytes else None,
+            "final": target == limit or spent > config.max_seconds,
+        })
+        if spent > config.max_seconds:
+            break
     return records
 
 
@@ -239,7 +250,7 @@ def run(config: StudyConfig, out_dir: Any, scenes: Sequence[Scene],
             for scene in scenes:
                 print(f"vtkvol bench --scattering: {scene.name} ({scene.size_label})",
                       file=stream, flush=True)
-                records += study_scene(rig, cache, scene, names, config, render, base)
+                records += study_scene(rig, cache, scene, names, config, render, base, stream)
         finally:
             rig.close()
     run_info = {
