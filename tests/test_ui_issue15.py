@@ -205,7 +205,7 @@ def test_point_light_is_placed_by_the_data(window, qtbot):
     assert [b.value() for b in dock.position_boxes] == [1.0, 2.0, 3.0]
 
 
-def test_choice_parameters_show_their_declared_labels():
+def test_choice_parameters_show_their_declared_labels(qapp):
     from vtkvol.model.techniques import technique_specs
     from vtkvol.ui.docks.lights import LightsDock
 
@@ -578,7 +578,7 @@ def test_overlays_in_offscreen_renders(small_volume):
 
 @pytest.mark.parametrize("method", ["shadow_volume", "cone_traced", "convection_diffusion",
                                     "hybrid_diffusion"])
-def test_built_in_choices_are_words_not_identifiers(method):
+def test_built_in_choices_are_words_not_identifiers(qapp, method):
     from vtkvol.model.techniques import technique_specs
     from vtkvol.ui.docks.lights import LightsDock
 
