@@ -449,8 +449,9 @@ def test_overlay_toggles_draw_in_the_view_and_screenshots(window, name, qtbot):
     changed = changed_pixels(before, after)
     assert changed[rows, cols].sum() > 20
     assert changed.sum() - changed[rows, cols].sum() <= 2
-    setattr(window.model.overlays, name, False)  # model → widget and pixels
-    assert not action.isChecked()
+    assert window.undo_action.text() == "&Undo Toggle overlay"
+    window.undo_action.trigger()  # model → widget and pixels (through undo)
+    assert not action.isChecked() and getattr(window.model.overlays, name) is False
     assert changed_pixels(before, shot(window)).sum() <= 2
 
 
@@ -490,8 +491,10 @@ def test_background_colour(window, monkeypatch):
     window.model.overlays.bounding_box = True  # overlays turn dark on a light background
     boxed = shot(window)
     assert (boxed.max(axis=-1) < 80).sum() > 50
+    assert window.undo_action.text().endswith("Toggle overlay")
     window.model.render.background = (0.0, 0.0, 0.0)  # model → widget
     assert window.view_actions.background_action.toolTip().endswith("#000000")
+    assert window.undo_action.text() == "&Undo Change background colour"
 
 
 def test_pyvista_blend_mode_names(window):

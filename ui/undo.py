@@ -37,6 +37,8 @@ MERGE_WINDOW_S = 0.8
 _COMMAND_ID = 0x7654  # any constant: QUndoStack only merges commands with equal ids
 
 _LABELS = (
+    ("overlays", "Toggle overlay"),  # before "color": "overlays.color_legend" contains it
+    ("render.background", "Change background colour"),
     ("tf.opacity", "Edit opacity"),
     ("tf.colors", "Edit colours"),
     ("tf.window", "Change displayed value range"),
