@@ -47,6 +47,9 @@ CHUNK = 2048
 #: Largest grid it takes (160³): the exact direct light alone takes about a minute on two
 #: cores there, and the paths hours; larger data should be viewed with a faster method.
 MAX_VOXELS = 160**3
+#: Offset of the path seeds (batch k of seed s uses SEED_BASE + s·1000003 + k): the benchmark's
+#: reference uses seeds 0 and 1, and a technique measured against it must not share its paths.
+SEED_BASE = 1 << 20
 
 
 class PathTraced(Technique):
@@ -172,7 +175,7 @@ class PathTraced(Technique):
             light = inscattered_mc(
                 self._opacity, self.host.spacing, self._lights, albedo=self.host.albedo,
                 phase_g=self.host.phase_g, n_paths=paths,
-                seed=int(values["seed"]) * 1_000_003 + self.iteration,
+                seed=SEED_BASE + int(values["seed"]) * 1_000_003 + self.iteration,
                 unit_distance=self.host.unit_distance, max_bounces=int(values["max_bounces"]),
                 points=self._points[chunk], light_colors=self._colors)
             self._sum[chunk] += light * paths

@@ -775,7 +775,7 @@ def main_scattering(quick: bool = False, out: str = "vtkvol-bench", size: int | 
     from vtkvol.bench.scenes import file_scenes, phantom_scenes
     from vtkvol.io import VolumeReadError
 
-    config = StudyConfig(mode="quick", size=32, image_size=128, max_seconds=30.0) if quick \
+    config = StudyConfig(mode="quick", size=32, image_size=128, max_seconds=90.0) if quick \
         else StudyConfig()
     if size is not None:
         if size < 16:
