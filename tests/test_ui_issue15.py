@@ -600,3 +600,49 @@ def test_built_in_choices_are_words_not_identifiers(qapp, method):
     finally:
         dock.release()
         dock.deleteLater()
+
+
+def test_colour_legend_follows_the_channels(window):
+    overlays = window.viewport.scene.overlays
+    channel = window.model.channels[0]
+    channel.name = "before"  # while the legend is hidden
+    window.model.overlays.color_legend = True
+    assert [bar.GetTitle() for bar in overlays.legends] == ["before"]
+    bar = overlays.legends[0]
+    channel.tf.rescale(100.0, 900.0)  # edited in place: the same bar shows the new range
+    assert overlays.legends[0] is bar
+    assert bar.GetLookupTable().GetRange() == pytest.approx((100.0, 900.0))
+    channel.name = "nuclei (DAPI)"
+    assert [b.GetTitle() for b in overlays.legends] == ["nuclei (DAPI)"]
+    channel.visible = False
+    assert overlays.legends == []
+
+
+def test_a_dead_listener_does_not_break_a_nested_change():
+    """A slot that changes the model again (a nested event) while a listener that was
+    garbage-collected is still connected: both loops drop the dead slot, neither fails."""
+    import gc
+
+    from vtkvol.model.scene import Channel
+
+    channel = Channel()
+
+    class Listener:
+        def on_change(self, paths):
+            pass
+
+    seen: list[frozenset[str]] = []
+
+    def nested(paths):
+        seen.append(paths)
+        if "name" in paths:
+            channel.visible = False  # an edit in reaction to an edit
+
+    dead = Listener()
+    channel.changed.connect(nested)
+    channel.changed.connect(dead.on_change)
+    del dead
+    gc.collect()
+    channel.name = "renamed"
+    assert seen == [frozenset({"name"}), frozenset({"visible"})]
+    assert len(channel.changed) == 1

@@ -61,9 +61,10 @@ class ViewActions(QObject):
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if touches(paths, "overlays"):
             self.refresh()
-        elif touches(paths, "render") and (subfields(paths, "render") or {"background"}) & {
-                "background"}:
-            self._show_background()
+        elif touches(paths, "render"):
+            names = subfields(paths, "render")  # None: the whole settings object was replaced
+            if names is None or "background" in names:
+                self._show_background()
 
     def refresh(self) -> None:
         overlays: Overlays = self.model.overlays

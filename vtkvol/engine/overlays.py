@@ -137,7 +137,14 @@ class SceneOverlays:
 
     def set_legend_channels(self, channels: Sequence[tuple[str, vtk.vtkScalarsToColors]]) -> None:
         """The visible channels' names and colour functions, in order."""
-        self._legend_sources = list(channels)
+        channels = list(channels)
+        same = len(channels) == len(self._legend_sources) and all(
+            name == old_name and lut is old_lut
+            for (name, lut), (old_name, old_lut) in zip(channels, self._legend_sources,
+                                                         strict=True))
+        if same:
+            return  # the bars follow their colour functions' in-place edits by themselves
+        self._legend_sources = channels
         self._build_legends()
 
     def apply(self, state: Overlays) -> None:

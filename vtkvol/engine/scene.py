@@ -188,6 +188,7 @@ class VolumeScene:
         if touches(paths, "camera") and not self._syncing_camera:
             self._apply_camera()
         if touches(paths, "overlays"):
+            self._apply_legend()  # its channel list is kept up to date only while shown
             self.overlays.apply(self.model.overlays)
         if touches(paths, "channels") and self.model.overlays.color_legend:
             self._apply_legend()

@@ -48,7 +48,10 @@ class Signal:
         for ref in list(self._slots):
             fn = self._resolve(ref)
             if fn is None:
-                self._slots.remove(ref)
+                # A nested emit (a slot's own model edit) or a disconnect during this loop
+                # may have dropped the dead slot already.
+                with contextlib.suppress(ValueError):
+                    self._slots.remove(ref)
             else:
                 fn(*args)
 
