@@ -791,6 +791,7 @@ def load_session_with_data(
     path: str | os.PathLike[str],
     *,
     data_path: str | os.PathLike[str] | None = None,
+    time_index: int | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelCallback | None = None,
     on_warning: Callable[[str], None] | None = None,
@@ -803,6 +804,9 @@ def load_session_with_data(
         The session file.
     data_path
         Use this data file instead of the recorded one (the answer to "Locate…").
+    time_index
+        Read this time point instead of the recorded one (``vtkvol batch --time``: one view
+        rendered over a time series); ``model.volume.time_index`` says which was read.
     progress, cancel
         Passed to :func:`vtkvol.io.read_volume`.
     on_warning
@@ -842,7 +846,7 @@ def load_session_with_data(
     data = read_volume(
         target,
         voxel_size_um=vol.voxel_size_um,
-        time_index=vol.time_index,
+        time_index=vol.time_index if time_index is None else time_index,
         fit=vol.fit,
         progress=progress,
         cancel=cancel,
@@ -859,6 +863,8 @@ def load_session_with_data(
             "its shape and channels match, so the view is restored"
         )
     model.volume.path = str(target)
+    if time_index is not None:
+        model.volume.time_index = time_index
     for note in notes:
         if on_warning is not None:
             on_warning(note)
