@@ -429,3 +429,32 @@ def test_light_visibility_cpu_is_the_direct_term_at_data_resolution():
             np.testing.assert_array_equal(got, want)
     finally:
         il.release()
+
+
+@pytest.mark.gl
+def test_no_gl_leak_over_rebuilds(monkeypatch):
+    # Every texture and compute program the technique creates is released with it, also the
+    # ones replaced while it was alive (resolution changes reallocate every grid, light-count
+    # changes add and drop light volumes).
+    from tests_support_gl import GlObjects
+
+    objects = GlObjects(monkeypatch)
+    rw, ren, volume = _coloured_scene(size=(16, 16))
+    try:
+        for cycle in range(2):
+            il = Illuminator(volume, ren, method="translucency", lights=[Light()])
+            rw.Render()
+            for i in range(5):
+                il.set_parameters(resolution=("half", "full", "quarter")[(cycle + i) % 3])
+                il.set_lights([Light(direction=(0.1 * i, 0.2, 1))] * (1 + (cycle + i) % 4))
+                rw.Render()
+                assert len(il.bound_textures()) == 1 + (cycle + i) % 4
+            held = objects.held()
+            assert any(c.kind == "texture" for c in held), "the technique holds its textures"
+            il.release()
+            assert objects.held() == []
+            assert objects.alive_in_gl(rw, held) == []
+            rw.Render()
+        assert len(objects.created) - len(held) > 20, "the rebuilds really did replace textures"
+    finally:
+        rw.Finalize()
