@@ -121,7 +121,7 @@ def rich_model() -> SceneModel:
         render=RenderSettings(
             blend_mode="mip", channel_mixing="composite", sample_distance=0.25, jitter=False,
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
-            background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3,
+            background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3, interpolation="corrected",
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
                           color_legend=True),
@@ -430,7 +430,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 3)"),
+         "(format version 99; this version reads up to 4)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -764,7 +764,7 @@ def test_migrate_v2_to_v3_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[2](raw)
     assert out == load_fixture("v2_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == MIGRATIONS[3](out)
     assert not any(out["scene"]["overlays"].values())  # v2 drew no overlays
     assert raw == untouched
 
@@ -775,8 +775,24 @@ def test_v2_file_reads_without_warnings_and_no_overlays() -> None:
     assert session.model.overlays == Overlays()
 
 
+def test_migrate_v3_to_v4_matches_fixture() -> None:
+    raw = load_fixture("v3_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[3](raw)
+    assert out == load_fixture("v3_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    assert out["scene"]["render"]["interpolation"] == "trilinear"  # v3 rendered trilinear
+    assert raw == untouched
+
+
+def test_v3_file_reads_without_warnings_as_trilinear() -> None:
+    session = read_session(FIXTURES / "v3_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.render.interpolation == "trilinear"
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v3_complete.vtkvol.json")
+    doc = load_fixture("v4_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -806,8 +822,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v3 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v3_complete.vtkvol.json")
+    """The checked-in v4 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v4_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -827,8 +843,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 4; this version reads up to 3"):
-        migrate({"format": FORMAT, "version": 4})
+    with pytest.raises(ValueError, match="format version 5; this version reads up to 4"):
+        migrate({"format": FORMAT, "version": 5})
 
 
 @pytest.mark.parametrize(

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 3
+VERSION = 4
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -125,7 +125,19 @@ def _v2_to_v3(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3}
+def _v3_to_v4(raw: dict[str, Any]) -> dict[str, Any]:
+    """v3 → v4: render settings gained ``interpolation`` (the scalar reconstruction filter).
+    v3 rendered with the GPU's trilinear filter, which ``"trilinear"`` states exactly."""
+    out = copy.deepcopy(raw)
+    out["version"] = 4
+    scene = out.get("scene")
+    render = scene.get("render") if isinstance(scene, dict) else None
+    if isinstance(render, dict):
+        render.setdefault("interpolation", "trilinear")
+    return out
+
+
+MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

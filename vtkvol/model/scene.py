@@ -23,6 +23,10 @@ BLEND_MODES: tuple[str, ...] = BlendMode.__args__  # type: ignore[attr-defined]
 #: ``mapper.blend_mode``), accepted wherever a blend mode is set and stored under our name.
 BLEND_ALIASES: dict[str, str] = {"maximum": "mip", "minimum": "minip"}
 ChannelMixing = Literal["additive", "composite"]
+#: Scalar reconstruction along the ray (docs/reconstruction.md): the GPU's trilinear filter, or
+#: Csébfalvi's corrected trilinear filter (seed 001 eq. 2.55), near Catmull-Rom quality.
+Interpolation = Literal["trilinear", "corrected"]
+INTERPOLATIONS: tuple[str, ...] = Interpolation.__args__  # type: ignore[attr-defined]
 Vec3 = tuple[float, float, float]
 #: Largest angular radius (°) of a directional light: wider is no longer a "direction".
 MAX_ANGULAR_RADIUS = 45.0
@@ -234,6 +238,10 @@ class RenderSettings(EventedModel):
     #: > 0 forward). Surface techniques ignore both.
     albedo: float = Field(1.0, ge=0.0, le=1.0)
     phase_g: float = Field(0.0, ge=-0.99, le=0.99)
+    #: Scalar reconstruction filter of the ray's samples (composite blend; unit-free choice).
+    #: ``corrected`` reuses the six fetches of the shading gradient, so shaded it costs almost
+    #: nothing; unshaded it adds six texture fetches per sample.
+    interpolation: Interpolation = "trilinear"
 
     @field_validator("blend_mode", mode="before")
     @classmethod
