@@ -1,5 +1,5 @@
 """The ``vtkvol`` command: ``open`` (the app), ``render`` (headless PNG or turntable movie),
-``info``, ``bench``."""
+``info``, ``bench``, ``batch`` (many renders on a Dask cluster)."""
 
 from __future__ import annotations
 
@@ -75,6 +75,45 @@ def _parser() -> argparse.ArgumentParser:
     p_bench.add_argument("--scattering", action="store_true",
                          help="run the convergence study of the multiple-scattering techniques "
                               "instead (against path-traced references, 1 and 3 lights)")
+
+    p_batch = sub.add_parser(
+        "batch", help="render many sessions or time points to PNGs on a Dask cluster",
+        description="Render each input (session file, volume file or 'sample'), at each time "
+                    "point of --time, to OUTPUT/<name>.png (<name>_t0003.png with --time) on a "
+                    "local cluster of worker processes or an existing Dask scheduler.")
+    p_batch.add_argument("files", nargs="+", metavar="FILE",
+                         help="session files (*.vtkvol.json), volume files/folders, or 'sample'")
+    p_batch.add_argument("-o", "--output", required=True, metavar="DIR",
+                         help="folder for the PNGs (created)")
+    p_batch.add_argument("--time", metavar="T|START:STOP[:STEP]",
+                         help="time points to render, STOP excluded (0:20: the first 20)")
+    p_batch.add_argument("--workers", type=int, default=2, metavar="N",
+                         help="worker processes of the local cluster, one thread each "
+                              "(default 2)")
+    p_batch.add_argument("--scheduler", metavar="tcp://HOST:PORT",
+                         help="use this running Dask scheduler instead of a local cluster")
+    p_batch.add_argument("--connect-timeout", type=float, default=10.0, metavar="SECONDS",
+                         help="give up on --scheduler after this long (default 10)")
+    p_batch.add_argument("--egl-devices", metavar="I,J,…",
+                         help="local cluster: EGL device index of each worker, round robin "
+                              "(one worker per GPU: --workers 4 --egl-devices 0,1,2,3)")
+    p_batch.add_argument("--overwrite", action="store_true",
+                         help="replace PNGs that exist (default: refuse before rendering)")
+    p_batch.add_argument("--size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"))
+    p_batch.add_argument("--azimuth", type=float, default=None,
+                         help="degrees from the front view (sessions: orbit)")
+    p_batch.add_argument("--elevation", type=float, default=None,
+                         help="degrees from the front view (sessions: orbit)")
+    p_batch.add_argument("--preset", help="transfer-function preset or colormap name")
+    p_batch.add_argument("--method", help="illumination method (e.g. local, shadow_volume)")
+    p_batch.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                         help="illumination parameter (repeatable)")
+    p_batch.add_argument("--blend", choices=BLEND_MODES, help="blend mode")
+    p_batch.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
+    p_batch.add_argument("--iterations", type=int, default=None, metavar="N",
+                         help="progressive methods: refine each image to N iterations")
+    p_batch.add_argument("--time-budget", type=float, default=300.0, metavar="SECONDS",
+                         help="progressive methods: refinement limit per image (default 300)")
     return parser
 
 
@@ -273,9 +312,98 @@ def cmd_bench(args: argparse.Namespace) -> int:
     return bench_main(quick=args.quick, out=str(output), size=args.size, data=args.data)
 
 
+def cmd_batch(args: argparse.Namespace) -> int:
+    """``vtkvol batch``: plan the jobs, refuse existing PNGs, render them on a Dask cluster
+    (vtkvol.batch); one stderr line per finished job; exit 1 if any job failed."""
+    import time
+
+    from vtkvol.batch import (
+        BatchError,
+        RenderOptions,
+        existing_outputs,
+        parse_time_range,
+        plan_jobs,
+        run_batch,
+    )
+
+    def fail(message: str) -> int:
+        print(f"vtkvol: {message}", file=sys.stderr)
+        return 2
+
+    params = {}
+    for item in args.param:
+        name, sep, value = item.partition("=")
+        if not sep:
+            return fail(f"--param needs NAME=VALUE, got {item!r}")
+        params[name] = _parse_value(value)
+    if args.iterations is not None and args.iterations < 1:
+        return fail(f"--iterations must be at least 1, got {args.iterations}")
+    if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
+        return fail(f"--time-budget must be a number of seconds >= 0, got {args.time_budget}")
+    if not (math.isfinite(args.connect_timeout) and args.connect_timeout > 0):
+        return fail(f"--connect-timeout must be a number of seconds > 0, "
+                    f"got {args.connect_timeout}")
+    if args.workers < 1:
+        return fail(f"--workers must be at least 1, got {args.workers}")
+    devices = None
+    if args.egl_devices:
+        try:
+            devices = [int(d) for d in args.egl_devices.split(",")]
+        except ValueError:
+            return fail(f"--egl-devices takes device numbers like 0,1,2, got {args.egl_devices!r}")
+    out = Path(args.output)
+    if out.exists() and not out.is_dir():
+        return fail(f"{out} is a file, not a folder for the images")
+    options = RenderOptions(
+        size=tuple(args.size), azimuth=args.azimuth, elevation=args.elevation,
+        method=args.method, preset=args.preset, parameters=params, blend=args.blend,
+        voxel_size=tuple(args.voxel_size) if args.voxel_size else None,
+        iterations=args.iterations, max_seconds=args.time_budget,
+    )
+    try:
+        times = parse_time_range(args.time) if args.time is not None else None
+        jobs = plan_jobs(args.files, out, times=times, options=options)
+    except FileNotFoundError as exc:
+        return fail(f"{exc.filename}: no such file or folder; nothing was rendered")
+    except ValueError as exc:
+        return fail(str(exc))
+    existing = existing_outputs(jobs)
+    if existing and not args.overwrite:
+        more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
+        return fail(f"{existing[0]} exists{more}; pass --overwrite to replace it")
+    out.mkdir(parents=True, exist_ok=True)
+    where = args.scheduler or f"a local cluster of {args.workers} worker process(es)"
+    print(f"rendering {len(jobs)} image(s) on {where}", file=sys.stderr, flush=True)
+
+    def progress(done: int, total: int, result) -> None:
+        job = result.job
+        for note in result.notes:
+            print(f"vtkvol: {job.name}: {note}", file=sys.stderr)
+        if result.ok:
+            print(f"[{done}/{total}] {job.name} -> {job.output} ({result.seconds:.1f} s, "
+                  f"{result.worker})", file=sys.stderr, flush=True)
+        else:
+            print(f"[{done}/{total}] FAILED {job.name}: {result.error}", file=sys.stderr,
+                  flush=True)
+
+    t0 = time.perf_counter()
+    try:
+        results = run_batch(jobs, scheduler=args.scheduler, workers=args.workers,
+                            egl_devices=devices, overwrite=args.overwrite,
+                            connect_timeout=args.connect_timeout, progress=progress)
+    except BatchError as exc:
+        print(f"vtkvol: {exc}", file=sys.stderr)
+        return 1
+    failed = [r for r in results if not r.ok]
+    print(f"wrote {len(results) - len(failed)} of {len(results)} image(s) to {out} in "
+          f"{time.perf_counter() - t0:.1f} s" + (f"; {len(failed)} failed" if failed else ""))
+    return 1 if failed else 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    handlers = {"render": cmd_render, "info": cmd_info, "open": cmd_open, "bench": cmd_bench}
+    handlers = {"render": cmd_render, "info": cmd_info, "open": cmd_open, "bench": cmd_bench,
+                "batch": cmd_batch}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:
