@@ -34,9 +34,10 @@ def illuminate(
 
     Supported: point scalars (cell data is refused with what to do), every cropping mode and
     clipping planes (what they hide casts no shadow), ``vtkSmartVolumeMapper`` (rendered through
-    a GPU ray-cast mapper set up the same way until ``release()``). ``"local"`` lighting keeps
-    the property's shading flags; the shadow techniques switch shading on (they shade through
-    VTK's shaded variant), the medium ones off, and ``release()`` restores the flags.
+    a GPU ray-cast mapper set up the same way until ``release()``). ``"local"`` lighting with
+    the renderer's own lights keeps the property's shading flags; given ``lights``, or a shadow
+    technique, switch shading on (they shade through VTK's shaded variant), the medium ones
+    off, and ``release()`` restores the flags.
 
     Parameters
     ----------
@@ -69,7 +70,8 @@ def illuminate(
             raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
     return Illuminator(volume, renderer, method=method,
                        lights="renderer" if lights is None else lights, parameters=parameters,
-                       keep_local_shading=True)
+                       # lights given: the caller asks for them to shade the volume
+                       keep_local_shading=lights is None)
 
 
 def render_image(
