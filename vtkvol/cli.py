@@ -371,7 +371,6 @@ def cmd_batch(args: argparse.Namespace) -> int:
     if existing and not args.overwrite:
         more = f" (and {len(existing) - 1} more)" if len(existing) > 1 else ""
         return fail(f"{existing[0]} exists{more}; pass --overwrite to replace it")
-    out.mkdir(parents=True, exist_ok=True)
     where = args.scheduler or f"a local cluster of {args.workers} worker process(es)"
     print(f"rendering {len(jobs)} image(s) on {where}", file=sys.stderr, flush=True)
 
