@@ -192,6 +192,7 @@ class Illuminator:
         self._closed = False
         self._albedo = 1.0
         self._phase_g = 0.0
+        self._interpolation = "trilinear"
         self.last_prepare_ms = 0.0
         self.render_window: vtk.vtkRenderWindow | None = None
         self.profiling = False
@@ -362,6 +363,24 @@ class Illuminator:
             if phase_g != self._phase_g:
                 self._phase_g = float(phase_g)
                 self._changes.invalidates |= Invalidates.ACCUMULATION
+
+    @property
+    def interpolation(self) -> str:
+        """Scalar reconstruction of the ray's samples: ``"trilinear"`` (the GPU's) or
+        ``"corrected"`` (Csébfalvi's corrected trilinear, docs/reconstruction.md)."""
+        return self._interpolation
+
+    def set_interpolation(self, interpolation: str) -> None:
+        """Choose the scalar reconstruction filter (``"trilinear"`` or ``"corrected"``).
+
+        ``corrected`` applies to composite blending of one component or independent
+        components (elsewhere VTK's trilinear sample is kept). Precomputed illumination is
+        unaffected: it is evaluated at voxel centres, where both filters return the samples."""
+        if interpolation not in ("trilinear", "corrected"):
+            raise ValueError(
+                f"interpolation must be 'trilinear' or 'corrected', not {interpolation!r}"
+            )
+        self._interpolation = interpolation
 
     def set_slice_weights(self, weights: np.ndarray | None) -> None:
         """Per-axis slice-contribution weights, shape (3, W) for x, y, z over 0…1 (or None)."""
@@ -754,6 +773,7 @@ class Illuminator:
             sections += shaders.load(
                 "host_slice_weights.glsl", {"VV_INDEPENDENT": "1"} if independent else None
             )
+        sections += self._interpolation_sections()
         own = tech.sections(values)
         defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
@@ -776,6 +796,30 @@ class Illuminator:
         if self._replacements.install(replacements):
             markers = {shaders.marker(s) for s in sections}
             self._expected_markers = (markers, set(self._technique_uniform_values(values)))
+
+    def _interpolation_sections(self) -> list[shaders.Section]:
+        """The corrected-trilinear filter's sections (after the slice weights: both wrap
+        ``computeOpacity``), or none. Only composite blending samples the scalar where the
+        wrappers can correct it (MIP and the other blends classify a reduced value)."""
+        if self._interpolation != "corrected":
+            return []
+        if self.volume.GetMapper().GetBlendMode() != vtk.vtkVolumeMapper.COMPOSITE_BLEND:
+            return []
+        prop = self.volume.GetProperty()
+        ncomp = self.image.GetPointData().GetScalars().GetNumberOfComponents()
+        independent = ncomp > 1 and bool(prop.GetIndependentComponents())
+        if ncomp > 1 and not independent:
+            return []  # dependent components (RGBA data): colour is not a filtered scalar
+        defines = {"VV_INDEPENDENT": "1"} if independent else {}
+        used = range(ncomp) if independent else range(1)
+        mapper = self.volume.GetMapper()
+        if (self.shaded and not any(prop.HasGradientOpacity(c) for c in used)
+                and mapper.GetVolumetricScatteringBlending() == 0):
+            # The shading gradient reuses the correction's six fetches. Not with gradient
+            # opacity (VTK's variant returns a magnitude) or VTK's volumetric shadows (they
+            # take gradients away from the sample).
+            defines["VV_IP_SHARE_GRADIENT"] = "1"
+        return shaders.load("host_interpolation.glsl", defines)
 
     def _upload_weights(self) -> None:
         if self._weights is None:

@@ -234,6 +234,8 @@ class VolumeScene:
             self._apply_shading_constants()
         if every or names & {"albedo", "phase_g"}:
             self._apply_material()
+        if (every or "interpolation" in names) and self.illuminator is not None:
+            self.illuminator.set_interpolation(render.interpolation)
 
     def _apply_all(self) -> None:
         self._on_render_change(None)
