@@ -190,3 +190,31 @@ def test_time_ranges_and_job_names(tmp_path):
     assert [j.name for j in jobs] == ["v.vtkvol.json t=0", "v.vtkvol.json t=1"]
     with pytest.raises(ValueError, match=r"would both write v\.png"):
         plan_jobs([a / "v.vtkvol.json", b / "v.vtkvol.json"], tmp_path / "out")
+
+
+def test_egl_device_per_local_worker(monkeypatch):
+    """``--egl-devices``: worker i of a LocalCluster (named 0, 1, …) gets devices[i % n] as
+    VTK_DEFAULT_EGL_DEVICE_INDEX, which VTK reads when it constructs an EGL render window."""
+    import os
+    from types import SimpleNamespace
+
+    from vtkvol.batch import _egl_device_plugin
+
+    monkeypatch.delenv("VTK_DEFAULT_EGL_DEVICE_INDEX", raising=False)
+    plugin = _egl_device_plugin([2, 3])
+    seen = []
+    for name in (0, 1, 2):
+        plugin.setup(SimpleNamespace(name=name, address=f"tcp://127.0.0.1:{4000 + name}"))
+        seen.append(os.environ["VTK_DEFAULT_EGL_DEVICE_INDEX"])
+    assert seen == ["2", "3", "2"]
+
+
+def test_batch_module_imports_no_qt():
+    import subprocess
+    import sys
+
+    code = ("import sys, vtkvol.batch, distributed, vtkvol.engine.api\n"
+            "print([m for m in sys.modules if m.startswith(('PySide6', 'pyvistaqt', 'qtpy'))])")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "[]"
