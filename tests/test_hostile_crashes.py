@@ -114,10 +114,23 @@ def test_tiff_pages_declaring_more_than_memory_are_refused_before_allocating(tmp
     numpy's MemoryError escaped read_volume before; now the header is refused unread."""
     side = 65535
     pages = math.ceil(2 * physical_memory_bytes() / side**2)
+    # 64 KiB of stored data per page: a ratio zlib could reach, so only memory speaks.
     path = lying_tiff(tmp_path / "lying.tif", width=side, height=side, pages=pages,
-                      compression=8, data=zlib.compress(bytes(100)))
+                      compression=8, data=bytes(64 * 1024))
     result = read_in_child(path)
     assert_refused(result, f"lying.tif: declares {pages}×{side}×{side} uint8")
+
+
+def test_a_compressed_page_claiming_more_than_any_codec_packs_is_refused_before_decoding(
+        tmp_path):
+    """Found by the fuzz test: a 63754² two-sample uint16 page (15 GiB, under this machine's
+    memory) from 100 stored bytes; decoding allocated it twice (output and codec buffer) and
+    the kernel killed the test run."""
+    path = lying_tiff(tmp_path / "bomb.tif", width=63754, height=63754, samples=2, bits=16,
+                      compression=50000, data=bytes(100))
+    result = read_in_child(path, memory_bytes=4 * 2**30)
+    assert_refused(result, "bomb.tif: corrupt TIFF: page 0 claims 16258290064 bytes of image "
+                           "data stored in 100 bytes, more than any TIFF compression achieves")
 
 
 def test_running_out_of_memory_in_any_reader_is_a_volume_read_error(tmp_path, monkeypatch):

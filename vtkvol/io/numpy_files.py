@@ -8,14 +8,13 @@
 
 from __future__ import annotations
 
-import zipfile
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from vtkvol.io.errors import VolumeReadError
+from vtkvol.io.errors import ReadCancelled, VolumeReadError
 from vtkvol.io.limits import check_declared_bytes
 from vtkvol.io.progress import Progress, slabs
 from vtkvol.io.registry import ReaderSpec
@@ -76,10 +75,10 @@ def read_npy(
     _check_time(time_index, path)
     try:
         array = np.load(path, mmap_mode="r", allow_pickle=False)
-    except (ValueError, OverflowError, MemoryError) as exc:
-        raise VolumeReadError(path, f"not a readable .npy file ({exc})") from exc
     except OSError as exc:
         raise VolumeReadError(path, f"cannot read the file ({exc})") from exc
+    except Exception as exc:  # numpy's header parser also raises SyntaxError, TokenError…
+        raise VolumeReadError(path, f"not a readable .npy file ({exc})") from exc
     array = _as_czyx(array, path)
     notes: list[str] = []
     if not array.flags.c_contiguous:
@@ -130,9 +129,9 @@ def read_npz(
             array = npz[key]
             voxel = npz["voxel_size_um"] if "voxel_size_um" in keys else None
             names_array = npz["channel_names"] if "channel_names" in keys else None
-    except (ValueError, OSError, zipfile.BadZipFile, OverflowError, MemoryError) as exc:
-        if isinstance(exc, VolumeReadError):
-            raise
+    except (VolumeReadError, ReadCancelled):
+        raise
+    except Exception as exc:  # zip, numpy header and member errors alike: an unreadable file
         raise VolumeReadError(path, f"not a readable .npz file ({exc})") from exc
     array = _as_czyx(array, path)
     names = (
@@ -149,7 +148,10 @@ def read_npz(
     metadata: dict[str, Any] = {"format": "npz", "npz_key": key}
     notes: list[str] = []
     if voxel is not None:
-        values = np.asarray(voxel, dtype=float).ravel()
+        try:
+            values = np.asarray(voxel, dtype=float).ravel()
+        except (TypeError, ValueError):
+            values = np.zeros(0)  # refused just below, with the value
         if values.size == 1:
             values = np.repeat(values, 3)
         if values.size != 3 or not np.all(np.isfinite(values) & (values > 0)):

@@ -512,7 +512,9 @@ def _format_name(tif: tifffile.TiffFile) -> str:
 def _open(path: Path) -> tifffile.TiffFile:
     try:
         return tifffile.TiffFile(path)
-    except (tifffile.TiffFileError, ValueError, OSError, IndexError, KeyError, EOFError) as exc:
+    except MemoryError:
+        raise
+    except Exception as exc:  # tifffile's parser fails in many ways on corrupt tags (TypeError…)
         raise VolumeReadError(path, f"not a readable TIFF file ({exc})") from exc
 
 
@@ -561,6 +563,10 @@ def _page_split(series: Any, shape: tuple[int, ...], axes: str) -> int | None:
     return None
 
 
+#: No TIFF codec packs more than this (zlib ≈ 1000:1, zstd's RLE blocks ≈ 33000:1).
+MAX_COMPRESSION_RATIO = 100_000
+
+
 def _check_page_bounds(series: Any, path: Path) -> None:
     size = path.stat().st_size
     for i, page in enumerate(series.pages):
@@ -575,6 +581,19 @@ def _check_page_bounds(series: Any, path: Path) -> None:
             raise VolumeReadError(
                 path,
                 f"truncated TIFF: page {i} needs data up to byte {end}, the file has {size} bytes",
+            )
+        if page.dtype is None:
+            raise VolumeReadError(
+                path, f"page {i} stores {_tag_value(page, 'BitsPerSample')}-bit samples of "
+                      "a kind tifffile cannot decode",
+            )
+        stored = sum(int(c) for c in counts)
+        if page.nbytes > MAX_COMPRESSION_RATIO * stored + (1 << 20):
+            # Decoding would allocate what the tags claim (once per codec buffer too).
+            raise VolumeReadError(
+                path,
+                f"corrupt TIFF: page {i} claims {page.nbytes} bytes of image data stored in "
+                f"{stored} bytes, more than any TIFF compression achieves",
             )
 
 
