@@ -18,7 +18,9 @@ Conventions (``docs/architecture.md``):
 Modules: :mod:`~vtkvol.reference.raymarch` (extinction field, ray march),
 :mod:`~vtkvol.reference.transmittance`, :mod:`~vtkvol.reference.ambient_occlusion`,
 :mod:`~vtkvol.reference.scattering`, :mod:`~vtkvol.reference.metrics`,
-:mod:`~vtkvol.reference.phantoms`, :mod:`~vtkvol.reference.sampling` (seeded random directions).
+:mod:`~vtkvol.reference.phantoms`, :mod:`~vtkvol.reference.sampling` (seeded random directions),
+:mod:`~vtkvol.reference.reconstruction` (trilinear, corrected trilinear and tricubic filters,
+the Marschner–Lobb signal).
 """
 
 from vtkvol.reference.ambient_occlusion import ambient_occlusion_mc
@@ -31,6 +33,13 @@ from vtkvol.reference.phantoms import (
     phantom_sphere_over_slab,
 )
 from vtkvol.reference.raymarch import ExtinctionField, extinction, voxel_centres
+from vtkvol.reference.reconstruction import (
+    corrected_trilinear,
+    marschner_lobb,
+    marschner_lobb_rmse,
+    phantom_marschner_lobb,
+    reconstruct,
+)
 from vtkvol.reference.scattering import inscattered_mc
 from vtkvol.reference.transmittance import (
     cone_transmittance_mc,
@@ -44,14 +53,19 @@ __all__ = [
     "PointLight",
     "ambient_occlusion_mc",
     "cone_transmittance_mc",
+    "corrected_trilinear",
     "extended_transmittance",
     "extinction",
     "image_metrics",
     "inscattered_mc",
+    "marschner_lobb",
+    "marschner_lobb_rmse",
     "phantom_groove",
     "phantom_hollow_sphere",
+    "phantom_marschner_lobb",
     "phantom_slab",
     "phantom_sphere_over_slab",
+    "reconstruct",
     "transmittance",
     "volume_metrics",
     "voxel_centres",
