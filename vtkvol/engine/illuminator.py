@@ -403,6 +403,11 @@ class Illuminator:
         the input image, opacity functions, cropping and volume matrix are detected)."""
         self._changes.opacity = True
 
+    @property
+    def closed(self) -> bool:
+        """True once :meth:`release` has run (the volume has VTK's own shading again)."""
+        return self._closed
+
     # -- progressive techniques -----------------------------------------------------------------
     @property
     def wants_frame(self) -> bool:
