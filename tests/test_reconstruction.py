@@ -261,3 +261,21 @@ def test_scene_follows_the_model_setting() -> None:
     finally:
         scene.close()
         rw.Finalize()
+
+
+# -- app ----------------------------------------------------------------------------------------
+@pytest.mark.gui
+def test_channels_dock_interpolation_combo(qapp) -> None:
+    """The channels dock's render settings show the filter and set it, both ways."""
+    from vtkvol.ui.docks.channels import ChannelsDock
+
+    model = SceneModel()
+    dock = ChannelsDock(model)
+    try:
+        assert dock.interpolation.currentData() == "trilinear"
+        dock.interpolation.setCurrentIndex(dock.interpolation.findData("corrected"))
+        assert model.render.interpolation == "corrected"
+        model.render.interpolation = "trilinear"
+        assert dock.interpolation.currentData() == "trilinear"
+    finally:
+        dock.deleteLater()

@@ -40,6 +40,10 @@ MIXING_LABELS = {
     "additive": "Additive colours (VTK)",
     "composite": "Independent absorbers",
 }
+INTERPOLATION_LABELS = {
+    "trilinear": "Trilinear",
+    "corrected": "Corrected trilinear (sharper)",
+}
 
 
 def retint(colors: list[tuple[float, float, float, float]], old: tuple[float, float, float],
@@ -227,6 +231,15 @@ class ChannelsDock(ModelDock):
             self.mixing.addItem(label, mode)
         self.mixing_label = QLabel("Channel mixing")
         form.addRow(self.mixing_label, self.mixing)
+        self.interpolation = QComboBox()
+        self.interpolation.setObjectName("render_interpolation")
+        self.interpolation.setToolTip(
+            "How values between voxels are reconstructed along each ray: trilinear, or "
+            "Csébfalvi's corrected trilinear (close to tricubic Catmull-Rom; composite blending "
+            "only; costs little with shading, more without)")
+        for mode, label in INTERPOLATION_LABELS.items():
+            self.interpolation.addItem(label, mode)
+        form.addRow("Interpolation", self.interpolation)
         self.iso = number_box(minimum=-1e9, maximum=1e9, decimals=1, object_name="render_iso_value",
                               tooltip="Data value of the isosurface")
         self.iso_auto = QPushButton("Auto")
@@ -254,6 +267,11 @@ class ChannelsDock(ModelDock):
         b.bind(render, "channel_mixing", self.mixing, self.mixing.currentIndexChanged,
                lambda mode: self.mixing.setCurrentIndex(self.mixing.findData(mode)),
                to_model=lambda i: self.mixing.itemData(i))
+        b.bind(render, "interpolation", self.interpolation,
+               self.interpolation.currentIndexChanged,
+               lambda mode: self.interpolation.setCurrentIndex(
+                   self.interpolation.findData(mode)),
+               to_model=lambda i: self.interpolation.itemData(i))
         b.connect_qt(self.iso.valueChanged, self._on_iso)
         b.connect_qt(self.iso_auto.clicked, lambda: setattr(self.model.render,
                                                              "isosurface_value", None))
