@@ -234,8 +234,14 @@ class VolumeScene:
             self._apply_shading_constants()
         if every or names & {"albedo", "phase_g"}:
             self._apply_material()
-        if (every or "interpolation" in names) and self.illuminator is not None:
-            self.illuminator.set_interpolation(render.interpolation)
+        if every or "interpolation" in names:
+            nearest = render.interpolation == "nearest"
+            self.property.SetInterpolationType(
+                vtk.VTK_NEAREST_INTERPOLATION if nearest else vtk.VTK_LINEAR_INTERPOLATION)
+            if self.illuminator is not None:
+                # Nearest is VTK's own texture filter; the host's shader path stays trilinear.
+                self.illuminator.set_interpolation(
+                    "trilinear" if nearest else render.interpolation)
 
     def _apply_all(self) -> None:
         self._on_render_change(None)

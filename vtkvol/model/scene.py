@@ -24,8 +24,10 @@ BLEND_MODES: tuple[str, ...] = BlendMode.__args__  # type: ignore[attr-defined]
 BLEND_ALIASES: dict[str, str] = {"maximum": "mip", "minimum": "minip"}
 ChannelMixing = Literal["additive", "composite"]
 #: Scalar reconstruction along the ray (docs/reconstruction.md): the GPU's trilinear filter, or
-#: Csébfalvi's corrected trilinear filter (seed 001 eq. 2.55), near Catmull-Rom quality.
-Interpolation = Literal["trilinear", "corrected"]
+#: Csébfalvi's corrected trilinear filter (seed 001 eq. 2.55), near Catmull-Rom quality; or the
+#: nearest voxel, for label images (vtkvol.model.labels): a trilinear sample between labels 3 and
+#: 40 is some label in between, which would colour the boundary with labels that are not there.
+Interpolation = Literal["trilinear", "corrected", "nearest"]
 INTERPOLATIONS: tuple[str, ...] = Interpolation.__args__  # type: ignore[attr-defined]
 Vec3 = tuple[float, float, float]
 #: Largest angular radius (°) of a directional light: wider is no longer a "direction".
