@@ -43,6 +43,7 @@ MIXING_LABELS = {
 INTERPOLATION_LABELS = {
     "trilinear": "Trilinear",
     "corrected": "Corrected trilinear (sharper)",
+    "nearest": "Nearest voxel (label images)",
 }
 
 
