@@ -451,6 +451,13 @@ class MainWindow(QMainWindow):
         self.refine_label.setObjectName("status_refine")
         self.refine_label.setToolTip("A progressive illumination method is refining the light; "
                                      "moving the camera does not restart it")
+        self.probe_label = QLabel("")
+        self.probe_label.setObjectName("status_probe")
+        self.probe_label.setToolTip("Intensity probe: the first visible voxel under the mouse "
+                                    "pointer (position in µm, voxel index, every channel's "
+                                    "value)")
+        self.viewport.probed.connect(self.probe_label.setText)
+        status.addWidget(self.probe_label)
         status.addPermanentWidget(self.refine_label)
         status.addPermanentWidget(self.data_label)
         status.addPermanentWidget(self.frame_label)

@@ -35,6 +35,7 @@ from PySide6.QtCore import QEvent, QObject, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
+from vtkvol.engine.probe import ProbeResult, probe
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel
@@ -45,6 +46,8 @@ if TYPE_CHECKING:
 #: After the last camera/gizmo interaction, wait this long before the full-quality frame, so
 #: a series of wheel steps does not pay for a full frame each (ms).
 SETTLE_MS = 180
+#: The intensity probe reads the voxel under the pointer once it rests this long (ms).
+PROBE_DELAY_MS = 80
 #: Distance of a directional light's handle from the volume's centre, in bounding-sphere radii.
 GIZMO_RADIUS = 1.05
 
@@ -143,11 +146,15 @@ class Viewport(QWidget):
         Emitted from inside a frame: connect with a queued connection to show dialogs.
     illuminationProgress(iteration, converged)
         A progressive technique refined (its next frame is already requested).
+    probed(text)
+        The intensity probe: the position, voxel and channel values of the first visible
+        material under the resting mouse pointer ("" when there is none).
     """
 
     frameRendered = Signal(float, float)
     illuminationFailed = Signal(str)
     illuminationProgress = Signal(int, bool)
+    probed = Signal(str)
 
     def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -185,6 +192,13 @@ class Viewport(QWidget):
         self._settle_timer.setSingleShot(True)
         self._settle_timer.setInterval(SETTLE_MS)
         self._settle_timer.timeout.connect(self._settle)
+
+        # The intensity probe runs once the pointer rests (picking casts a CPU ray).
+        self._probe_timer = QTimer(self)
+        self._probe_timer.setSingleShot(True)
+        self._probe_timer.setInterval(PROBE_DELAY_MS)
+        self._probe_timer.timeout.connect(self._probe)
+        self._probe_at: tuple[float, float] | None = None
 
         self._gizmo = LightGizmo(self.interactor, self.renderer, self)
         # Sees the view's mouse events first: a handle drag whose release was lost ends here.
@@ -391,6 +405,14 @@ class Viewport(QWidget):
         turning the camera. A move without the left button, or a new left press, while a
         drag is on means the release was lost: send VTK the release first.
         """
+        if (watched is self.plotter and event.type() == QEvent.Type.MouseMove
+                and not event.buttons()):  # type: ignore[attr-defined]
+            pos = event.position()  # type: ignore[attr-defined]
+            self._probe_at = (float(pos.x()), float(pos.y()))
+            self._probe_timer.start()
+        elif watched is self.plotter and event.type() == QEvent.Type.Leave:
+            self._probe_at = None
+            self._probe_timer.start()
         if watched is self.plotter and self._gizmo.dragging:
             kind = event.type()
             moved = kind == QEvent.Type.MouseMove and not (
@@ -400,6 +422,21 @@ class Viewport(QWidget):
             if moved or pressed:
                 self._end_lost_drag()
         return super().eventFilter(watched, event)
+
+    def probe_at(self, x: float, y: float) -> ProbeResult | None:
+        """The first visible voxel under widget pixel (x, y) (Qt coordinates: logical pixels
+        from the top-left), or None."""
+        scene = self.scene
+        if scene is None or scene.data is None or self._closed:
+            return None
+        ratio = self.plotter.devicePixelRatioF()
+        height = self.render_window.GetSize()[1]
+        return probe(self.renderer, scene.volume, scene.data, x * ratio,
+                     height - 1 - y * ratio)
+
+    def _probe(self) -> None:
+        result = self.probe_at(*self._probe_at) if self._probe_at is not None else None
+        self.probed.emit(result.text() if result is not None else "")
 
     def _end_lost_drag(self) -> None:
         self.interactor.LeftButtonReleaseEvent()  # the widget ends its drag, lets the mouse go
