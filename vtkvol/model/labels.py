@@ -93,6 +93,15 @@ def detect_labels(array: np.ndarray) -> LabelDetection:
     n_slices = max(1, min(a.shape[0], MAX_SAMPLED_VOXELS // plane))
     z = np.unique(np.linspace(0, a.shape[0] - 1, n_slices).round().astype(int))
     sample = a[z]
+    # The neighbour test first: it is cheap, and it is what rejects intensity images.
+    left, right = sample[..., :-1], sample[..., 1:]
+    pairs = (left != 0) | (right != 0)
+    n_pairs = int(pairs.sum())
+    equal = float((left == right)[pairs].sum()) / n_pairs if n_pairs else 0.0
+    if n_pairs and equal < MIN_EQUAL_NEIGHBOURS:
+        return LabelDetection(
+            False, f"neighbouring voxels equal in {equal:.0%} of pairs: intensities vary "
+                   "voxel to voxel")
     ids, counts = np.unique(sample, return_counts=True)
     nonzero = ids != 0
     labels = tuple(int(v) for v in ids[nonzero])
@@ -103,14 +112,6 @@ def detect_labels(array: np.ndarray) -> LabelDetection:
         return LabelDetection(
             False, f"{len(labels)} values covering {per_label:.1f} voxels each on average: "
                    "intensities, not regions")
-    left, right = sample[..., :-1], sample[..., 1:]
-    pairs = (left != 0) | (right != 0)
-    n_pairs = int(pairs.sum())
-    equal = float((left == right)[pairs].sum()) / n_pairs if n_pairs else 0.0
-    if equal < MIN_EQUAL_NEIGHBOURS:
-        return LabelDetection(
-            False, f"neighbouring voxels equal in {equal:.0%} of pairs: intensities vary "
-                   "voxel to voxel")
     return LabelDetection(
         True, f"{len(labels)} integer ids over regions (neighbours equal in {equal:.0%} of "
               "pairs)", labels)
