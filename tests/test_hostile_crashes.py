@@ -273,3 +273,39 @@ def test_a_tiff_whose_pages_link_in_a_circle_is_read_once(tmp_path):
     """)
     assert result.returncode == 0, result.stderr[-2000:]
     assert "OK (1, 1, 4, 4)" in result.stdout and "circular reference" in result.stdout
+
+
+LEGACY = ("# vtk DataFile Version 3.0\nlying\nBINARY\nDATASET STRUCTURED_POINTS\n"
+          "DIMENSIONS 2 2 2\nSPACING 1 1 1\nORIGIN 0 0 0\nPOINT_DATA 8\n")
+META = "ObjectType = Image\nNDims = 3\nElementType = MET_UCHAR\n"
+
+
+@pytest.mark.parametrize(
+    ("name", "text", "message"),
+    [
+        ("sizes.mha", META + "DimSize = -2 2 2\nElementDataFile = LOCAL\n",
+         "DimSize = -2 2 2 must be 3 integers of at least 1"),
+        ("channels.mha", META + "DimSize = 2 2 2\nElementNumberOfChannels = -4\n"
+                                "ElementDataFile = LOCAL\n",
+         "ElementNumberOfChannels = -4 must be 1 integer from 1 to 64"),
+        ("packed.mha", META + "DimSize = 2 2 2\nCompressedData = True\n"
+                              "CompressedDataSize = 99999999999\nElementDataFile = LOCAL\n",
+         "CompressedDataSize = 99999999999 is larger than the data"),
+        ("colours.vtk", LEGACY + "COLOR_SCALARS s 2000000000\n",
+         "'COLOR_SCALARS s 2000000000': components must be 1 to 64"),
+        ("field.vtk", LEGACY + "FIELD f 1\narr 2000000000 8 unsigned_char\n",
+         "field array 'arr 2000000000 8 unsigned_char' declares 2000000000 components"),
+        ("arrays.vtk", LEGACY + "FIELD f 99999999\narr 1 8 unsigned_char\n",
+         "'FIELD f 99999999': at most 1024 arrays"),
+    ],
+    ids=["negative_size", "negative_channels", "compressed_size", "colour_components",
+         "field_array", "field_count"],
+)
+def test_metaimage_and_legacy_vtk_numbers_vtk_trusts_are_checked_first(tmp_path, name, text,
+                                                                       message):
+    """VTK aborted the process on the MetaImage ones (std::bad_alloc, vector length error) and
+    spent minutes (past this test's 30 s) on the legacy ones."""
+    path = tmp_path / name
+    path.write_bytes(text.encode() + bytes(16))
+    result = read_in_child(path, timeout=30)
+    assert_refused(result, f"{name}: {message}")

@@ -171,3 +171,29 @@ def test_nrrd_headers_in_utf8_name_their_units(tmp_path):
     )
     data = read_volume(tmp_path / "v.nhdr")
     assert tuple(data.voxel_size_um) == (0.5, 0.5, 2.0) and data.voxel_size_from_metadata
+
+
+@pytest.mark.parametrize(
+    ("files", "message"),
+    [(["a.raw"], "ElementDataFile = LIST 2D lists 1 files; DimSize 2 2 2 needs 2"),
+     (["a.raw", "short.raw"], "data file 'short.raw' holds 2 bytes; each file of the list "
+                              "needs 4")],
+    ids=["too_few_files", "short_file"],
+)
+def test_metaimage_lists_that_do_not_cover_the_grid_are_refused(tmp_path, files, message):
+    """VTK read the slices the list does not provide from uninitialised memory."""
+    (tmp_path / "a.raw").write_bytes(bytes(range(4)))
+    (tmp_path / "short.raw").write_bytes(bytes(2))
+    (tmp_path / "list.mhd").write_text(
+        "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+        "ElementDataFile = LIST 2D\n" + "\n".join(files) + "\n"
+    )
+    before = snapshot(tmp_path)
+    with pytest.raises(VolumeReadError, match=rf"^list.mhd: {message}"):
+        read_volume(tmp_path / "list.mhd")
+    assert snapshot(tmp_path) == before
+    (tmp_path / "list.mhd").write_text(
+        "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+        "ElementDataFile = LIST 2D\na.raw\na.raw\n"
+    )
+    assert read_volume(tmp_path / "list.mhd").array.ravel().tolist() == [0, 1, 2, 3] * 2

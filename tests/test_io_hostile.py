@@ -162,3 +162,18 @@ def test_vti_spacing_that_is_negative_is_noted_and_nan_is_refused(tmp_path):
         read_volume(vti(tmp_path / "nan.vti", "nan 1 1"))
     with pytest.raises(VolumeReadError, match=r"invalid spacing \(0.0, 1.0, 1.0\): every axis"):
         read_volume(vti(tmp_path / "zero.vti", "0 1 1"))
+
+
+def test_metaimage_file_lists_may_not_reach_outside_their_folder(tmp_path):
+    """The check above skipped ``ElementDataFile = LIST``: every listed file is checked now."""
+    (tmp_path / "outside").mkdir()
+    (tmp_path / "outside" / "secret.raw").write_bytes(bytes(range(4)))
+    folder = tmp_path / "download"
+    folder.mkdir()
+    (folder / "own.raw").write_bytes(bytes(4))
+    (folder / "list.mhd").write_text(
+        "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+        "ElementDataFile = LIST 2D\nown.raw\n../outside/secret.raw\n"
+    )
+    with pytest.raises(VolumeReadError, match=r"^list.mhd: names a data file outside its folder"):
+        read_volume(folder / "list.mhd")

@@ -15,10 +15,11 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from vtkvol.io.errors import VolumeReadError
-from vtkvol.io.limits import check_data_file, check_declared_bytes
+from vtkvol.io.limits import check_declared_bytes
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.volume_data import Spacing, VolumeData, normalize_volume, resolve_channels
+from vtkvol.io.vtk_headers import check_legacy_vtk_header, check_metaimage_header
 from vtkvol.io.xml_arrays import check_xml_arrays
 
 if TYPE_CHECKING:
@@ -201,22 +202,6 @@ def _check_xml_spacing(path: Path) -> None:
         raise VolumeReadError(path, f'invalid Spacing="{text}": expected three finite numbers')
 
 
-_ELEMENT_DATA_FILE = re.compile(r"^\s*ElementDataFile\s*=\s*(.+?)\s*$", re.MULTILINE)
-
-
-def _check_metaimage_data_file(path: Path) -> None:
-    """A detached MetaImage header (``.mhd``) may name only data files beside it."""
-    with path.open("rb") as fh:
-        head = fh.read(65536).decode("latin-1")
-    match = _ELEMENT_DATA_FILE.search(head)
-    if match is None:
-        return
-    name = match.group(1)
-    if name.upper() in ("LOCAL",) or name.upper().startswith("LIST"):
-        return
-    check_data_file(path, path.parent / name.split()[0])
-
-
 def read_vtk_image_file(
     path: Path,
     *,
@@ -244,13 +229,16 @@ def read_vtk_image_file(
     reader.AddObserver(
         vtkCommand.ProgressEvent, lambda obj, _e: progress(0.9 * obj.GetProgress(), "reading")
     )
+    # VTK trusts these headers' numbers (and aborts the process on some): check them first.
+    if path.suffix.lower() in (".mha", ".mhd"):
+        check_metaimage_header(path)
+    elif path.suffix.lower() == ".vtk":
+        check_legacy_vtk_header(path)
     if path.suffix.lower() == ".vtk" and hasattr(reader, "IsFileStructuredPoints"):
         reader.SetFileName(str(path))
         if not reader.IsFileStructuredPoints():
             raise VolumeReadError(path, "not a legacy VTK structured-points (image) file")
     reader.SetFileName(str(path))
-    if path.suffix.lower() in (".mha", ".mhd"):
-        _check_metaimage_data_file(path)
     if path.suffix.lower() == ".vti":
         _check_xml_spacing(path)
     from vtkmodules.vtkCommonCore import vtkLogger, vtkOutputWindow, vtkStringOutputWindow
