@@ -254,3 +254,29 @@ def test_illuminate_does_not_force_shading_on_for_local_lighting():
     shadows.release()
     assert prop.GetShade(0) == 0
     rw.Finalize()
+
+
+def test_illuminate_leaves_the_renderers_lights_as_they_were():
+    """Following the renderer's lights reads them: none is added, removed, switched or
+    changed, neither by illuminate() nor by release()."""
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    kit = vtk.vtkLightKit()
+    kit.AddLightsToRenderer(ren)
+
+    def state():
+        lights = ren.GetLights()
+        return [(light.GetSwitch(), light.GetIntensity(), light.GetPosition(),
+                 light.GetDiffuseColor()) for light in
+                (lights.GetItemAsObject(i) for i in range(lights.GetNumberOfItems()))]
+
+    grab(rw)  # camera lights take their world positions at a render
+    before = state()
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    grab(rw)
+    assert state() == before and len(il.light_specs()) == min(len(before), 4)
+    il.release()
+    grab(rw)
+    assert state() == before
+    rw.Finalize()
