@@ -12,11 +12,12 @@ Three tables, printed as markdown:
    unshaded: GPU trilinear, GPU corrected, and the tricubic anchors (the 41³ samples upsampled
    ×5 per axis with Catmull-Rom or the interpolating B-spline in numpy, then rendered
    trilinear: the GPU has no tricubic filter; the residual trilinear error of the fine grid is
-   what the ground truth has too). All renders share the world-space step and opacity unit.
+   what the ground truth has too), and the same for corrected trilinear (its values with the
+   fine grid's normals). All renders share the world-space step and opacity unit.
 3. Frame times (ms, median) of trilinear and corrected, shaded and unshaded, measured
-   interleaved in one run, and their ratio.
+   frame by frame alternately in one run, and their ratio.
 
-Run from the checkout: ``python benchmarks/reconstruction.py [--image 512] [--repeats 3]``.
+Run from the checkout: ``python benchmarks/reconstruction.py [--image 512] [--frames 12]``.
 """
 
 from __future__ import annotations
@@ -76,9 +77,20 @@ def _upsample_matrix(n: int, m: int, method: str) -> np.ndarray:
 
 
 def upsample(volume: np.ndarray, m: int, method: str) -> np.ndarray:
-    """A cubic filter (``catmull_rom`` or ``bspline``, both tensor products) evaluated on an
-    m³ lattice spanning the same box as the n³ ``volume``."""
+    """Filter ``method`` evaluated on an m³ lattice spanning the same box as the n³ ``volume``:
+    ``catmull_rom`` and ``bspline`` (tensor products) separably, ``corrected`` point by point
+    (it is not a tensor product), in slabs to bound memory."""
     n = volume.shape[0]
+    if method == "corrected":
+        from vtkvol.reference.reconstruction import reconstruct
+
+        u = np.linspace(0.0, n - 1.0, m)
+        y, x = np.meshgrid(u, u, indexing="ij")
+        out = np.empty((m, m, m), np.float32)
+        for k, z in enumerate(u):
+            pts = np.stack([x.ravel(), y.ravel(), np.full(x.size, z)], 1)
+            out[k] = reconstruct(volume, pts, "corrected").reshape(m, m)
+        return out
     mat = _upsample_matrix(n, m, method)
     out = np.tensordot(mat, volume.astype(np.float64), axes=(1, 0))      # z
     out = np.tensordot(mat, out, axes=(1, 1)).transpose(1, 0, 2)          # y
@@ -86,13 +98,12 @@ def upsample(volume: np.ndarray, m: int, method: str) -> np.ndarray:
     return out.astype(np.float32)
 
 
-def render(volume: np.ndarray, interpolation: str, shade: bool, size: int = 256,
-           frames: int = 0) -> tuple[np.ndarray, list[float]]:
-    """One ML rendering (box [−1, 1]³ whatever the grid) and ``frames`` timed frames (ms)."""
+def _scene(volume: np.ndarray, interpolation: str, shade: bool, size: int) -> tuple[Any, ...]:
+    """An ML scene (box [−1, 1]³ whatever the grid): (render window, renderer, illuminator)."""
     import vtk
 
     from vtkvol.engine.illuminator import Illuminator
-    from vtkvol.engine.offscreen import grab, simple_volume_scene
+    from vtkvol.engine.offscreen import simple_volume_scene
 
     n = volume.shape[0]
     spacing = 2.0 / (n - 1)
@@ -108,20 +119,20 @@ def render(volume: np.ndarray, interpolation: str, shade: bool, size: int = 256,
     vol.GetMapper().SetSampleDistance(STEP)
     il = Illuminator(vol, ren, method="local", keep_local_shading=True)
     il.set_interpolation(interpolation)
+    return rw, ren, il
+
+
+def render(volume: np.ndarray, interpolation: str, shade: bool, size: int = 256) -> np.ndarray:
+    """One ML rendering as float RGB (8-bit levels)."""
+    from vtkvol.engine.offscreen import grab
+
+    rw, _ren, il = _scene(volume, interpolation, shade, size)
     try:
         grab(rw)  # compile
         image = grab(rw).astype(np.float64)
         if il.last_error:
             raise RuntimeError(il.last_error)
-        times = []
-        cam = ren.GetActiveCamera()
-        for _ in range(frames):
-            cam.Azimuth(0.5)  # a camera move, as interaction does (no recompute of anything)
-            t0 = time.perf_counter()
-            rw.Render()
-            _finish(rw)
-            times.append((time.perf_counter() - t0) * 1e3)
-        return image, times
+        return image
     finally:
         il.release()
         rw.Finalize()
@@ -130,23 +141,29 @@ def render(volume: np.ndarray, interpolation: str, shade: bool, size: int = 256,
 def _finish(rw: Any) -> None:
     from vtkvol.engine import gl as vgl
 
+    rw.MakeCurrent()
     vgl.gl(rw).glFinish()
 
 
 def image_rmse(n: int = 41, truth_n: int = 201, size: int = 256) -> list[Row]:
     coarse = phantom_marschner_lobb(n)
-    upsampled = {m: upsample(coarse, truth_n, m) for m in ("catmull_rom", "bspline")}
+    upsampled = {m: upsample(coarse, truth_n, m)
+                 for m in ("catmull_rom", "bspline", "corrected")}
     truth_volume = phantom_marschner_lobb(truth_n)
     rows = []
     for shade in (False, True):
-        truth, _ = render(truth_volume, "trilinear", shade, size)
+        truth = render(truth_volume, "trilinear", shade, size)
         images = {
-            "trilinear (GPU)": render(coarse, "trilinear", shade, size)[0],
-            "corrected (GPU)": render(coarse, "corrected", shade, size)[0],
+            "trilinear (GPU)": render(coarse, "trilinear", shade, size),
+            "corrected (GPU)": render(coarse, "corrected", shade, size),
             "catmull_rom (numpy ×5, then trilinear)":
-                render(upsampled["catmull_rom"], "trilinear", shade, size)[0],
+                render(upsampled["catmull_rom"], "trilinear", shade, size),
             "bspline (numpy ×5, then trilinear)":
-                render(upsampled["bspline"], "trilinear", shade, size)[0],
+                render(upsampled["bspline"], "trilinear", shade, size),
+            # Corrected values with the fine grid's normals: separates the value from the
+            # gradient (the GPU's corrected mode keeps the coarse central-difference normal).
+            "corrected (numpy ×5, then trilinear)":
+                render(upsampled["corrected"], "trilinear", shade, size),
         }
         for name, image in images.items():
             rmse = float(np.sqrt(np.mean((image - truth) ** 2)))
@@ -154,22 +171,39 @@ def image_rmse(n: int = 41, truth_n: int = 201, size: int = 256) -> list[Row]:
     return rows
 
 
-def frame_times(sizes: Sequence[int] = (41, 128), image: int = 512, repeats: int = 3,
-                frames: int = 4) -> list[Row]:
-    """Median frame times, the two filters alternating so load changes hit both alike."""
+def frame_times(sizes: Sequence[int] = (41, 128), image: int = 512,
+                frames: int = 12) -> list[Row]:
+    """Median frame times (ms). Both filters' scenes exist side by side and their frames
+    alternate (trilinear, corrected, trilinear, …), so load changes on the shared machine hit
+    both alike. Each frame follows a small camera move; ``glFinish`` ends it."""
     rows = []
     for n in sizes:
         volume = phantom_marschner_lobb(n)
         for shade in (False, True):
-            times: dict[str, list[float]] = {"trilinear": [], "corrected": []}
-            for _ in range(repeats):
-                for interpolation in times:
-                    times[interpolation] += render(volume, interpolation, shade, image,
-                                                   frames)[1]
+            scenes = {f: _scene(volume, f, shade, image) for f in ("trilinear", "corrected")}
+            times: dict[str, list[float]] = {f: [] for f in scenes}
+            try:
+                for rw, _ren, _il in scenes.values():
+                    rw.Render()  # compile
+                    rw.Render()
+                for _ in range(frames):
+                    for f, (rw, ren, _il) in scenes.items():
+                        ren.GetActiveCamera().Azimuth(0.5)
+                        t0 = time.perf_counter()
+                        rw.Render()
+                        _finish(rw)
+                        times[f].append((time.perf_counter() - t0) * 1e3)
+                for _rw, _ren, il in scenes.values():
+                    if il.last_error:
+                        raise RuntimeError(il.last_error)
+            finally:
+                for rw, _ren, il in scenes.values():
+                    il.release()
+                    rw.Finalize()
             tri = statistics.median(times["trilinear"])
             cor = statistics.median(times["corrected"])
             rows.append({"volume": f"{n}³", "shaded": shade, "trilinear ms": tri,
-                         "corrected ms": cor, "ratio": cor / tri})
+                         "corrected ms": cor, "ratio": f"{cor / tri:.2f}"})
     return rows
 
 
@@ -186,7 +220,7 @@ def _markdown(rows: list[Row]) -> str:
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--image", type=int, default=512, help="timing image size (pixels)")
-    parser.add_argument("--repeats", type=int, default=3, help="timing repeats per filter")
+    parser.add_argument("--frames", type=int, default=12, help="timed frames per filter")
     parser.add_argument("--skip-timing", action="store_true")
     args = parser.parse_args(argv)
     print("## RMSE at 10⁵ random points (analytic Marschner–Lobb)\n")
@@ -195,7 +229,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     print(_markdown(image_rmse()))
     if not args.skip_timing:
         print(f"\n## Frame times ({args.image}², median, interleaved)\n")
-        print(_markdown(frame_times(image=args.image, repeats=args.repeats)))
+        print(_markdown(frame_times(image=args.image, frames=args.frames)))
 
 
 if __name__ == "__main__":
