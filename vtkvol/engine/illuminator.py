@@ -811,6 +811,8 @@ class Illuminator:
         if self.volume.GetMapper().GetBlendMode() != vtk.vtkVolumeMapper.COMPOSITE_BLEND:
             return []
         prop = self.volume.GetProperty()
+        if prop.GetInterpolationType() == vtk.VTK_NEAREST_INTERPOLATION:
+            return []  # the correction assumes trilinear fetches (label data use nearest)
         ncomp = self.image.GetPointData().GetScalars().GetNumberOfComponents()
         independent = ncomp > 1 and bool(prop.GetIndependentComponents())
         if ncomp > 1 and not independent:
