@@ -218,3 +218,33 @@ def test_batch_module_imports_no_qt():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert result.returncode == 0, result.stderr
     assert result.stdout.strip() == "[]"
+
+
+def test_existing_scheduler_renders_jobs_with_their_own_options(tmp_path, small_volume_file):
+    """run_batch against a running scheduler (a LocalCluster of two worker processes started
+    here, as `dask scheduler` + `dask worker` would be): 4 jobs of one volume at different
+    azimuths equal render_image's images byte for byte."""
+    import logging
+
+    from distributed import LocalCluster
+
+    from vtkvol.batch import run_batch
+    from vtkvol.engine.api import render_image
+    from vtkvol.io import read_volume
+
+    azimuths = (0.0, 45.0, 90.0, 135.0)
+    jobs = [RenderJob(str(small_volume_file), str(tmp_path / f"a{int(a)}.png"), None,
+                      RenderOptions(size=SIZE, azimuth=a)) for a in azimuths]
+    seen = []
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None, silence_logs=logging.ERROR) as cluster:
+        results = run_batch(jobs, scheduler=cluster.scheduler_address,
+                            progress=lambda done, total, r: seen.append((done, total)))
+    assert [r.ok for r in results] == [True] * 4, [r.error for r in results]
+    assert [r.job for r in results] == jobs  # in the jobs' order, whatever order they finished
+    assert seen == [(1, 4), (2, 4), (3, 4), (4, 4)]
+    sample = read_volume(small_volume_file)
+    images = [_read_png(tmp_path / f"a{int(a)}.png") for a in azimuths]
+    for a, image in zip(azimuths, images, strict=True):
+        assert np.array_equal(image, render_image(sample, size=SIZE, azimuth=a)), a
+    assert not np.array_equal(images[0], images[2])
