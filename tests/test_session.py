@@ -33,7 +33,7 @@ from vtkvol.model import (
 )
 from vtkvol.model import session as session_mod
 from vtkvol.model.migrations import MIGRATIONS, detect_version
-from vtkvol.model.scene import Overlays
+from vtkvol.model.scene import ClipPlane, Overlays
 from vtkvol.model.session import (
     FORMAT,
     SUFFIX,
@@ -125,6 +125,7 @@ def rich_model() -> SceneModel:
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
                           color_legend=True),
+        clip_plane=ClipPlane(enabled=True, origin=(2.0, 2.5, 1.0), normal=(0.6, 0.0, 0.8)),
     )
 
 
@@ -430,7 +431,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 4)"),
+         "(format version 99; this version reads up to 5)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -764,7 +765,7 @@ def test_migrate_v2_to_v3_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[2](raw)
     assert out == load_fixture("v2_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[3](out)
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert not any(out["scene"]["overlays"].values())  # v2 drew no overlays
     assert raw == untouched
 
@@ -780,7 +781,7 @@ def test_migrate_v3_to_v4_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[3](raw)
     assert out == load_fixture("v3_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert out["scene"]["render"]["interpolation"] == "trilinear"  # v3 rendered trilinear
     assert raw == untouched
 
@@ -791,8 +792,24 @@ def test_v3_file_reads_without_warnings_as_trilinear() -> None:
     assert session.model.render.interpolation == "trilinear"
 
 
+def test_migrate_v4_to_v5_matches_fixture() -> None:
+    raw = load_fixture("v4_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[4](raw)
+    assert out == load_fixture("v4_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    assert out["scene"]["clip_plane"]["enabled"] is False  # v4 had no clipping plane
+    assert raw == untouched
+
+
+def test_v4_file_reads_without_warnings_and_no_clipping_plane() -> None:
+    session = read_session(FIXTURES / "v4_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.clip_plane == ClipPlane()
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v4_complete.vtkvol.json")
+    doc = load_fixture("v5_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -822,8 +839,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v4 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v4_complete.vtkvol.json")
+    """The checked-in v5 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -843,8 +860,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 5; this version reads up to 4"):
-        migrate({"format": FORMAT, "version": 5})
+    with pytest.raises(ValueError, match="format version 6; this version reads up to 5"):
+        migrate({"format": FORMAT, "version": 6})
 
 
 @pytest.mark.parametrize(

@@ -185,6 +185,8 @@ class VolumeScene:
             self._apply_crop()
         if touches(paths, "slice_weights"):
             self._apply_slice_weights()
+        if touches(paths, "clip_plane"):
+            self._apply_clip_plane()
         if touches(paths, "camera") and not self._syncing_camera:
             self._apply_camera()
         if touches(paths, "overlays"):
@@ -249,6 +251,7 @@ class VolumeScene:
         self._apply_illumination()
         self._apply_crop()
         self._apply_slice_weights()
+        self._apply_clip_plane()
         if self.model.camera.position is not None:
             self._apply_camera()
         assert self.illuminator is not None
@@ -371,6 +374,26 @@ class VolumeScene:
         self.mapper.SetCropping(1)
         self.mapper.SetCroppingRegionPlanes(*crop.as_bounds(self.bounds))
         self.mapper.SetCroppingRegionFlagsToSubVolume()
+
+    def clip_plane_origin(self) -> tuple[float, float, float]:
+        """The clipping plane's origin in world µm: the model's, or the data's centre."""
+        origin = self.model.clip_plane.origin
+        if origin is not None:
+            return origin
+        b = self.bounds
+        return ((b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2)
+
+    def _apply_clip_plane(self) -> None:
+        """The mapper's one clipping plane follows ``model.clip_plane``; the illumination reads
+        the mapper's planes, so what is clipped away casts no shadow."""
+        self.mapper.RemoveAllClippingPlanes()
+        clip = self.model.clip_plane
+        if not clip.enabled or self._image is None:
+            return
+        plane = vtk.vtkPlane()
+        plane.SetOrigin(*self.clip_plane_origin())
+        plane.SetNormal(*clip.normal)
+        self.mapper.AddClippingPlane(plane)
 
     def _apply_slice_weights(self) -> None:
         assert self.illuminator is not None

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 4
+VERSION = 5
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -137,7 +137,20 @@ def _v3_to_v4(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
-MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4}
+def _v4_to_v5(raw: dict[str, Any]) -> dict[str, Any]:
+    """v4 → v5: the scene gained ``clip_plane`` (the oblique clipping plane). v4 had none,
+    which a disabled plane states exactly."""
+    out = copy.deepcopy(raw)
+    out["version"] = 5
+    scene = out.get("scene")
+    if isinstance(scene, dict):
+        scene.setdefault("clip_plane", {"enabled": False, "origin": None,
+                                        "normal": [0.0, 0.0, 1.0]})
+    return out
+
+
+MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
+                                    4: _v4_to_v5}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

@@ -10,6 +10,7 @@ Coordinate conventions (docs/architecture.md):
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 from pydantic import Field, field_validator, model_validator
@@ -35,8 +36,6 @@ MAX_ANGULAR_RADIUS = 45.0
 
 
 def _finite3(v: Vec3, what: str) -> Vec3:
-    import math
-
     if not all(math.isfinite(c) for c in v):
         raise ValueError(f"{what} {v} must be finite")
     return v
@@ -255,6 +254,34 @@ class RenderSettings(EventedModel):
         return v
 
 
+class ClipPlane(EventedModel):
+    """An oblique clipping plane in world µm (the app's draggable plane).
+
+    The volume is kept on the side the ``normal`` points to and cut away on the other (VTK's
+    convention for a volume mapper's clipping planes); what is cut away casts no shadow and
+    scatters no light either, since the illumination reads the same planes. ``origin`` None is
+    the data's centre; ``normal`` is any non-zero vector (stored normalised).
+    """
+
+    enabled: bool = False
+    origin: Vec3 | None = None
+    normal: Vec3 = (0.0, 0.0, 1.0)
+
+    @field_validator("origin")
+    @classmethod
+    def _origin_finite(cls, v: Vec3 | None):
+        return None if v is None else _finite3(v, "clipping plane origin")
+
+    @field_validator("normal")
+    @classmethod
+    def _normal_unit(cls, v: Vec3):
+        x, y, z = _finite3(v, "clipping plane normal")
+        length = math.sqrt(x * x + y * y + z * z)
+        if length == 0.0:
+            raise ValueError("the clipping plane's normal must not be the zero vector")
+        return (x / length, y / length, z / length)
+
+
 class Overlays(EventedModel):
     """Annotations drawn over the volume (in the view and in screenshots). None changes the
     rendered volume or its illumination.
@@ -286,6 +313,7 @@ class SceneModel(EventedModel):
     camera: Camera = Field(default_factory=Camera)
     render: RenderSettings = Field(default_factory=RenderSettings)
     overlays: Overlays = Field(default_factory=Overlays)
+    clip_plane: ClipPlane = Field(default_factory=ClipPlane)
 
     @model_validator(mode="after")
     def _limits(self):
