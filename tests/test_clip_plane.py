@@ -93,3 +93,42 @@ def test_the_model_normalises_the_normal_and_refuses_a_zero_or_nan_one():
             ClipPlane(normal=bad)
     with pytest.raises(ValueError, match="origin"):
         ClipPlane(origin=(0.0, float("inf"), 0.0))
+
+
+@pytest.mark.gui
+def test_view_menu_and_plane_widget_edit_the_model_both_ways(opened_window, qtbot):
+    window = opened_window
+    viewport = window.viewport
+    action = window.view_actions.clip_action
+    model = window.model
+    try:
+        viewport.render_now()
+        before = viewport.screenshot().astype(float)
+        # widget → model → pixels: ticking the action turns the plane on, the widget shows
+        action.trigger()
+        assert model.clip_plane.enabled and viewport.clip_widget.visible
+        assert viewport.scene.mapper.GetClippingPlanes().GetNumberOfItems() == 1
+        # a drag of the widget ends: its plane goes into the model in one edit
+        b = viewport.bounds
+        centre = ((b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2)
+        rep = viewport.clip_widget.representation
+        rep.SetNormal(1.0, 0.0, 0.0)
+        rep.SetOrigin(*centre)
+        viewport.clip_widget.widget.InvokeEvent(vtk.vtkCommand.EndInteractionEvent)
+        assert model.clip_plane.normal == pytest.approx((1.0, 0.0, 0.0))
+        assert model.clip_plane.origin == pytest.approx(centre)
+        viewport.render_now()
+        cut = viewport.screenshot().astype(float)
+        assert np.abs(cut - before).max(axis=-1).mean() > 2.0  # half the data is gone
+        window.undo_action.trigger()
+        assert model.clip_plane.origin is None  # one undo step restores the plane before
+        # model → widget and action: a session or undo switches it off
+        model.clip_plane.enabled = False
+        assert not action.isChecked() and not viewport.clip_widget.visible
+        model.clip_plane.enabled = True
+        assert action.isChecked() and viewport.clip_widget.visible
+        plane = viewport.scene.mapper.GetClippingPlanes().GetItem(0)
+        assert plane.GetNormal() == pytest.approx(model.clip_plane.normal)
+    finally:
+        model.clip_plane = ClipPlane()
+        window.recorder.reset()

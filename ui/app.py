@@ -427,6 +427,8 @@ class MainWindow(QMainWindow):
             view.addAction(action)
         view.addAction(self.view_actions.background_action)
         view.addSeparator()
+        view.addAction(self.view_actions.clip_action)
+        view.addSeparator()
         for dock in self.docks:
             view.addAction(dock.toggleViewAction())
 

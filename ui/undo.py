@@ -46,6 +46,8 @@ _LABELS = (
     ("visible", "Toggle channel visibility"),
     ("color", "Change channel colour"),
     ("tf_linked_to", "Link transfer function"),
+    ("clip_plane.enabled", "Toggle clipping plane"),
+    ("clip_plane", "Move clipping plane"),
     ("crop", "Change crop ranges"),
     ("slice_weights", "Edit slice contribution"),
     ("lights", "Edit lights"),

@@ -1,4 +1,5 @@
-"""View-menu actions bound to the model: the overlays and the background colour.
+"""View-menu actions bound to the model: the overlays, the clipping plane and the background
+colour.
 
 Each overlay (``model.overlays``: scale bar, orientation axes, bounding box, colour legend)
 is a checkable action; ticking it writes the model, and a model change (undo, a session)
@@ -45,6 +46,15 @@ class ViewActions(QObject):
             self.bindings.connect_qt(action.toggled,
                                      lambda on, n=name: setattr(self.model.overlays, n, bool(on)))
             self.overlay_actions[name] = action
+        self.clip_action = QAction("&Clipping plane", parent)
+        self.clip_action.setObjectName("clip_plane")
+        self.clip_action.setCheckable(True)
+        tip = ("An oblique plane that cuts the volume (drag its arrow to turn it, its plane to "
+               "move it); what it cuts away casts no shadow")
+        self.clip_action.setStatusTip(tip)
+        self.clip_action.setToolTip(tip)
+        self.bindings.connect_qt(self.clip_action.toggled,
+                                 lambda on: setattr(self.model.clip_plane, "enabled", bool(on)))
         self.background_action = QAction("Back&ground colour…", parent)
         self.background_action.setObjectName("background_color")
         self.background_action.setStatusTip("The colour behind the volume (also in screenshots)")
@@ -59,7 +69,7 @@ class ViewActions(QObject):
             self.model.render.background = tuple(float(c) for c in rgb)
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if touches(paths, "overlays"):
+        if touches(paths, "overlays") or touches(paths, "clip_plane"):
             self.refresh()
         elif touches(paths, "render"):
             names = subfields(paths, "render")  # None: the whole settings object was replaced
@@ -71,6 +81,8 @@ class ViewActions(QObject):
         for name, action in self.overlay_actions.items():
             with signals_blocked(action):
                 action.setChecked(bool(getattr(overlays, name)))
+        with signals_blocked(self.clip_action):
+            self.clip_action.setChecked(self.model.clip_plane.enabled)
         self._show_background()
 
     def _show_background(self) -> None:

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from contextlib import AbstractContextManager, nullcontext
 from typing import TYPE_CHECKING, Any
 
@@ -38,7 +38,7 @@ from pyvistaqt import QtInteractor
 from vtkvol.engine.probe import ProbeResult, probe
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.evented import touches
-from vtkvol.model.scene import SceneModel
+from vtkvol.model.scene import ClipPlane, SceneModel
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -133,6 +133,53 @@ class LightGizmo:
         self._renderer.RemoveActor(self.line_actor)
 
 
+class ClipPlaneWidget:
+    """VTK's implicit-plane widget showing ``model.clip_plane`` in the view: drag the plane to
+    move it along its normal, the arrow to turn it. ``on_moved(origin, normal)`` (world µm)
+    is called when a drag ends (the model is written then, not on every mouse move: each
+    change recomputes the illumination)."""
+
+    def __init__(self, interactor: vtk.vtkRenderWindowInteractor, renderer: vtk.vtkRenderer,
+                 on_moved: Callable[[tuple[float, float, float], tuple[float, float, float]],
+                                    None]) -> None:
+        rep = vtk.vtkImplicitPlaneRepresentation()
+        rep.SetPlaceFactor(1.0)
+        rep.OutlineTranslationOff()  # the data's box stays where it is
+        rep.ScaleEnabledOff()
+        rep.SetDrawOutline(False)
+        rep.GetPlaneProperty().SetOpacity(0.12)
+        rep.GetSelectedPlaneProperty().SetOpacity(0.25)
+        self.representation = rep
+        self.widget = vtk.vtkImplicitPlaneWidget2()
+        self.widget.SetInteractor(interactor)
+        self.widget.SetRepresentation(rep)
+        self.widget.SetCurrentRenderer(renderer)
+        self._on_moved = on_moved
+        self._tag = self.widget.AddObserver(vtk.vtkCommand.EndInteractionEvent, self._on_end)
+
+    def place(self, bounds: Sequence[float], origin: Sequence[float],
+              normal: Sequence[float]) -> None:
+        self.representation.PlaceWidget(list(bounds))
+        self.representation.SetOrigin(*origin)
+        self.representation.SetNormal(*normal)
+
+    def set_visible(self, visible: bool) -> None:
+        self.widget.SetEnabled(int(visible))
+
+    @property
+    def visible(self) -> bool:
+        return bool(self.widget.GetEnabled())
+
+    def _on_end(self, *_: Any) -> None:
+        rep = self.representation
+        self._on_moved(tuple(rep.GetOrigin()), tuple(rep.GetNormal()))  # type: ignore[arg-type]
+
+    def close(self) -> None:
+        self.widget.RemoveObserver(self._tag)
+        self.widget.SetEnabled(0)
+        self.widget.SetInteractor(None)
+
+
 class Viewport(QWidget):
     """The 3-D view of one :class:`SceneModel` (see the module docstring).
 
@@ -200,6 +247,8 @@ class Viewport(QWidget):
         self._probe_timer.timeout.connect(self._probe)
         self._probe_at: tuple[float, float] | None = None
 
+        self.clip_widget = ClipPlaneWidget(self.interactor, self.renderer, self._clip_moved)
+
         self._gizmo = LightGizmo(self.interactor, self.renderer, self)
         # Sees the view's mouse events first: a handle drag whose release was lost ends here.
         self.plotter.installEventFilter(self)
@@ -263,6 +312,7 @@ class Viewport(QWidget):
         else:
             self.scene.set_data(data, reset_channels=reset_channels)
         self._update_gizmo()
+        self._update_clip_widget()
         self.request_render()
 
     @property
@@ -463,6 +513,27 @@ class Viewport(QWidget):
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if touches(paths, "lights"):
             self._update_gizmo()
+        if touches(paths, "clip_plane"):
+            self._update_clip_widget()
+
+    # -- clipping plane -------------------------------------------------------------------------
+    def _update_clip_widget(self) -> None:
+        """The plane widget shows ``model.clip_plane`` (hidden while it is off or no data)."""
+        clip = self.model.clip_plane
+        scene = self.scene
+        if scene is None or scene.data is None or self._closed:
+            self.clip_widget.set_visible(False)
+            return
+        self.clip_widget.place(self.bounds, scene.clip_plane_origin(), clip.normal)
+        self.clip_widget.set_visible(clip.enabled)
+        self.request_render()
+
+    def _clip_moved(self, origin: tuple[float, float, float],
+                    normal: tuple[float, float, float]) -> None:
+        """A drag of the plane widget ended: one model edit (one undo step)."""
+        self.model.clip_plane = ClipPlane(
+            enabled=self.model.clip_plane.enabled, origin=tuple(float(v) for v in origin),
+            normal=tuple(float(v) for v in normal))
 
     # -- teardown -------------------------------------------------------------------------------
     def close(self) -> bool:  # type: ignore[override]
@@ -480,6 +551,7 @@ class Viewport(QWidget):
         if rw is not None:
             rw.MakeCurrent()
         self._gizmo.close()
+        self.clip_widget.close()
         if self.scene is not None:
             self.scene.close()
             self.scene = None
