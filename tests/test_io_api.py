@@ -6,7 +6,6 @@ import importlib.metadata
 import subprocess
 import sys
 import textwrap
-import time
 from pathlib import Path
 
 import numpy as np
@@ -234,14 +233,12 @@ def test_confocal_phantom_properties():
     assert np.std(np.diff(nuclei[:, :, :8], axis=2)) > 2
 
 
-def test_confocal_phantom_is_deterministic_and_fast():
+def test_confocal_phantom_is_deterministic():
+    # (no timing assert: speed lives in `vtkvol bench`, and CI machines are shared)
     first = confocal_phantom(seed=5)
-    start = time.perf_counter()
     second = confocal_phantom(seed=5)
-    elapsed = time.perf_counter() - start
     np.testing.assert_array_equal(first.array, second.array)
     assert not np.array_equal(first.array, confocal_phantom(seed=6).array)
-    assert elapsed < 1.0, f"confocal_phantom took {elapsed:.2f} s"
     small = confocal_phantom((8, 16, 24), voxel_size_um=(0.5, 0.5, 1.0))
     assert small.array.shape == (2, 8, 16, 24)
 
