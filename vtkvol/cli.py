@@ -58,6 +58,9 @@ def _parser() -> argparse.ArgumentParser:
     p_render.add_argument("--time-budget", type=float, default=300.0, metavar="SECONDS",
                           help="progressive methods: stop refining after this many seconds "
                                "(default 300)")
+    p_render.add_argument("--labels", action="store_true",
+                          help="the first channel is a label image (segmentation): one colour "
+                               "per id (glasbey), no blending between ids")
 
     p_info = sub.add_parser("info", help="describe a volume file")
     p_info.add_argument("file")
@@ -162,11 +165,17 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
         return 2
-    if args.blend:
+    if args.blend or args.labels:
         from vtkvol.model.defaults import scene_for
 
         model = model or scene_for(data)
+    if args.blend:
         model.render.blend_mode = args.blend
+    if args.labels:
+        problem = _show_labels(model, data)
+        if problem:
+            print(f"vtkvol: --labels: {problem}", file=sys.stderr)
+            return 2
     params = {}
     for item in args.param:
         name, sep, value = item.partition("=")
@@ -205,6 +214,26 @@ def cmd_render(args: argparse.Namespace) -> int:
         return 1
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")
     return 0
+
+
+def _show_labels(model, data) -> str | None:
+    """Show channel 0 of ``data`` as labels in ``model``; what is wrong, or None."""
+    import numpy as np
+
+    from vtkvol.model.labels import MAX_ID_SPAN, apply_labels
+
+    values = np.asarray(data.array[0])
+    name = Path(data.source).name if data.source else "the data"
+    if not np.issubdtype(values.dtype, np.integer):
+        return f"{name} holds {values.dtype} values; label ids are integers"
+    ids = [int(v) for v in np.unique(values) if v != 0]
+    if not ids:
+        return f"{name} has no label other than 0 (background)"
+    if ids[-1] - ids[0] > MAX_ID_SPAN:
+        return (f"{name}'s ids span {ids[0]}…{ids[-1]}, more than {MAX_ID_SPAN}: renumber them "
+                "first (e.g. skimage.segmentation.relabel_sequential)")
+    apply_labels(model, ids)
+    return None
 
 
 def _movie_problem(args: argparse.Namespace, out: Path) -> str | None:
