@@ -142,9 +142,53 @@ def _load(path: str, voxel_size, time_index: int = 0):
     return read_volume(path, voxel_size_um=voxel_size, time_index=time_index)
 
 
+#: Largest image side `vtkvol render` makes (pixels): an 8192² window is ~0.5 GiB of colour and
+#: depth buffers, which GPU drivers and llvmpipe allocate; 100000² aborted inside VTK.
+MAX_IMAGE_SIDE = 8192
+
+
+def _view_option_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with ``--size``, ``--azimuth`` and ``--elevation`` (render and batch)."""
+    w, h = args.size
+    if not (1 <= w <= MAX_IMAGE_SIDE and 1 <= h <= MAX_IMAGE_SIDE):
+        return (f"--size W H must be whole numbers of pixels from 1 to {MAX_IMAGE_SIDE}, "
+                f"got {w} {h}")
+    for name in ("azimuth", "elevation"):
+        value = getattr(args, name, None)
+        if value is not None and not math.isfinite(value):
+            return f"--{name} must be a finite number of degrees, got {value}"
+    return None
+
+
+def _render_option_problem(args: argparse.Namespace) -> str | None:
+    """What is wrong with `vtkvol render`'s numeric and data options, before anything is
+    read or rendered (a window of -5 pixels crashed EGL; 100000² aborted in VTK)."""
+    problem = _view_option_problem(args)
+    if problem:
+        return problem
+    if args.voxel_size is not None:
+        if not all(math.isfinite(v) and v > 0 for v in args.voxel_size):
+            return ("--voxel-size X Y Z must be three positive µm values, got "
+                    + " ".join(f"{v:g}" for v in args.voxel_size))
+        if args.file == "sample":
+            return "--voxel-size does not apply to the built-in sample (it has its own)"
+        if args.file.endswith(SESSION_SUFFIX):
+            return ("--voxel-size does not apply to a session: it keeps its data's voxel size "
+                    "(set it in the app with Edit → Voxel size…)")
+    if args.time < 0:
+        return f"--time must be a time point index >= 0, got {args.time}"
+    if args.time and args.file == "sample":
+        return "--time does not apply to the built-in sample (it has one time point)"
+    return None
+
+
 def cmd_render(args: argparse.Namespace) -> int:
     from vtkvol.engine.api import render_image
 
+    problem = _render_option_problem(args)
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
+        return 2
     out = Path(args.output)
     if args.turntable is not None:
         problem = _movie_problem(args, out)
@@ -158,7 +202,7 @@ def cmd_render(args: argparse.Namespace) -> int:
     if args.file.endswith(SESSION_SUFFIX):
         from vtkvol.model.session import load_session_with_data
 
-        model, data = load_session_with_data(args.file)
+        model, data = load_session_with_data(args.file, time_index=args.time)
     else:
         data = _load(args.file, args.voxel_size, args.time)
     inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
@@ -207,7 +251,11 @@ def cmd_render(args: argparse.Namespace) -> int:
         on_refined=refined,
     )
     try:
-        _write_png(image, out)
+        _write_png(image, out, replace=args.overwrite)
+    except FileExistsError:
+        print(f"vtkvol: {out} appeared while rendering; it is left as it is (pass --overwrite "
+              "to replace it)", file=sys.stderr)
+        return 2
     except OSError as exc:
         print(f"vtkvol: could not write {out}: {exc.strerror or exc} (an existing file is left "
               "as it was)", file=sys.stderr)
@@ -283,9 +331,10 @@ def _render_turntable(args: argparse.Namespace, out: Path, data, model, params) 
     return 0
 
 
-def _write_png(image, path: Path) -> None:
+def _write_png(image, path: Path, *, replace: bool = True) -> None:
     """Encode in memory, then write atomically (vtkvol.io.atomic): a failed write raises
-    OSError and never leaves a truncated PNG, nor replaces the previous one."""
+    OSError and never leaves a truncated PNG, nor replaces the previous one. With
+    ``replace=False`` an existing file (even one created meanwhile) raises FileExistsError."""
     import errno
 
     import vtk
@@ -304,7 +353,7 @@ def _write_png(image, path: Path) -> None:
     if path.parent.exists() and not path.parent.is_dir():
         raise NotADirectoryError(errno.ENOTDIR, f"{path.parent} is not a folder")
     path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, vtk_to_numpy(writer.GetResult()).tobytes())
+    write_atomic(path, vtk_to_numpy(writer.GetResult()).tobytes(), replace=replace)
 
 
 def cmd_info(args: argparse.Namespace) -> int:
@@ -359,6 +408,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
         print(f"vtkvol: {message}", file=sys.stderr)
         return 2
 
+    problem = _view_option_problem(args)
+    if problem:
+        return fail(problem)
     params = {}
     for item in args.param:
         name, sep, value = item.partition("=")

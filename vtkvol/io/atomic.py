@@ -12,6 +12,7 @@ its own permissions.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import secrets
 import stat
@@ -20,8 +21,13 @@ from pathlib import Path
 __all__ = ["write_atomic"]
 
 
-def write_atomic(target: str | os.PathLike[str], content: bytes | str) -> Path:
+def write_atomic(target: str | os.PathLike[str], content: bytes | str, *,
+                 replace: bool = True) -> Path:
     """Write ``content`` (text is UTF-8 with ``\\n`` line ends) to ``target`` atomically.
+
+    With ``replace=False`` an existing ``target`` is never replaced, even one that appeared
+    while the content was being made: the file is put in place with a hard link, which fails
+    if the name is taken (:class:`FileExistsError`, nothing written).
 
     Returns
     -------
@@ -52,7 +58,10 @@ def write_atomic(target: str | os.PathLike[str], content: bytes | str) -> Path:
             info = target.stat()
             if stat.S_ISREG(info.st_mode):
                 os.chmod(tmp, stat.S_IMODE(info.st_mode))  # replacing keeps the permissions
-        os.replace(tmp, target)
+        if replace:
+            os.replace(tmp, target)
+        else:
+            _place_new(tmp, target)
     except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
@@ -68,6 +77,21 @@ def write_atomic(target: str | os.PathLike[str], content: bytes | str) -> Path:
         finally:
             os.close(dir_fd)
     return target
+
+
+def _place_new(tmp: Path, target: Path) -> None:
+    """Rename ``tmp`` to ``target`` unless ``target`` exists (FileExistsError)."""
+    try:
+        os.link(tmp, target)  # atomic, and refuses an existing name
+    except OSError as exc:
+        if exc.errno not in (errno.EPERM, errno.ENOTSUP, errno.EOPNOTSUPP, errno.ENOSYS):
+            raise
+        # a file system without hard links: check, then rename (a narrow race remains)
+        if target.exists() or target.is_symlink():
+            raise FileExistsError(errno.EEXIST, "File exists", str(target)) from None
+        os.replace(tmp, target)
+        return
+    os.unlink(tmp)
 
 
 def _write_all(fd: int, data: bytes) -> None:
