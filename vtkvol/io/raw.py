@@ -282,15 +282,28 @@ def _read_encoded(layout: RawLayout, source: Path, expected: int, progress: Prog
                 f"({_describe_expected(layout)}), the hex data hold {len(data)}",
             )
         return np.frombuffer(data, dtype=layout.dtype)
-    values = np.array(text.replace(",", " ").split(), dtype=np.float64)
+    try:
+        values = np.array(text.replace(",", " ").split(), dtype=np.float64)
+    except ValueError as exc:
+        raise VolumeReadError(source, f"the text data hold a non-number ({exc})") from exc
     if values.size != layout.count:
         raise VolumeReadError(
             source,
             f"wrong data size for the descriptor: expected {layout.count} values "
             f"({_describe_expected(layout)}), the text holds {values.size}",
         )
+    dtype = layout.dtype.newbyteorder("=")
+    if dtype.kind in "iu" and values.size:
+        # numpy would wrap 300 into an 8-bit 44 without a word
+        info = np.iinfo(dtype)
+        bad = (values < info.min) | (values > info.max) | (values != np.round(values))
+        if bad.any():
+            first = float(values[np.flatnonzero(bad)[0]])
+            raise VolumeReadError(
+                source, f"the text data hold {first:g}, which is not a {dtype.name} value "
+                f"(whole numbers {info.min}…{info.max}); fix the header's type")
     progress(1.0, f"parsed {path.name}")
-    return values.astype(layout.dtype.newbyteorder("="))
+    return values.astype(dtype)
 
 
 def _finish(

@@ -509,13 +509,34 @@ def _format_name(tif: tifffile.TiffFile) -> str:
 
 
 # -- reading ---------------------------------------------------------------------------------
-def _open(path: Path) -> tifffile.TiffFile:
+def _open(path: Path, **flags: bool) -> tifffile.TiffFile:
     try:
-        return tifffile.TiffFile(path)
+        return tifffile.TiffFile(path, **flags)
     except MemoryError:
         raise
     except Exception as exc:  # tifffile's parser fails in many ways on corrupt tags (TypeError…)
         raise VolumeReadError(path, f"not a readable TIFF file ({exc})") from exc
+
+
+def _imagej_page_mismatch(tif: tifffile.TiffFile) -> str | None:
+    """When an ImageJ description promises a different number of images than the file has
+    pages (slices=5 on 10 pages), what it says; tifffile would follow the description and
+    drop pages without a word."""
+    if not tif.is_imagej or not tif.series:
+        return None
+    series = tif.series[0]
+    planes = math.prod(int(n) for n, a in zip(series.get_shape(False), series.get_axes(False),
+                                              strict=True) if a not in "YXS")
+    pages = len(tif.pages)
+    # Fewer pages than images is how ImageJ stores files over 4 GiB (one IFD, contiguous
+    # planes), which tifffile reads, or a truncated file, which it reports: only more pages
+    # than the description accounts for would be dropped.
+    if pages <= planes:
+        return None
+    ij = tif.imagej_metadata or {}
+    said = ", ".join(f"{k}={ij[k]}" for k in ("images", "channels", "slices", "frames") if k in ij)
+    return (f"the ImageJ description ({said}) describes {planes} images but the file has "
+            f"{pages} pages: the description was ignored and every page read as a z slice")
 
 
 def _memmap(tif: tifffile.TiffFile, series: Any, path: Path) -> np.memmap | None:
@@ -678,8 +699,15 @@ def read_tiff(
         return read_tiff_folder(path, time_index=time_index, channels=channels, progress=progress)
     with _capture_tifffile_log() as log:
         tif = _open(path)
+        mismatch = _imagej_page_mismatch(tif)
+        if mismatch:
+            tif.close()
+            tif = _open(path, is_imagej=False)  # the pages as they are
         try:
-            return _read_tiff_file(tif, path, time_index, channels, progress, log)
+            data = _read_tiff_file(tif, path, time_index, channels, progress, log)
+            if mismatch:
+                data.notes.insert(0, mismatch)
+            return data
         except (VolumeReadError, ReadCancelled, MemoryError):
             raise
         except Exception as exc:
@@ -710,6 +738,10 @@ def _read_tiff_file(
     series = series_list[0]
     axes = series.get_axes(False)
     shape = tuple(int(n) for n in series.get_shape(False))
+    # tifffile describes a file of one 1×1 page with the axes "XYX": it is one voxel.
+    single_voxel = len(tif.pages) == 1 and math.prod(shape) == 1
+    if single_voxel:
+        axes, shape = "YX", (1, 1)
     if 0 in shape:
         raise VolumeReadError(path, f"the image has a zero-size axis: axes {axes!r}, shape {shape}")
     plan = _plan_axes(axes, shape, path, imagej=bool(tif.is_imagej))
@@ -718,7 +750,7 @@ def _read_tiff_file(
     names = _channel_names(tif, series, plan, 0)
     channel_index = resolve_channels(channels, names, str(path))
 
-    memmapped = _memmap(tif, series, path)
+    memmapped = None if single_voxel else _memmap(tif, series, path)
     if memmapped is not None:
         view = _arrange(memmapped, plan.roles, time_index)
         array = _materialize(view, channel_index, progress, "reading")
