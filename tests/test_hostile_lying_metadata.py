@@ -73,3 +73,15 @@ def test_ascii_nrrd_values_inside_the_type_read_exactly(tmp_path):
     path.write_text("NRRD0004\ntype: short\ndimension: 3\nsizes: 3 1 1\nencoding: ascii\n\n"
                     "-32768 0 32767\n")
     np.testing.assert_array_equal(read_volume(path).array.ravel(), [-32768, 0, 32767])
+
+
+@pytest.mark.parametrize("depth", [70, 600, 5000])
+def test_a_session_nested_absurdly_deep_is_a_session_error(tmp_path, depth):
+    from vtkvol.model.session import SessionError, read_session
+
+    path = tmp_path / "deep.vtkvol.json"
+    path.write_text('{"format": "vtkvol-session", "version": 5, "scene": '
+                    + "[" * depth + "]" * depth + "}")
+    with pytest.raises(SessionError, match=r"deep\.vtkvol\.json: is nested (more than 64 "
+                                           r"levels deep|too deeply)"):
+        read_session(path)

@@ -522,12 +522,16 @@ def _imagej_page_mismatch(tif: tifffile.TiffFile) -> str | None:
     """When an ImageJ description promises a different number of images than the file has
     pages (slices=5 on 10 pages), what it says; tifffile would follow the description and
     drop pages without a word."""
-    if not tif.is_imagej or not tif.series:
+    try:
+        if not tif.is_imagej or not tif.series:
+            return None
+        series = tif.series[0]
+        planes = math.prod(int(n) for n, a in zip(series.get_shape(False),
+                                                  series.get_axes(False), strict=True)
+                           if a not in "YXS")
+        pages = len(tif.pages)
+    except Exception:  # a corrupt file: the reader proper names what is wrong with it
         return None
-    series = tif.series[0]
-    planes = math.prod(int(n) for n, a in zip(series.get_shape(False), series.get_axes(False),
-                                              strict=True) if a not in "YXS")
-    pages = len(tif.pages)
     # Fewer pages than images is how ImageJ stores files over 4 GiB (one IFD, contiguous
     # planes), which tifffile reads, or a truncated file, which it reports: only more pages
     # than the description accounts for would be dropped.

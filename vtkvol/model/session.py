@@ -564,12 +564,34 @@ def _load_json(path: Path) -> dict[str, Any]:
         raise SessionError(path, f"is not valid JSON: {exc}") from exc
     except RecursionError as exc:
         raise SessionError(path, "is nested too deeply to be a session file") from exc
+    if _nesting_depth(raw) > MAX_NESTING:
+        # copying and validating a deeper document recurses past Python's limit
+        raise SessionError(path, f"is nested more than {MAX_NESTING} levels deep, which no "
+                                 "session file is")
     if not isinstance(raw, dict):
         raise SessionError(
             path,
             f"is not a vtkvol session (the file holds a JSON {_json_kind(raw)}, not an object)",
         )
     return raw
+
+
+#: Deepest nesting of objects and lists a session file may have (real ones have under 10).
+MAX_NESTING = 64
+
+
+def _nesting_depth(value: Any) -> int:
+    """How deeply JSON objects and lists nest in ``value`` (counted without recursion)."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict | list):
+            deepest = max(deepest, depth)
+            if depth > MAX_NESTING:
+                break
+            children = item.values() if isinstance(item, dict) else item
+            stack.extend((child, depth + 1) for child in children)
+    return deepest
 
 
 def _reject_constant(name: str) -> float:
