@@ -126,36 +126,14 @@ def turntable_frames(
     """
     import vtk
 
-    from vtkvol.engine.offscreen import grab, make_render_window
-    from vtkvol.engine.scene import VolumeScene
-    from vtkvol.model.defaults import scene_for
-    from vtkvol.model.presets import apply_preset
-    from vtkvol.model.scene import SceneModel
+    from vtkvol.engine.api import offscreen_view, settled_frame
 
     if frames < 1:
         raise ValueError(f"frames must be at least 1, got {frames}")
-    model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
-    if preset is not None:
-        for channel in model.channels:
-            apply_preset(channel.tf, preset, tint=channel.color)
-    if method is not None:
-        model.illumination.method = method
-    for name, value in (parameters or {}).items():
-        model.illumination.set_value(name, value)
-    rw = make_render_window(size)
-    renderer = vtk.vtkRenderer()
-    rw.AddRenderer(renderer)
-    has_camera = model.camera.position is not None
-    scene = VolumeScene(renderer, model, data, request_render=lambda: None)
-    if on_error is not None:
-        scene.error.connect(on_error)
-    try:
-        if has_camera:
-            if azimuth or elevation:
-                scene.orbit(azimuth or 0.0, elevation or 0.0)
-        else:
-            scene.reset_camera(azimuth=30.0 if azimuth is None else azimuth,
-                               elevation=20.0 if elevation is None else elevation)
+    with offscreen_view(data, model=model, size=size, method=method, preset=preset,
+                        azimuth=azimuth, elevation=elevation, parameters=parameters,
+                        on_error=on_error) as (rw, scene, has_camera):
+        renderer = scene.renderer
         cam = renderer.GetActiveCamera()
         focal = np.array(cam.GetFocalPoint())
         position0 = np.array(cam.GetPosition())
@@ -170,17 +148,8 @@ def turntable_frames(
                 cam.SetViewUp(*turn.TransformVector(*up0))
                 renderer.ResetCameraClippingRange()
                 scene.sync_camera_to_model()  # lights that follow the camera follow it here too
-            image = grab(rw)
-            illuminator = scene.illuminator
-            if i == 0 and illuminator is not None and illuminator.failed_method is not None:
-                image = grab(rw)  # the failed build showed nothing; this frame is local shading
-            if illuminator is not None and illuminator.wants_frame:
-                illuminator.converge(max_seconds=max_seconds)
-                image = grab(rw, render=False)
-            yield image
-    finally:
-        scene.close()
-        rw.Finalize()
+            # only the first frame can be the failed build's blank one
+            yield settled_frame(rw, scene, max_seconds=max_seconds, retry_failed=i == 0)[0]
 
 
 def write_movie(

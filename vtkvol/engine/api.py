@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -106,15 +107,43 @@ def render_image(
     if max_seconds is not None and not (math.isfinite(max_seconds) and max_seconds >= 0):
         raise ValueError(f"the time budget must be a finite number of seconds >= 0, "
                          f"not {max_seconds!r}")
+    with offscreen_view(data, model=model, size=size, method=method, preset=preset,
+                        azimuth=azimuth, elevation=elevation, parameters=parameters,
+                        iterations=iterations, on_error=on_error) as (rw, scene, _):
+        image, refining_s = settled_frame(rw, scene, max_seconds=max_seconds,
+                                          iterations=iterations)
+        tech = scene.illuminator.technique if scene.illuminator is not None else None
+        if on_refined is not None and tech is not None and refining_s is not None:
+            on_refined(int(tech.iteration), bool(tech.converged), refining_s)
+        return image
+
+
+@contextmanager
+def offscreen_view(
+    data: VolumeData,
+    *,
+    model: SceneModel | None = None,
+    size: tuple[int, int] = (512, 512),
+    method: str | None = None,
+    preset: str | None = None,
+    azimuth: float | None = None,
+    elevation: float | None = None,
+    parameters: dict[str, Any] | None = None,
+    iterations: int | None = None,
+    on_error: Callable[[str], None] | None = None,
+) -> Iterator[tuple[vtk.vtkRenderWindow, VolumeScene, bool]]:
+    """An offscreen window showing ``data`` as :func:`render_image` describes (a copy of
+    ``model`` or a default scene, the overrides applied, the camera placed); yields
+    ``(window, scene, has_camera)`` (whether the model had its own camera) and releases both
+    afterwards. Shared by :func:`render_image` and the movie writer."""
     model = SceneModel.model_validate(model.model_dump()) if model is not None else scene_for(data)
     if preset is not None:
         for channel in model.channels:
             apply_preset(channel.tf, preset, tint=channel.color)
     if method is not None:
         model.illumination.method = method
-    if parameters:
-        for name, value in parameters.items():
-            model.illumination.set_value(name, value)
+    for name, value in (parameters or {}).items():
+        model.illumination.set_value(name, value)
     if iterations is not None and any(p.name == "max_iterations"
                                       for p in get_spec(model.illumination.method).parameters):
         model.illumination.set_value("max_iterations", int(iterations))
@@ -134,18 +163,25 @@ def render_image(
                 azimuth=30.0 if azimuth is None else azimuth,
                 elevation=20.0 if elevation is None else elevation,
             )
-        image = grab(rw)
-        illuminator = scene.illuminator
-        if illuminator is not None and illuminator.failed_method is not None:
-            image = grab(rw)  # the failed build showed nothing; this frame is local shading
-        if illuminator is not None and illuminator.wants_frame:
-            t0 = time.perf_counter()
-            illuminator.converge(max_seconds=max_seconds, iterations=iterations)
-            image = grab(rw, render=False)
-            tech = illuminator.technique
-            if on_refined is not None and tech is not None:
-                on_refined(int(tech.iteration), bool(tech.converged), time.perf_counter() - t0)
-        return image
+        yield rw, scene, has_camera
     finally:
         scene.close()
         rw.Finalize()
+
+
+def settled_frame(rw: vtk.vtkRenderWindow, scene: VolumeScene, *, max_seconds: float | None,
+                  iterations: int | None = None,
+                  retry_failed: bool = True) -> tuple[np.ndarray, float | None]:
+    """Render one frame as users see it once the view settles: a technique that failed to
+    build shows local shading in a second frame (``retry_failed``: the scene's first frame),
+    a progressive one refines (to ``iterations`` or ``max_seconds``) first. Returns the
+    ``(h, w, 3)`` uint8 image and the seconds spent refining (None: nothing to refine)."""
+    image = grab(rw)
+    illuminator = scene.illuminator
+    if retry_failed and illuminator is not None and illuminator.failed_method is not None:
+        image = grab(rw)  # the failed build showed nothing; this frame is local shading
+    if illuminator is None or not illuminator.wants_frame:
+        return image, None
+    t0 = time.perf_counter()
+    illuminator.converge(max_seconds=max_seconds, iterations=iterations)
+    return grab(rw, render=False), time.perf_counter() - t0
