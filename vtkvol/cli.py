@@ -8,10 +8,37 @@ import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from vtkvol.model.scene import BLEND_MODES
 
 SESSION_SUFFIX = ".vtkvol.json"
+
+
+def _add_view_options(parser: argparse.ArgumentParser) -> None:
+    """The options `render` and `batch` share: image size, view, transfer function, method."""
+    parser.add_argument("--size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"))
+    parser.add_argument("--azimuth", type=float, default=None,
+                        help="degrees from the front view (default 30; sessions: orbit)")
+    parser.add_argument("--elevation", type=float, default=None,
+                        help="degrees from the front view (default 20; sessions: orbit)")
+    parser.add_argument("--preset", help="transfer-function preset or colormap name")
+    parser.add_argument("--method", help="illumination method (e.g. local, shadow_volume)")
+    parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                        help="illumination parameter (repeatable)")
+    parser.add_argument("--blend", choices=BLEND_MODES, help="blend mode")
+    parser.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
+
+
+def _parse_params(items: Sequence[str]) -> dict[str, Any] | str:
+    """``--param NAME=VALUE`` items as a dict, or the one-line problem."""
+    params: dict[str, Any] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            return f"--param needs NAME=VALUE, got {item!r}"
+        params[name] = _parse_value(value)
+    return params
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -32,17 +59,7 @@ def _parser() -> argparse.ArgumentParser:
     p_render.add_argument("-o", "--output", required=True,
                           help="PNG file to write; with --turntable: .mp4, a .png sequence "
                                "(spin.png → spin_0000.png…), a .tif stack or a folder of PNGs")
-    p_render.add_argument("--size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"))
-    p_render.add_argument("--azimuth", type=float, default=None,
-                          help="degrees from the front view (default 30; sessions: orbit)")
-    p_render.add_argument("--elevation", type=float, default=None,
-                          help="degrees from the front view (default 20; sessions: orbit)")
-    p_render.add_argument("--preset", help="transfer-function preset or colormap name")
-    p_render.add_argument("--method", help="illumination method (e.g. local, shadow_volume)")
-    p_render.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                          help="illumination parameter (repeatable)")
-    p_render.add_argument("--blend", choices=BLEND_MODES, help="blend mode")
-    p_render.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
+    _add_view_options(p_render)
     p_render.add_argument("--time", type=int, default=0, help="time point to render")
     p_render.add_argument("--overwrite", action="store_true",
                           help="replace the output file if it exists")
@@ -102,17 +119,7 @@ def _parser() -> argparse.ArgumentParser:
                               "(one worker per GPU: --workers 4 --egl-devices 0,1,2,3)")
     p_batch.add_argument("--overwrite", action="store_true",
                          help="replace PNGs that exist (default: refuse before rendering)")
-    p_batch.add_argument("--size", nargs=2, type=int, default=(800, 600), metavar=("W", "H"))
-    p_batch.add_argument("--azimuth", type=float, default=None,
-                         help="degrees from the front view (sessions: orbit)")
-    p_batch.add_argument("--elevation", type=float, default=None,
-                         help="degrees from the front view (sessions: orbit)")
-    p_batch.add_argument("--preset", help="transfer-function preset or colormap name")
-    p_batch.add_argument("--method", help="illumination method (e.g. local, shadow_volume)")
-    p_batch.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
-                         help="illumination parameter (repeatable)")
-    p_batch.add_argument("--blend", choices=BLEND_MODES, help="blend mode")
-    p_batch.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
+    _add_view_options(p_batch)
     p_batch.add_argument("--iterations", type=int, default=None, metavar="N",
                          help="progressive methods: refine each image to N iterations")
     p_batch.add_argument("--time-budget", type=float, default=300.0, metavar="SECONDS",
@@ -220,13 +227,10 @@ def cmd_render(args: argparse.Namespace) -> int:
         if problem:
             print(f"vtkvol: --labels: {problem}", file=sys.stderr)
             return 2
-    params = {}
-    for item in args.param:
-        name, sep, value = item.partition("=")
-        if not sep:
-            print(f"vtkvol: --param needs NAME=VALUE, got {item!r}", file=sys.stderr)
-            return 2
-        params[name] = _parse_value(value)
+    params = _parse_params(args.param)
+    if isinstance(params, str):
+        print(f"vtkvol: {params}", file=sys.stderr)
+        return 2
     if args.turntable is not None:
         return _render_turntable(args, out, data, model, params)
     if args.iterations is not None and args.iterations < 1:
@@ -411,12 +415,9 @@ def cmd_batch(args: argparse.Namespace) -> int:
     problem = _view_option_problem(args)
     if problem:
         return fail(problem)
-    params = {}
-    for item in args.param:
-        name, sep, value = item.partition("=")
-        if not sep:
-            return fail(f"--param needs NAME=VALUE, got {item!r}")
-        params[name] = _parse_value(value)
+    params = _parse_params(args.param)
+    if isinstance(params, str):
+        return fail(params)
     if args.iterations is not None and args.iterations < 1:
         return fail(f"--iterations must be at least 1, got {args.iterations}")
     if not (math.isfinite(args.time_budget) and args.time_budget >= 0):
