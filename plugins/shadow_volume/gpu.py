@@ -27,6 +27,20 @@ BLOCK = 4
 COMPUTE_SOURCE = "propagate.comp.glsl"
 
 
+def ensure_work_textures(window: vtk.vtkRenderWindow, work: dict[int, Texture3D],
+                         grid: LightGrid) -> None:
+    """Make ``work[axis]`` the one-slice work texture of each sweep axis of ``grid``
+    (re)allocated only when its shape changed; exactly one slice, so loads outside are 0."""
+    for axis in range(3):
+        ua, va = in_plane_axes(axis)
+        shape = (2, grid.dims[va], grid.dims[ua])
+        old = work.get(axis)
+        if old is None or old.shape != shape:
+            if old is not None:
+                old.release()
+            work[axis] = Texture3D(window, shape)
+
+
 class LightTexture(Texture3D):
     """The light volume: one light per channel (1, 2 or 4 float channels), ``shape`` (nz, ny,
     nx) in light-grid cells, created filled with 1 (unshadowed). Linear filtering, clamped to a

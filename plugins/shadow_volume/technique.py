@@ -20,13 +20,16 @@ from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import TECHNIQUE
 from vtkvol.plugins.shadow_volume.cpu import (
     LightGrid,
-    in_plane_axes,
     light_softness,
     light_volume_cpu,
     prefilter_cpu,
     propagate_cpu,
 )
-from vtkvol.plugins.shadow_volume.gpu import GpuPropagator, LightTexture
+from vtkvol.plugins.shadow_volume.gpu import (
+    GpuPropagator,
+    LightTexture,
+    ensure_work_textures,
+)
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
@@ -206,14 +209,7 @@ class ShadowVolume(Technique):
                 self._sigma_tex = Texture3D(rw, grid.shape_zyx)
             gpu.prefilter(self.host.opacity_volume(), self._sigma_tex, grid)
             self._sigma_valid["gpu"] = True
-        for axis in range(3):
-            ua, va = in_plane_axes(axis)
-            shape = (2, grid.dims[va], grid.dims[ua])  # exactly one slice: loads outside are 0
-            old = self._work_tex.get(axis)
-            if old is None or old.shape != shape:
-                if old is not None:
-                    old.release()
-                self._work_tex[axis] = Texture3D(rw, shape)
+        ensure_work_textures(rw, self._work_tex, grid)
         assert self._sigma_tex is not None and self.light_texture is not None
         for channel, spec in enumerate(specs):
             kind, vec = grid.light(spec, self._origin(), self._direction())

@@ -21,8 +21,12 @@ from vtkvol.engine import shaders
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
 from vtkvol.engine.technique import ComputePath, Technique
 from vtkvol.model.params import Invalidates
-from vtkvol.plugins.shadow_volume.cpu import LightGrid, in_plane_axes, light_volume_cpu
-from vtkvol.plugins.shadow_volume.gpu import GpuPropagator, LightTexture
+from vtkvol.plugins.shadow_volume.cpu import LightGrid, light_volume_cpu
+from vtkvol.plugins.shadow_volume.gpu import (
+    GpuPropagator,
+    LightTexture,
+    ensure_work_textures,
+)
 from vtkvol.plugins.translucency import TECHNIQUE
 from vtkvol.plugins.translucency.cpu import (
     direct_softness,
@@ -332,14 +336,7 @@ class Translucency(Technique):
             for c in range(3):
                 gpu.prefilter(np.ascontiguousarray(alpha_i[..., c]), self._sigma_tex[1 + c], grid)
             self._sigma_valid["gpu"] = True
-        for axis in range(3):
-            ua, va = in_plane_axes(axis)
-            shape = (2, grid.dims[va], grid.dims[ua])  # exactly one slice: loads outside are 0
-            old = self._work_tex.get(axis)
-            if old is None or old.shape != shape:
-                if old is not None:
-                    old.release()
-                self._work_tex[axis] = Texture3D(rw, shape)
+        ensure_work_textures(rw, self._work_tex, grid)
         for tex, spec in zip(self.light_textures, specs, strict=True):
             kind, vec = grid.light(spec, self._origin(), self._direction())
             direct, indirect = self._softness(spec, grid, values)
