@@ -298,15 +298,18 @@ class ReferenceCache:
         key = (self._scene_key(scene), tuple(tuple(v) for v in scene.lights), spec)
         if key not in self._volumes:
             alpha = scene.opacity()
-            vis = tuple(
-                np.clip(self.light_visibility(scene, light, spec.light_size_deg, alpha), 0, 1)
-                for light in scene.lights
-            )
+            vis = self._visibilities(scene, spec.light_size_deg, alpha)
             amb = None
             if spec.ao_distance_um is not None:
                 amb = np.clip(self.ambient_visibility(scene, spec.ao_distance_um, alpha), 0, 1)
             self._volumes[key] = ReferenceVolumes(vis, amb)
         return self._volumes[key]
+
+    def _visibilities(self, scene: Scene, size_deg: float,
+                      alpha: np.ndarray) -> tuple[np.ndarray, ...]:
+        """Every light's visibility over ``size_deg``, clipped to [0, 1] for the textures."""
+        return tuple(np.clip(self.light_visibility(scene, light, size_deg, alpha), 0, 1)
+                     for light in scene.lights)
 
     def scattered(self, scene: Scene, albedo: float, phase_g: float, seed: int) -> np.ndarray:
         """Monte-Carlo in-scattered light from all the scene's lights (every order ≥ 1), float32
@@ -339,10 +342,7 @@ class ReferenceCache:
                scene.light_intensity)
         if key not in self._volumes:
             alpha = scene.opacity()
-            vis = tuple(
-                np.clip(self.light_visibility(scene, light, spec.light_size_deg, alpha), 0, 1)
-                for light in scene.lights
-            )
+            vis = self._visibilities(scene, spec.light_size_deg, alpha)
             irradiance = None
             if spec.orders == "multiple":
                 # unit-irradiance lights in the reference; the host scales the direct light by
