@@ -7,32 +7,14 @@ import json
 
 import numpy as np
 import pytest
-import tifffile
 from PySide6.QtCore import Qt
+from tests_support_time import N_TIME, write_time_lapse
 
 from vtkvol.io import VolumeReadError
 from vtkvol.io.time_series import TimePointCache, format_time, time_point_count
 from vtkvol.ui import time_series as time_module
 
 pytestmark = pytest.mark.gui
-
-N_TIME = 20
-SHAPE_ZYX = (12, 32, 32)
-
-
-def write_time_lapse(path, n_time: int = N_TIME, *, interval_s: float = 30.0) -> None:
-    """An ImageJ TZYX uint16 stack: a bright ball that moves along x, one voxel per time
-    point, over a dim noisy background; frames ``interval_s`` apart."""
-    rng = np.random.default_rng(1)
-    z, y, x = np.mgrid[0:SHAPE_ZYX[0], 0:SHAPE_ZYX[1], 0:SHAPE_ZYX[2]].astype(np.float32)
-    stack = np.empty((n_time, *SHAPE_ZYX), np.uint16)
-    for t in range(n_time):
-        cx = 6.0 + t * 1.0
-        ball = np.exp(-(((x - cx) / 4.0) ** 2 + ((y - 16) / 4.0) ** 2 + ((z - 6) / 2.5) ** 2))
-        stack[t] = (100 + 3000 * ball + rng.normal(0, 10, SHAPE_ZYX)).clip(0).astype(np.uint16)
-    tifffile.imwrite(path, stack, imagej=True,
-                     metadata={"axes": "TZYX", "finterval": interval_s, "tunit": "sec"})
-
 
 @pytest.fixture
 def lapse_file(tmp_path):
@@ -309,3 +291,85 @@ def test_a_read_failing_during_playback_stops_it_with_a_message(
     assert window.time_bar.play_button.text() == "Play"
     player.go_to(1)  # still alive: a readable point shows
     wait_shown(window, qtbot, 1)
+
+
+def test_a_point_of_another_shape_stops_with_a_message(lapse_window, qtbot, monkeypatch,
+                                                       dialogs):
+    window = lapse_window
+    real = time_module.read_volume
+
+    def shrunk(path, *, time_index, **kwargs):
+        data = real(path, time_index=time_index, **kwargs)
+        data.array = np.ascontiguousarray(data.array[:, :6])
+        return data
+
+    monkeypatch.setattr(time_module, "read_volume", shrunk)
+    window.time_player.go_to(2)
+    qtbot.waitUntil(lambda: len(dialogs) == 1, timeout=20_000)
+    assert "time point 2 has 1 channel(s) of 32×32×6 voxels, unlike the time point first " \
+           "shown" in dialogs[0].informativeText()
+    assert window.model.volume.time_index == window.time_player.shown_index == 0
+
+
+def test_opening_at_a_time_point(main_window, qtbot, lapse_file):
+    window = main_window
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_path(lapse_file, time_index=12)
+    assert window.data.metadata["time_index"] == 12
+    assert window.model.volume.time_index == window.time_player.shown_index == 12
+    assert window.time_bar.slider.value() == 12
+
+
+def test_the_cache_setting_is_kept_and_a_damaged_one_ignored(main_window):
+    window = main_window
+    window.time_bar.cache_box.setValue(3)
+    assert window.time_player.cache.max_bytes == 3 << 20
+    assert int(window.settings.value("timeSeries/cacheMiB")) == 3
+    assert window._time_cache_setting() == 3 << 20
+    for damaged in ("lots", "-5"):
+        window.settings.setValue("timeSeries/cacheMiB", damaged)
+        assert window._time_cache_setting() is None  # the default
+    window.time_bar.cache_box.setValue(64)
+
+
+def test_open_refuses_a_negative_time(capsys):
+    from vtkvol.cli import main
+
+    assert main(["open", "cells.tif", "--time", "-2"]) == 2
+    assert "--time must be a time point index >= 0, got -2" in capsys.readouterr().err
+    assert main(["open", "--time", "3"]) == 2
+    assert "built-in sample" in capsys.readouterr().err
+
+
+def test_a_frame_interval_that_lies_is_ignored(tmp_path):
+    import tifffile
+
+    from vtkvol.io import read_volume
+
+    stack = np.ones((3, 2, 8, 8), np.uint16)
+    for name, metadata, expected in (
+            ("minutes.tif", {"finterval": 0.5, "tunit": "min"}, 30.0),
+            ("negative.tif", {"finterval": -4.0}, None),
+            ("weird_unit.tif", {"finterval": 2.0, "tunit": "fortnight"}, None)):
+        tifffile.imwrite(tmp_path / name, stack, imagej=True,
+                         metadata={"axes": "TZYX", **metadata})
+        data = read_volume(tmp_path / name)
+        assert data.metadata.get("time_interval_s") == expected, name
+    assert any("unknown time unit 'fortnight'" in n for n in data.notes)
+
+
+def test_ome_zarr_time_axis_gives_the_interval(tmp_path):
+    zarr = pytest.importorskip("zarr")
+    writer = pytest.importorskip("ome_zarr.writer")
+    ome_format = pytest.importorskip("ome_zarr.format")
+    from vtkvol.io import read_volume
+
+    fmt = ome_format.FormatV05()
+    group = zarr.open_group(str(tmp_path / "lapse.zarr"), mode="w", zarr_format=fmt.zarr_format)
+    writer.write_image(np.ones((3, 4, 8, 8), np.uint16), group, axes="tzyx", fmt=fmt,
+                       scale_factors=(2,), scale={"t": 2.0, "z": 1.0, "y": 0.5, "x": 0.5},
+                       axes_units={"t": "minute", "z": "micrometer", "y": "micrometer",
+                                   "x": "micrometer"})
+    data = read_volume(tmp_path / "lapse.zarr", time_index=2)
+    assert data.metadata["time_points"] == 3
+    assert data.metadata["time_interval_s"] == 120.0

@@ -623,19 +623,24 @@ class MainWindow(QMainWindow):
             self.open_session(path)
 
     def open_path(self, path: str | os.PathLike[str], *,
-                  voxel_size: tuple[float, float, float] | None = None) -> None:
-        """Open a volume file or folder, or a session file (by its suffix), in the background."""
+                  voxel_size: tuple[float, float, float] | None = None,
+                  time_index: int | None = None) -> None:
+        """Open a volume file or folder, or a session file (by its suffix), in the background.
+        ``time_index`` (0-based) shows that time point of a time series instead of the first
+        (or of the session's)."""
         text = str(path)
         if text.lower().endswith(SESSION_SUFFIX):
-            self.open_session(text)
+            self.open_session(text, time_index=time_index)
             return
         name = Path(text).name or text
+        index = 0 if time_index is None else int(time_index)
 
         def job(progress, cancel):
-            return read_volume(text, voxel_size_um=voxel_size, progress=progress, cancel=cancel)
+            return read_volume(text, voxel_size_um=voxel_size, time_index=index,
+                               progress=progress, cancel=cancel)
 
         def success(data: VolumeData) -> None:
-            self.show_volume(data, voxel_size=voxel_size)
+            self.show_volume(data, voxel_size=voxel_size, time_index=index)
             self._add_recent(text)
 
         self._run(f"Reading {name}…", job, success,
@@ -679,12 +684,14 @@ class MainWindow(QMainWindow):
 
     def show_volume(self, data: VolumeData, *,
                     voxel_size: tuple[float, float, float] | None = None,
-                    sample_args: dict[str, Any] | None = None) -> None:
+                    sample_args: dict[str, Any] | None = None, time_index: int = 0) -> None:
         """Show ``data`` with fresh channels, crop, weights and camera (lights, illumination
         and render settings stay: they are the user's preferences, not the data's).
-        ``sample_args`` marks the built-in sample (so a session can regenerate it)."""
+        ``sample_args`` marks the built-in sample (so a session can regenerate it);
+        ``time_index`` is the time point ``data`` holds."""
         fresh = scene_for(data)
         fresh.volume.voxel_size_um = voxel_size
+        fresh.volume.time_index = time_index
         self._file_voxel = (None if voxel_size is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
         self._as_read = data
@@ -697,7 +704,7 @@ class MainWindow(QMainWindow):
                 "camera": Camera().model_dump(),
             })
             # Before the batch's event: the player must not take time point 0 for a request.
-            self.time_player.data_opened(data, 0)
+            self.time_player.data_opened(data, time_index)
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self.session_path = None
         self._after_open()
@@ -735,11 +742,13 @@ class MainWindow(QMainWindow):
 
     # -- sessions -------------------------------------------------------------------------------
     def open_session(self, path: str | os.PathLike[str], *,
-                     data_path: str | os.PathLike[str] | None = None) -> None:
+                     data_path: str | os.PathLike[str] | None = None,
+                     time_index: int | None = None) -> None:
         """Restore a session (view, settings, window layout) and its data, in the background.
 
         A bad file shows a dialog and leaves the scene untouched; a missing data file offers
-        "Locate…" and retries with the located file.
+        "Locate…" and retries with the located file. ``time_index`` shows that time point
+        instead of the session's.
         """
         try:
             session = read_session(path)
@@ -763,15 +772,16 @@ class MainWindow(QMainWindow):
             return
 
         def job(progress, cancel):
-            return load_session_with_data(path, data_path=data_path, progress=progress,
-                                          cancel=cancel, on_warning=notes.append)
+            return load_session_with_data(path, data_path=data_path, time_index=time_index,
+                                          progress=progress, cancel=cancel,
+                                          on_warning=notes.append)
 
         def failure(exc: BaseException) -> None:
             if isinstance(exc, MissingDataError) and exc.data_path is not None:
                 if errors.ask_locate(self, exc):
                     located = self._locate_data(exc)
                     if located:
-                        self.open_session(path, data_path=located)
+                        self.open_session(path, data_path=located, time_index=time_index)
                         return
                 self.openFailed.emit(str(exc))
                 return
@@ -1130,11 +1140,13 @@ def write_png(image: np.ndarray, path: Path) -> None:
     write_atomic(path, encoded.data())
 
 
-def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None) -> int:
+def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None,
+            time_index: int | None = None) -> int:
     """Start the desktop app (``vtkvol open``); returns the exit status.
 
     ``file`` may be a volume, a folder of slices or a session (``*.vtkvol.json``); without
-    one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm.
+    one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm;
+    ``time_index`` (0-based) opens that time point of a time series.
     """
     app = QApplication.instance() or QApplication(sys.argv)
     configure_gl_platform(app)
@@ -1146,7 +1158,8 @@ def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None) -> int:
     window.show()
     voxel = tuple(float(v) for v in voxel_size) if voxel_size else None
     if file:
-        QTimer.singleShot(0, lambda: window.open_path(file, voxel_size=voxel))  # type: ignore[arg-type]
+        QTimer.singleShot(0, lambda: window.open_path(  # type: ignore[arg-type]
+            file, voxel_size=voxel, time_index=time_index))
     elif sample:
         QTimer.singleShot(0, window.open_sample)
     try:
