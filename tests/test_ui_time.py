@@ -4,6 +4,7 @@ sessions that keep the time point, and reads that fail (pytest-qt under Xvfb).""
 from __future__ import annotations
 
 import json
+import time
 
 import numpy as np
 import pytest
@@ -373,3 +374,36 @@ def test_ome_zarr_time_axis_gives_the_interval(tmp_path):
     data = read_volume(tmp_path / "lapse.zarr", time_index=2)
     assert data.metadata["time_points"] == 3
     assert data.metadata["time_interval_s"] == 120.0
+
+
+def test_slow_reads_drop_time_points_instead_of_queueing_them(lapse_window, qtbot,
+                                                             monkeypatch):
+    window = lapse_window
+    player = window.time_player
+    real = time_module.read_volume
+    reads: list[int] = []
+
+    def slow(path, *, time_index, **kwargs):
+        reads.append(time_index)
+        time.sleep(0.25)  # five 20-fps frame intervals per read
+        return real(path, time_index=time_index, **kwargs)
+
+    monkeypatch.setattr(time_module, "read_volume", slow)
+    shown: list[int] = []
+    player.shown.connect(shown.append)
+    player.fps = 20.0
+    player.play()
+    qtbot.waitUntil(lambda: len(shown) >= 3, timeout=30_000)
+    rate = window.time_rate_label.text()
+    player.pause()
+    player.shown.disconnect(shown.append)
+    # The clock ran on while reading: points were skipped, not read one after the other.
+    assert player.dropped_ticks > 0
+    assert max(b - a for a, b in zip([0, *shown], shown, strict=False)) > 1
+    assert len(reads) < shown[-1]
+    assert rate.startswith("playing ") and rate.endswith("of 20 fps (time points skipped)")
+
+
+def test_set_voxels_refuses_other_geometry(lapse_window, small_volume):
+    with pytest.raises(ValueError, match="do not match the shown volume"):
+        lapse_window.viewport.scene.set_voxels(small_volume)

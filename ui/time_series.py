@@ -307,8 +307,12 @@ class TimeSeriesPlayer(QObject):
         read = self._finish_read()
         if read is None or isinstance(exc, ReadCancelled):
             return
-        if read.prefetch and not self.playing and self._wanted is None:
-            return  # read ahead for a playback that has stopped: nobody waits for it
+        if not self.playing:
+            if self._wanted is None and read.prefetch:
+                return  # read ahead for a playback that has stopped: nobody waits for it
+            if self._wanted is not None and self._wanted != read.index:
+                self._request(self._wanted)  # the slider moved on past the broken point
+                return
         self._fail(read.index, str(exc) or type(exc).__name__)
 
     def _finish_read(self) -> _Read | None:
