@@ -95,6 +95,7 @@ def test_the_reader_reports_the_frame_interval(lapse_file):
     data = read_volume(lapse_file, time_index=4)
     assert data.metadata["time_points"] == N_TIME
     assert data.metadata["time_interval_s"] == 30.0
+    assert "time point: index 4 of 20 (0–19), 30 s apart" in data.describe()
 
 
 # -- the app --------------------------------------------------------------------------------

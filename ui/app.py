@@ -1000,7 +1000,8 @@ class MainWindow(QMainWindow):
             "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
             "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
             "view · Ctrl+O: open · Ctrl+S: save session · Ctrl+Shift+S: save session as · "
-            f"{SCREENSHOT_SHORTCUT}: screenshot")
+            f"{SCREENSHOT_SHORTCUT}: screenshot<br><br><b>Time series</b><br>, / .: previous / "
+            "next time point · P: play or pause")
 
     # -- voxel size -----------------------------------------------------------------------------
     def choose_voxel_size(self) -> None:

@@ -140,6 +140,8 @@ class TimeSeriesPlayer(QObject):
         # playback
         self._fps = DEFAULT_FPS
         self.loop = True
+        #: Read ahead while playing (off only to measure what it brings).
+        self.read_ahead = True
         self._timer = QTimer(self)
         self._timer.setTimerType(Qt.TimerType.PreciseTimer)
         self._timer.timeout.connect(self._tick)
@@ -147,7 +149,10 @@ class TimeSeriesPlayer(QObject):
         self._clock_position = 0  # unwrapped position of the time point shown at the start
         self._shown_position = 0  # unwrapped position of the time point on screen
         self._frame_times: deque[float] = deque()
+        #: Since Play: timer ticks that showed nothing (the point was not read yet) and time
+        #: points the clock passed without showing them.
         self.dropped_ticks = 0
+        self.skipped_points = 0
         self._closed = False
         model.changed.connect(self._on_model_changed)
 
@@ -369,7 +374,7 @@ class TimeSeriesPlayer(QObject):
         if not self.loop and self.shown_index >= self.count - 1:
             self.go_to(0)
         self._frame_times.clear()
-        self.dropped_ticks = 0
+        self.dropped_ticks = self.skipped_points = 0
         self._restart_clock()
         self._timer.start(max(1, round(1000.0 / self._fps)))
         self.playingChanged.emit(True)
@@ -424,6 +429,7 @@ class TimeSeriesPlayer(QObject):
         for position in range(target, lowest - 1, -1):
             index = self._index_at(position)
             if index is not None and index in self.cache:
+                self.skipped_points += position - self._shown_position - 1
                 self._shown_position = position
                 self.model.volume.time_index = index  # shows it (a cache hit)
                 break
@@ -433,6 +439,7 @@ class TimeSeriesPlayer(QObject):
             if self._read is None and index is not None:
                 # Nothing read ahead (no room in the cache, or reads slower than the clock):
                 # the clock's point itself, shown when its read is done.
+                self.skipped_points += target - self._shown_position - 1
                 self._shown_position = target
                 self.model.volume.time_index = index
                 return
@@ -442,7 +449,7 @@ class TimeSeriesPlayer(QObject):
     def _prefetch(self, position: int) -> None:
         """Read ahead: the first uncached point from where the clock will be once a read of
         the usual duration is done."""
-        if self._read is not None or not self.playing:
+        if self._read is not None or not self.playing or not self.read_ahead:
             return
         frame_bytes = max(1, math.prod(self._shape or (1,)) * self._itemsize)
         room = self.cache.max_bytes // frame_bytes
