@@ -106,7 +106,8 @@ def test_write_docs_screenshots(qapp, qtbot, tmp_path):
 
 
 def test_write_time_slider_screenshot(qapp, qtbot, tmp_path):
-    """The time slider of a 20-point time-lapse, at time point 7 (docs/app.md)."""
+    """The time slider of a 20-point time-lapse at time point 7, alone and in the window
+    (docs/app.md, README)."""
     from tests_support_time import write_time_lapse
 
     configure_gl_platform(qapp)
@@ -127,4 +128,7 @@ def test_write_time_slider_screenshot(qapp, qtbot, tmp_path):
     target = OUT / "time-slider.png"
     assert window.time_toolbar.grab().save(str(target))
     assert _nonblank(target) > 5.0
+    whole = OUT / "main-window-time-series.png"
+    assert window.grab().save(str(whole))
+    assert _nonblank(whole) > 5.0
     window.close()
