@@ -182,6 +182,7 @@ def test_the_cache_stays_within_its_byte_bound(lapse_window, qtbot, read_calls):
     player = window.time_player
     point = window.data.nbytes
     player.set_cache_bytes(3 * point + point // 2)  # room for three time points
+    assert window.time_bar.cache_box.value() == player.cache.max_bytes // (1 << 20)
     for index in range(1, 9):
         player.go_to(index)
         wait_shown(window, qtbot, index)
@@ -408,3 +409,25 @@ def test_slow_reads_drop_time_points_instead_of_queueing_them(lapse_window, qtbo
 def test_set_voxels_refuses_other_geometry(lapse_window, small_volume):
     with pytest.raises(ValueError, match="do not match the shown volume"):
         lapse_window.viewport.scene.set_voxels(small_volume)
+
+
+def test_a_two_channel_tczyx_series_steps_both_channels(main_window, qtbot, tmp_path):
+    import tifffile
+
+    from vtkvol.io import read_volume
+
+    rng = np.random.default_rng(2)
+    stack = rng.integers(0, 4000, size=(5, 8, 2, 16, 16), dtype=np.uint16)  # T Z C Y X
+    path = tmp_path / "two.tif"
+    tifffile.imwrite(path, stack, imagej=True, metadata={"axes": "TZCYX"})
+    window = main_window
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_path(path)
+    tfs = [c.tf.copy_state() for c in window.model.channels]
+    window.time_player.go_to(3)
+    wait_shown(window, qtbot, 3)
+    assert window.data.n_channels == 2
+    np.testing.assert_array_equal(window.data.array, read_volume(path, time_index=3).array)
+    np.testing.assert_array_equal(window.data.array[:, :, 5, 7], stack[3, :, :, 5, 7].T)
+    assert [c.tf.copy_state() for c in window.model.channels] == tfs
+    assert window.time_bar.label.text() == "of 5"  # the file states no frame interval

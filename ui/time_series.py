@@ -578,6 +578,9 @@ class TimeBar(QWidget):
         if player.pending:
             text += " · reading…"
         self.label.setText(text)
+        self.cache_box.blockSignals(True)
+        self.cache_box.setValue(player.cache.max_bytes // MIB)
+        self.cache_box.blockSignals(False)
         self.cache_box.setToolTip(
             "Time points kept in memory so that going back shows them without reading: "
             f"{player.cache.describe()}")
