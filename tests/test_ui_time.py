@@ -400,9 +400,9 @@ def test_slow_reads_drop_time_points_instead_of_queueing_them(lapse_window, qtbo
     player.pause()
     player.shown.disconnect(shown.append)
     # The clock ran on while reading: points were skipped, not read one after the other.
-    assert player.dropped_ticks > 0
-    assert max(b - a for a, b in zip([0, *shown], shown, strict=False)) > 1
-    assert len(reads) < shown[-1]
+    # Each read spans five or more ticks, so three shown points pass at least eight others.
+    assert player.skipped_points >= 8
+    assert len(reads) < (len(shown) + player.skipped_points) / 2  # far from every point
     assert rate.startswith("playing ") and rate.endswith("of 20 fps (time points skipped)")
 
 
