@@ -66,3 +66,13 @@ def test_run_app_starts_on_the_sample(run, monkeypatch):
     seen = run(None, sample=True, voxel_size=None)
     assert seen["status"] == 0
     assert seen["data"].n_channels == 2 and seen["title"].startswith("sample")
+
+
+def test_run_app_opens_the_time_point_given(run, tmp_path):
+    from tests_support_time import write_time_lapse
+
+    path = tmp_path / "lapse.tif"
+    write_time_lapse(path, n_time=6)
+    seen = run(str(path), sample=False, voxel_size=None, time_index=4)
+    assert seen["status"] == 0
+    assert seen["data"].metadata["time_index"] == 4

@@ -103,3 +103,32 @@ def test_write_docs_screenshots(qapp, qtbot, tmp_path):
     window.close()
     for path in written:
         assert _nonblank(path) > 10.0, path
+
+
+def test_write_time_slider_screenshot(qapp, qtbot, tmp_path):
+    """The time slider of a 20-point time-lapse at time point 7, alone and in the window
+    (docs/app.md, README)."""
+    from tests_support_time import write_time_lapse
+
+    configure_gl_platform(qapp)
+    window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    qtbot.addWidget(window)
+    window.resize(1240, 800)
+    window.show()
+    qtbot.waitExposed(window)
+    window.model.render.sample_distance = 1.0
+    path = tmp_path / "lapse.tif"
+    write_time_lapse(path)
+    with qtbot.waitSignal(window.dataShown, timeout=60_000):
+        window.open_path(path)
+    window.time_player.go_to(7)
+    qtbot.waitUntil(lambda: window.time_player.shown_index == 7, timeout=20_000)
+    qtbot.wait(100)
+    OUT.mkdir(parents=True, exist_ok=True)
+    target = OUT / "time-slider.png"
+    assert window.time_toolbar.grab().save(str(target))
+    assert _nonblank(target) > 5.0
+    whole = OUT / "main-window-time-series.png"
+    assert window.grab().save(str(whole))
+    assert _nonblank(whole) > 5.0
+    window.close()

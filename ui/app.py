@@ -15,7 +15,6 @@ import contextlib
 import dataclasses
 import os
 import sys
-import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -51,6 +50,7 @@ from PySide6.QtWidgets import (
     QMessageBox,
     QProgressDialog,
     QScrollArea,
+    QToolBar,
     QWidget,
 )
 
@@ -70,12 +70,14 @@ from vtkvol.model.session import (
     save_session,
 )
 from vtkvol.ui import errors
+from vtkvol.ui.background import Worker
 from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.docks.channels import ChannelsDock
 from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
+from vtkvol.ui.time_series import MIB, TimeBar, TimeSeriesPlayer
 from vtkvol.ui.undo import UndoRecorder, apply_state
 from vtkvol.ui.view_actions import ViewActions
 from vtkvol.ui.viewport import Viewport
@@ -84,6 +86,8 @@ from vtkvol.ui.voxel_size import ask_voxel_size, is_assumed_size_note, user_note
 APP_NAME = "vtkvol"
 MAX_RECENT = 10
 RECENT_KEY = "recentFiles"
+#: Setting: the time-point cache's size in MiB (default: vtkvol.io.time_series's).
+TIME_CACHE_KEY = "timeSeries/cacheMiB"
 SCREENSHOT_SCALES = (1, 2, 4)
 #: Shortcut of File → Save screenshot → 1×.
 SCREENSHOT_SHORTCUT = "Ctrl+Alt+S"
@@ -108,31 +112,8 @@ def configure_gl_platform(app: QApplication) -> None:
 
 
 # -- background reads ------------------------------------------------------------------------------
-class _Worker(QObject):
-    """Runs ``job(progress=, cancel=)`` in a worker thread and reports back by signals."""
-
-    progressed = Signal(float, str)
-    succeeded = Signal(object)
-    failed = Signal(object)
-
-    def __init__(self, job: Callable[..., Any]) -> None:
-        super().__init__()
-        self._job = job
-        self._cancel = threading.Event()
-
-    def cancel(self) -> None:
-        self._cancel.set()
-
-    def run(self) -> None:
-        try:
-            result = self._job(progress=self._progress, cancel=self._cancel.is_set)
-        except BaseException as exc:  # reported to the GUI thread, which decides what to show
-            self.failed.emit(exc)
-        else:
-            self.succeeded.emit(result)
-
-    def _progress(self, fraction: float, message: str) -> None:
-        self.progressed.emit(float(fraction), str(message))
+#: The worker of background reads (kept under its old name for code that imports it here).
+_Worker = Worker
 
 
 class BackgroundTask(QObject):
@@ -153,7 +134,7 @@ class BackgroundTask(QObject):
         self.dialog.setAutoReset(False)
         self.dialog.setValue(0)
         self.thread = QThread(self)
-        self.worker = _Worker(job)
+        self.worker = Worker(job)
         self.worker.moveToThread(self.thread)
         self.thread.started.connect(self.worker.run)
         self.worker.progressed.connect(self._on_progress)
@@ -259,8 +240,11 @@ class MainWindow(QMainWindow):
         self.viewport.engine_edit = self.recorder.amending
         self.setCentralWidget(self.viewport)
         self.view_actions = ViewActions(self.model, self)
+        self.time_player = TimeSeriesPlayer(self.model, self._show_time_point, self,
+                                            cache_bytes=self._time_cache_setting())
         self._make_docks()
         self._make_actions()
+        self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
         self.resize(1280, 820)
@@ -429,6 +413,10 @@ class MainWindow(QMainWindow):
         view.addSeparator()
         view.addAction(self.view_actions.clip_action)
         view.addSeparator()
+        for action in (self.time_bar_action, self.time_play_action, self.time_back_action,
+                       self.time_forward_action):
+            view.addAction(action)
+        view.addSeparator()
         for dock in self.docks:
             view.addAction(dock.toggleViewAction())
 
@@ -469,6 +457,82 @@ class MainWindow(QMainWindow):
         self.viewport.illuminationFailed.connect(self._on_illumination_failed, queued)
         self.viewport.illuminationProgress.connect(self._on_illumination_progress, queued)
 
+    def _make_time_bar(self) -> None:
+        """The time series' tool bar (below the docks) and its View-menu actions."""
+        player = self.time_player
+        self.time_bar = TimeBar(player, self)
+        self.time_toolbar = QToolBar("Time series", self)
+        self.time_toolbar.setObjectName("time_toolbar")
+        self.time_toolbar.addWidget(self.time_bar)
+        # Shown by the View menu's entry only: the tool-bar menu would show an empty bar
+        # for data with one time point.
+        self.time_toolbar.toggleViewAction().setVisible(False)
+        self.addToolBar(Qt.ToolBarArea.BottomToolBarArea, self.time_toolbar)
+        self.time_bar_action = QAction("&Time slider", self)
+        self.time_bar_action.setCheckable(True)
+        self.time_bar_action.setChecked(True)
+        self.time_bar_action.setStatusTip("Show the time slider of data with several time points")
+        self.time_bar_action.toggled.connect(lambda *_: self._update_time_bar())
+        self.time_play_action = self._action("&Play / pause", player.toggle_playing,
+                                             QKeySequence("P"), "Play or pause the time series")
+        self.time_back_action = self._action("Pre&vious time point", lambda: player.step(-1),
+                                             QKeySequence(","))
+        self.time_forward_action = self._action("&Next time point", lambda: player.step(1),
+                                                QKeySequence("."))
+        self.time_bar.cache_box.valueChanged.connect(
+            lambda mib: self.settings.setValue(TIME_CACHE_KEY, int(mib)))
+        self.time_rate_label = QLabel("")
+        self.time_rate_label.setObjectName("status_time_rate")
+        self.time_rate_label.setToolTip("Time points shown per second while the time series "
+                                        "plays (fewer than asked when reading or rendering is "
+                                        "slower: points are skipped)")
+        self.statusBar().insertPermanentWidget(0, self.time_rate_label)
+        player.rateChanged.connect(self._on_time_rate)
+        player.playingChanged.connect(self._on_time_playing)
+        player.failed.connect(self._on_time_failed)
+        player.shown.connect(lambda _index: self._show_data_info())
+        self._update_time_bar()
+
+    def _time_cache_setting(self) -> int | None:
+        value = self.settings.value(TIME_CACHE_KEY)
+        try:
+            mib = int(value) if value is not None else None
+        except (TypeError, ValueError):
+            mib = None  # a damaged setting: the default
+        return None if mib is None or mib < 0 else mib * MIB
+
+    def _update_time_bar(self) -> None:
+        """The bar is shown for data with more than one time point, unless the user hid it."""
+        series = self.time_player.is_series
+        for action in (self.time_bar_action, self.time_play_action, self.time_back_action,
+                       self.time_forward_action):
+            action.setEnabled(series)
+        self.time_toolbar.setVisible(series and self.time_bar_action.isChecked())
+        self.time_bar.refresh()
+
+    def _on_time_rate(self, rate: float) -> None:
+        fps = self.time_player.fps
+        skipped = " (time points skipped)" if rate < 0.9 * fps else ""
+        self.time_rate_label.setText(f"playing {rate:.1f} of {fps:g} fps{skipped}")
+
+    def _on_time_playing(self, playing: bool) -> None:
+        if not playing:
+            self.time_rate_label.setText("")
+
+    def _on_time_failed(self, message: str) -> None:
+        self.statusBar().showMessage(message, 15000)
+        errors.show_message(self, "Could not show the time point", message)
+
+    def _show_time_point(self, index: int, read: VolumeData) -> None:
+        """Put time point ``index`` (as read) on screen: only the voxels change; the voxel
+        size set in the app applies to it too. ``ValueError`` when it does not fit the view."""
+        data = with_voxel_size(read, self.model.volume.voxel_size_um)
+        self.viewport.show_voxels(data)
+        self._as_read = read
+        self.data = data
+        for dock in self.docks:
+            dock.set_voxels(data)
+
     # -- status ---------------------------------------------------------------------------------
     def _on_frame(self, frame_ms: float, illumination_ms: float) -> None:
         self.frame_label.setText(f"frame {frame_ms:.0f} ms · light {illumination_ms:.0f} ms")
@@ -489,6 +553,8 @@ class MainWindow(QMainWindow):
         sx, sy, sz = data.voxel_size_um
         name = self._data_name()
         channels = f", {c} channels" if c > 1 else ""
+        if self.time_player.is_series:
+            channels += f", time point {self.time_player.shown_index} of {self.time_player.count}"
         self.data_label.setText(
             f"{name} — {x}×{y}×{z}{channels}, {data.array.dtype}, voxel {sx:.3g}×{sy:.3g}×"
             f"{sz:.3g} µm, {format_bytes(data.nbytes)}")
@@ -557,19 +623,24 @@ class MainWindow(QMainWindow):
             self.open_session(path)
 
     def open_path(self, path: str | os.PathLike[str], *,
-                  voxel_size: tuple[float, float, float] | None = None) -> None:
-        """Open a volume file or folder, or a session file (by its suffix), in the background."""
+                  voxel_size: tuple[float, float, float] | None = None,
+                  time_index: int | None = None) -> None:
+        """Open a volume file or folder, or a session file (by its suffix), in the background.
+        ``time_index`` (0-based) shows that time point of a time series instead of the first
+        (or of the session's)."""
         text = str(path)
         if text.lower().endswith(SESSION_SUFFIX):
-            self.open_session(text)
+            self.open_session(text, time_index=time_index)
             return
         name = Path(text).name or text
+        index = 0 if time_index is None else int(time_index)
 
         def job(progress, cancel):
-            return read_volume(text, voxel_size_um=voxel_size, progress=progress, cancel=cancel)
+            return read_volume(text, voxel_size_um=voxel_size, time_index=index,
+                               progress=progress, cancel=cancel)
 
         def success(data: VolumeData) -> None:
-            self.show_volume(data, voxel_size=voxel_size)
+            self.show_volume(data, voxel_size=voxel_size, time_index=index)
             self._add_recent(text)
 
         self._run(f"Reading {name}…", job, success,
@@ -613,12 +684,14 @@ class MainWindow(QMainWindow):
 
     def show_volume(self, data: VolumeData, *,
                     voxel_size: tuple[float, float, float] | None = None,
-                    sample_args: dict[str, Any] | None = None) -> None:
+                    sample_args: dict[str, Any] | None = None, time_index: int = 0) -> None:
         """Show ``data`` with fresh channels, crop, weights and camera (lights, illumination
         and render settings stay: they are the user's preferences, not the data's).
-        ``sample_args`` marks the built-in sample (so a session can regenerate it)."""
+        ``sample_args`` marks the built-in sample (so a session can regenerate it);
+        ``time_index`` is the time point ``data`` holds."""
         fresh = scene_for(data)
         fresh.volume.voxel_size_um = voxel_size
+        fresh.volume.time_index = time_index
         self._file_voxel = (None if voxel_size is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
         self._as_read = data
@@ -630,6 +703,8 @@ class MainWindow(QMainWindow):
                 "slice_weights": SliceWeights().model_dump(),
                 "camera": Camera().model_dump(),
             })
+            # Before the batch's event: the player must not take time point 0 for a request.
+            self.time_player.data_opened(data, time_index)
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self.session_path = None
         self._after_open()
@@ -651,6 +726,7 @@ class MainWindow(QMainWindow):
         self._show_data_info()
         self._update_title()
         self._update_file_actions()
+        self._update_time_bar()
         if self.data is not None and self.data.notes:
             # The full notes are in the data label's tooltip (describe()); the bar shows the
             # first, elided so it does not run under the permanent labels.
@@ -666,11 +742,13 @@ class MainWindow(QMainWindow):
 
     # -- sessions -------------------------------------------------------------------------------
     def open_session(self, path: str | os.PathLike[str], *,
-                     data_path: str | os.PathLike[str] | None = None) -> None:
+                     data_path: str | os.PathLike[str] | None = None,
+                     time_index: int | None = None) -> None:
         """Restore a session (view, settings, window layout) and its data, in the background.
 
         A bad file shows a dialog and leaves the scene untouched; a missing data file offers
-        "Locate…" and retries with the located file.
+        "Locate…" and retries with the located file. ``time_index`` shows that time point
+        instead of the session's.
         """
         try:
             session = read_session(path)
@@ -694,15 +772,16 @@ class MainWindow(QMainWindow):
             return
 
         def job(progress, cancel):
-            return load_session_with_data(path, data_path=data_path, progress=progress,
-                                          cancel=cancel, on_warning=notes.append)
+            return load_session_with_data(path, data_path=data_path, time_index=time_index,
+                                          progress=progress, cancel=cancel,
+                                          on_warning=notes.append)
 
         def failure(exc: BaseException) -> None:
             if isinstance(exc, MissingDataError) and exc.data_path is not None:
                 if errors.ask_locate(self, exc):
                     located = self._locate_data(exc)
                     if located:
-                        self.open_session(path, data_path=located)
+                        self.open_session(path, data_path=located, time_index=time_index)
                         return
                 self.openFailed.emit(str(exc))
                 return
@@ -724,6 +803,7 @@ class MainWindow(QMainWindow):
                        sample_args: dict[str, Any] | None = None) -> None:
         with self.model.batch():
             apply_state(self.model, model.model_dump())
+            self.time_player.data_opened(data, model.volume.time_index)
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self._file_voxel = (None if model.volume.voxel_size_um is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
@@ -920,7 +1000,8 @@ class MainWindow(QMainWindow):
             "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
             "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
             "view · Ctrl+O: open · Ctrl+S: save session · Ctrl+Shift+S: save session as · "
-            f"{SCREENSHOT_SHORTCUT}: screenshot")
+            f"{SCREENSHOT_SHORTCUT}: screenshot<br><br><b>Time series</b><br>, / .: previous / "
+            "next time point · P: play or pause")
 
     # -- voxel size -----------------------------------------------------------------------------
     def choose_voxel_size(self) -> None:
@@ -954,14 +1035,8 @@ class MainWindow(QMainWindow):
                 (r[0] * new[i] / old[i], r[1] * new[i] / old[i])
                 for i, axis in enumerate("xyz")}
         read = self._as_read if self._as_read is not None else data
-        if override is None:
-            resized = read  # the file's own value: the data exactly as read
-        else:
-            resized = dataclasses.replace(
-                read, voxel_size_um=new,
-                metadata={**read.metadata, "voxel_size_source": "set in the app"},
-                # The reader's "assumed 1 µm" note no longer holds once the user set a size.
-                notes=[n for n in read.notes if not is_assumed_size_note(n)])
+        # None (the file's own value): the data exactly as read.
+        resized = with_voxel_size(read, override)
         with self.model.batch():
             self.model.volume.voxel_size_um = override
             self.model.crop.update(crop)
@@ -1012,6 +1087,8 @@ class MainWindow(QMainWindow):
             self._task.cancel()
             self._task.thread.wait()
         self._closing = True
+        self.time_player.close()
+        self.time_bar.release()
         self.view_actions.release()
         for dock in self.docks:
             dock.release()
@@ -1036,6 +1113,18 @@ def _sample_kwargs(stored: dict[str, Any]) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in allowed}
 
 
+def with_voxel_size(read: VolumeData, size: tuple[float, float, float] | None) -> VolumeData:
+    """``read`` (data as read) with voxel size ``size`` (x, y, z µm; None: as read): the same
+    voxels, the size recorded as set in the app, the reader's "assumed 1 µm" note dropped."""
+    if size is None or tuple(float(v) for v in size) == tuple(read.voxel_size_um):
+        return read
+    return dataclasses.replace(
+        read, voxel_size_um=Spacing(*(float(v) for v in size)),
+        metadata={**read.metadata, "voxel_size_source": "set in the app"},
+        # The reader's "assumed 1 µm" note no longer holds once the user set a size.
+        notes=[n for n in read.notes if not is_assumed_size_note(n)])
+
+
 def write_png(image: np.ndarray, path: Path) -> None:
     """Write an (h, w, 3) uint8 image as PNG: encoded in memory, then written atomically (a
     failed write raises OSError, leaving any previous file as it was)."""
@@ -1052,11 +1141,13 @@ def write_png(image: np.ndarray, path: Path) -> None:
     write_atomic(path, encoded.data())
 
 
-def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None) -> int:
+def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None,
+            time_index: int | None = None) -> int:
     """Start the desktop app (``vtkvol open``); returns the exit status.
 
     ``file`` may be a volume, a folder of slices or a session (``*.vtkvol.json``); without
-    one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm.
+    one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm;
+    ``time_index`` (0-based) opens that time point of a time series.
     """
     app = QApplication.instance() or QApplication(sys.argv)
     configure_gl_platform(app)
@@ -1068,7 +1159,8 @@ def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None) -> int:
     window.show()
     voxel = tuple(float(v) for v in voxel_size) if voxel_size else None
     if file:
-        QTimer.singleShot(0, lambda: window.open_path(file, voxel_size=voxel))  # type: ignore[arg-type]
+        QTimer.singleShot(0, lambda: window.open_path(  # type: ignore[arg-type]
+            file, voxel_size=voxel, time_index=time_index))
     elif sample:
         QTimer.singleShot(0, window.open_sample)
     try:

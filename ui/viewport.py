@@ -315,6 +315,14 @@ class Viewport(QWidget):
         self._update_clip_widget()
         self.request_render()
 
+    def show_voxels(self, data: VolumeData) -> None:
+        """Show another time point of the shown data (same shape, channels and voxel size):
+        only the voxels change (:meth:`VolumeScene.set_voxels`)."""
+        if self._closed or self.scene is None:
+            return
+        self.scene.set_voxels(data)
+        self.request_render()
+
     @property
     def bounds(self) -> tuple[float, float, float, float, float, float]:
         """World bounds (µm) of the data, voxel centres."""

@@ -53,6 +53,8 @@ def _parser() -> argparse.ArgumentParser:
     p_open.add_argument("--sample", action="store_true", help="open the built-in sample volume")
     p_open.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"),
                         help="override the voxel size in µm")
+    p_open.add_argument("--time", type=int, default=None, metavar="T",
+                        help="time point to show first (0-based; a session's otherwise)")
 
     p_render = sub.add_parser("render", help="render a volume or session to PNG, headless")
     p_render.add_argument("file", help="volume file/folder, session file, or 'sample'")
@@ -367,13 +369,20 @@ def cmd_info(args: argparse.Namespace) -> int:
 
 
 def cmd_open(args: argparse.Namespace) -> int:
+    if args.time is not None and args.time < 0:
+        print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
+        return 2
+    if args.time and args.file is None:
+        print("vtkvol: --time does not apply to the built-in sample (it has one time point)",
+              file=sys.stderr)
+        return 2
     try:
         from vtkvol.ui.app import run_app
     except ImportError as exc:
         print(f"vtkvol: the desktop app needs the [app] extras ({exc})", file=sys.stderr)
         return 2
     return run_app(args.file, sample=args.sample or args.file is None,
-                   voxel_size=args.voxel_size)
+                   voxel_size=args.voxel_size, time_index=args.time)
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

@@ -169,6 +169,12 @@ class ModelDock(QDockWidget):
         self.data = data
         self.refresh()
 
+    def set_voxels(self, data: VolumeData) -> None:
+        """Other voxels of the same geometry are on screen (another time point): shape,
+        channels and voxel size are unchanged, so nothing structural is rebuilt. Docks that
+        show something of the values (histograms) override this."""
+        self.data = data
+
     def refresh(self) -> None:
         """Show the current model state (override)."""
 

@@ -418,6 +418,11 @@ class TransferFunctionDock(ModelDock):
         self.editor.set_x_formatter(format_value)
         self._update_histogram()
 
+    def set_voxels(self, data: VolumeData) -> None:
+        """Another time point: the curves stay, the histogram shows the new values."""
+        self.data = data
+        self._update_histogram()
+
     def _update_histogram(self) -> None:
         if self.data is None or self._tf is None:
             self._histogram_key = None

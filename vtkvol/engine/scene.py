@@ -159,6 +159,31 @@ class VolumeScene:
             self.reset_camera()
         self.request_render()
 
+    def set_voxels(self, data: VolumeData) -> None:
+        """Show other voxels of the same geometry (another time point of the series): only
+        the image changes. Transfer functions, channels, camera, crop, slice weights, clipping
+        plane, lights and method stay as they are; the illumination recomputes at the next
+        frame (its signature includes the input image).
+
+        Raises ``ValueError`` when ``data`` differs from the shown data in shape, channel
+        count or voxel size (x, y, z µm), and ``RuntimeError`` before any :meth:`set_data`.
+        """
+        if self.data is None:
+            raise RuntimeError("set_voxels needs data shown first (set_data)")
+        old = self.data
+        if (data.array.shape != old.array.shape
+                or tuple(data.voxel_size_um) != tuple(old.voxel_size_um)):
+            z, y, x = old.shape_zyx
+            nz, ny, nx = data.shape_zyx
+            raise ValueError(
+                f"the new voxels ({data.n_channels} channel(s) of {nx}×{ny}×{nz}) do not match "
+                f"the shown volume ({old.n_channels} channel(s) of {x}×{y}×{z}, the same voxel "
+                "size); use set_data for other data")
+        self.data = data
+        self._image, self._keepalive = _to_image(data)
+        self.mapper.SetInputData(self._image)
+        self.request_render()
+
     @property
     def bounds(self) -> tuple[float, float, float, float, float, float]:
         """(xmin, xmax, ymin, ymax, zmin, zmax) of the data in world µm (voxel centres)."""

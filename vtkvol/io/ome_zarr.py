@@ -33,6 +33,7 @@ from vtkvol.io.limits import check_declared_bytes, physical_memory_bytes
 from vtkvol.io.optional import require
 from vtkvol.io.progress import Progress
 from vtkvol.io.registry import ReaderSpec
+from vtkvol.io.time_series import time_unit_seconds
 from vtkvol.io.units import unit_scale_um
 from vtkvol.io.volume_data import (
     VolumeData,
@@ -330,6 +331,7 @@ def read_ome_zarr(
     spacing, from_metadata = spacing_or_default(
         spacing_values, f"OME-Zarr scale {spacing_values} is not positive: using 1 × 1 × 1 µm",
         notes)
+    interval = _time_interval_s(axes, pos, level_scale, n_time, notes)
     level_text = (f"pyramid level {index} of {len(arrays)} ({datasets[index]['path']!r}, "
                   f"{x_n}×{y_n}×{z_n} x×y×z) read: {reason}")
     notes.insert(0, level_text)
@@ -349,9 +351,27 @@ def read_ome_zarr(
             "level_budget_bytes": budget,
             "channel_colors": [colors[c] for c in chosen],
             "voxel_size_source": "OME-Zarr scale" if from_metadata else "default 1 µm",
+            **({"time_interval_s": interval} if interval is not None else {}),
         },
         notes=notes,
     )
+
+
+def _time_interval_s(axes: list[tuple[str, str | None]], pos: dict[str, int],
+                     scale: list[float], n_time: int, notes: list[str]) -> float | None:
+    """Seconds between time points: the ``t`` axis's scale in its unit; None without a ``t``
+    axis, a unit, or a positive scale (NGFF's scale on ``t`` is meaningless without one)."""
+    if "t" not in pos or n_time < 2:
+        return None
+    unit = axes[pos["t"]][1]
+    if unit is None:
+        return None
+    factor = time_unit_seconds(unit)
+    if factor is None:
+        notes.append(f"unknown unit {unit!r} on axis t: the time interval is ignored")
+        return None
+    value = scale[pos["t"]] * factor
+    return value if math.isfinite(value) and value > 0 else None
 
 
 OME_ZARR_READER = ReaderSpec(

@@ -33,6 +33,7 @@ from vtkvol.io.errors import ReadCancelled, VolumeReadError
 from vtkvol.io.limits import check_declared_bytes
 from vtkvol.io.progress import Progress, slabs
 from vtkvol.io.registry import ReaderSpec
+from vtkvol.io.time_series import time_unit_seconds
 from vtkvol.io.units import length_to_um, unit_scale_um
 from vtkvol.io.volume_data import (
     Spacing,
@@ -806,6 +807,9 @@ def _read_tiff_file(
         for key in ("min", "max", "finterval", "unit"):
             if key in ij:
                 metadata[f"imagej_{key}"] = ij[key]
+        interval = _frame_interval_s(ij, plan.n_time, notes)
+        if interval is not None:
+            metadata["time_interval_s"] = interval
     return VolumeData(
         array,
         spacing,
@@ -815,6 +819,24 @@ def _read_tiff_file(
         metadata=metadata,
         notes=notes,
     )
+
+
+def _frame_interval_s(ij: dict[str, Any], n_time: int, notes: list[str]) -> float | None:
+    """Seconds between time points from ImageJ's ``finterval`` (in ``tunit``, seconds when
+    absent); None for single time points or a value that is not a positive number."""
+    if n_time < 2 or "finterval" not in ij:
+        return None
+    try:
+        value = float(ij["finterval"])
+    except (TypeError, ValueError):
+        value = math.nan
+    scale = time_unit_seconds(ij.get("tunit"))
+    if scale is None:
+        notes.append(f"unknown time unit {ij.get('tunit')!r}: the frame interval is ignored")
+        return None
+    if not (math.isfinite(value) and value > 0):
+        return None
+    return value * scale
 
 
 def _compression_name(page: Any) -> str:

@@ -345,6 +345,8 @@ class VolumeData:
             lines.append(
                 f"time point: index {md.get('time_index', 0)} of {md['time_points']} "
                 f"(0–{md['time_points'] - 1})"
+                + (f", {md['time_interval_s']:.4g} s apart"
+                   if isinstance(md.get("time_interval_s"), (int, float)) else "")
             )
         dtype_line = f"dtype: {self.array.dtype}"
         bits = md.get("bit_depth")
