@@ -248,3 +248,17 @@ def test_missing_folder_and_huge_files(tmp_path):
         f.truncate(17 * 2**20)
     with pytest.raises(KeyframeError, match="too large for a keyframe file"):
         read_keyframes(big)
+
+
+def test_the_documented_keyframe_file_is_valid(tmp_path):
+    import re
+    from pathlib import Path
+
+    page = (Path(__file__).resolve().parents[1] / "docs" / "app.md").read_text(encoding="utf-8")
+    section = page.split("### Keyframe files", 1)[1]
+    example = re.search(r"```json\n(.*?)```", section, re.S).group(1)
+    path = tmp_path / "doc.keyframes.json"
+    path.write_text(example)
+    anim = read_keyframes(path)
+    assert anim.duration == 4.0 and anim.time_indices() == [0, 19]
+    assert anim.state_at(2.0).time_index == 10 and len(anim.state_at(2.0).lights) == 1
