@@ -345,3 +345,16 @@ def test_cli_keyframe_option_conflicts_and_bad_files_before_reading(tmp_path, ca
                  "-o", str(tmp_path / "m.mp4")]) == 2
     assert "none.json: no such file" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == [keys]
+
+
+def test_cli_names_the_movie_extra_when_the_encoder_is_missing(tmp_path, capsys, monkeypatch):
+    import vtkvol.movie
+
+    monkeypatch.setattr(vtkvol.movie, "has_video_encoder", lambda: False)
+    assert main(["render", "no-such-file.tif", "--turntable", "90", "-o",
+                 str(tmp_path / "a.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'vtkvol[movie]'" in err and err.count("\n") == 1
+    with pytest.raises(ValueError, match=r"vtkvol\[movie\]"):
+        write_movie(iter(_frames(2, 4, 4)), tmp_path / "b.mp4", n_frames=2)
+    assert list(tmp_path.iterdir()) == []

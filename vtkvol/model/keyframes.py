@@ -12,7 +12,8 @@ Pure numbers (numpy), no VTK, no Qt. A :class:`Keyframe` holds what a movie anim
 * the camera turns **about its focal point**: the camera's orientation (view direction and
   view-up together, as a rotation) is interpolated by quaternion slerp, the distance to the
   focal point and the parallel scale geometrically (a zoom by 4× goes 1×, 2×, 4×, not 1×, 2.5×,
-  4×), the focal point and the view angle linearly. A 90° orbit is at 45° half way;
+  4×), the focal point and the view angle linearly; parallel projection is held from the
+  earlier keyframe. A 90° orbit is at 45° half way;
 * light **directions** by slerp on the unit sphere (they stay unit vectors), positions,
   colours, intensities and sizes linearly; a light's kind, on/off and falloff are held from the
   earlier keyframe;
