@@ -88,6 +88,15 @@ def test_move_remove_duration_and_keyframe_files(dialog, tmp_path, dialogs):
     saved = dlg.save_keyframes(tmp_path / "anim")
     assert saved.name == "anim.keyframes.json"
     assert read_keyframes(saved).keyframes == tuple(dlg.keyframes)
+    # double-click shows a keyframe's camera; Replace takes the view as it is now
+    dlg.show_keyframe(1)
+    assert tuple(dlg.window_.model.camera.position) == pytest.approx(first.camera.position)
+    dlg.window_.viewport.scene.orbit(0.0, 30.0)
+    dlg.table.selectRow(1)
+    dlg.replace_keyframe()
+    assert dlg.keyframes[1].time == 4.0
+    assert dlg.keyframes[1].camera.position != pytest.approx(first.camera.position)
+    assert read_keyframes(saved).keyframes[1].camera == first.camera  # the file keeps its own
     dlg.table.selectRow(0)
     dlg.remove_keyframe()
     assert len(dlg.keyframes) == 1

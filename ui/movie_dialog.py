@@ -178,6 +178,8 @@ class MovieDialog(QDialog):
         self.table.setSelectionMode(QAbstractItemView.SelectionMode.SingleSelection)
         self.table.setEditTriggers(QAbstractItemView.EditTrigger.NoEditTriggers)
         self.table.itemSelectionChanged.connect(self._update_buttons)
+        self.table.setToolTip("Double-click a keyframe to look at the data from its camera")
+        self.table.cellDoubleClicked.connect(lambda row, _column: self.show_keyframe(row))
         self.table.setMinimumHeight(160)
         self.table.verticalHeader().setDefaultSectionSize(
             self.table.verticalHeader().defaultSectionSize())  # one line per keyframe
@@ -188,6 +190,10 @@ class MovieDialog(QDialog):
         self.add_button.setToolTip("The view as it is now (camera, lights, time point), "
                                    f"{KEYFRAME_STEP_S:g} s after the last keyframe")
         self.add_button.clicked.connect(self.add_keyframe)
+        self.replace_button = QPushButton("Replace")
+        self.replace_button.setToolTip("Give the selected keyframe the view as it is now "
+                                       "(its time stays)")
+        self.replace_button.clicked.connect(self.replace_keyframe)
         self.remove_button = QPushButton("Remove")
         self.remove_button.clicked.connect(self.remove_keyframe)
         self.up_button = QPushButton("Move up")
@@ -196,7 +202,8 @@ class MovieDialog(QDialog):
         self.down_button = QPushButton("Move down")
         self.down_button.setToolTip("Swap this view with the one after it (the times stay)")
         self.down_button.clicked.connect(lambda: self.move_keyframe(1))
-        for button in (self.add_button, self.remove_button, self.up_button, self.down_button):
+        for button in (self.add_button, self.replace_button, self.remove_button, self.up_button,
+                       self.down_button):
             row.addWidget(button)
         layout.addLayout(row)
         form = QFormLayout()
@@ -255,6 +262,26 @@ class MovieDialog(QDialog):
         self.keyframes.append(key)
         self._refresh_table(select=len(self.keyframes) - 1)
         return key
+
+    def replace_keyframe(self) -> None:
+        """Give the selected keyframe the view as it is now; its time stays."""
+        row = self._selected()
+        if row is None or self.window_.data is None:
+            return
+        old = self.keyframes[row]
+        try:
+            self.keyframes[row] = Keyframe.from_model(self.window_.model, old.time,
+                                                      time_index=old.time_index is not None)
+        except KeyframeError as exc:
+            errors.show_error(self, exc, action="Could not replace the keyframe")
+            return
+        self._refresh_table(select=row)
+
+    def show_keyframe(self, row: int) -> None:
+        """Put the view's camera where keyframe ``row``'s was (a camera move: no undo step;
+        lights and time point stay as they are)."""
+        if 0 <= row < len(self.keyframes) and self.window_.data is not None:
+            self.window_.model.camera.update(self.keyframes[row].camera.model_fields())
 
     def remove_keyframe(self) -> None:
         row = self._selected()
@@ -343,6 +370,7 @@ class MovieDialog(QDialog):
     def _update_buttons(self) -> None:
         row = self._selected()
         self.remove_button.setEnabled(row is not None)
+        self.replace_button.setEnabled(row is not None)
         self.up_button.setEnabled(row is not None and row > 0)
         self.down_button.setEnabled(row is not None and row + 1 < len(self.keyframes))
         self.save_button.setEnabled(bool(self.keyframes))
