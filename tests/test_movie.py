@@ -169,3 +169,192 @@ def test_cancel_leaves_nothing(tmp_path, name):
     assert done == [(1, 4), (2, 4)]
     left = [p for p in tmp_path.rglob("*") if p.is_file()]
     assert left == []
+
+
+# -- keyframe movies --------------------------------------------------------------------------
+def _keyframe_doc(cameras, times, time_indices=None, **settings) -> dict:
+    keys = []
+    for i, (cam, t) in enumerate(zip(cameras, times, strict=True)):
+        key = {"time": t, "camera": cam}
+        if time_indices is not None:
+            key["time_index"] = time_indices[i]
+        keys.append(key)
+    return {"format": "vtkvol-keyframes", "version": 1, **settings, "keyframes": keys}
+
+
+def _orbit_camera(data, azimuth_deg: float, distance: float = 60.0) -> dict:
+    """A camera ``azimuth_deg`` round the data's centre (z up), as keyframe JSON."""
+    import math
+
+    nz, ny, nx = data.shape_zyx
+    sx, sy, sz = data.voxel_size_um
+    centre = [(nx - 1) * sx / 2, (ny - 1) * sy / 2, (nz - 1) * sz / 2]
+    a = math.radians(azimuth_deg)
+    position = [centre[0] + distance * math.sin(a), centre[1] - distance * math.cos(a),
+                centre[2] + 0.3 * distance]
+    return {"position": position, "focal_point": centre, "view_up": [0, 0, 1]}
+
+
+@pytest.fixture(scope="module")
+def small_stack(tmp_path_factory):
+    """A 16 × 32 × 32 single-time-point TIFF and its data."""
+    from vtkvol.io import confocal_phantom, read_volume
+
+    path = tmp_path_factory.mktemp("stack") / "cells.tif"
+    sample = confocal_phantom((16, 32, 32), voxel_size_um=(0.5, 0.5, 1.0)).array[0]
+    tifffile.imwrite(path, sample, imagej=True, resolution=(2.0, 2.0),
+                     metadata={"axes": "ZYX", "spacing": 1.0, "unit": "micron"})
+    return path, read_volume(path)
+
+
+@pytest.fixture(scope="module")
+def time_series(tmp_path_factory):
+    """A 4-time-point 16 × 32 × 32 ImageJ TIFF whose content moves along x."""
+    from vtkvol.io import confocal_phantom
+
+    base = confocal_phantom((16, 32, 32), voxel_size_um=(0.5, 0.5, 1.0)).array[0]
+    stack = np.stack([np.roll(base, 4 * t, axis=2) for t in range(4)])
+    path = tmp_path_factory.mktemp("series") / "series.tif"
+    tifffile.imwrite(path, stack, imagej=True, resolution=(2.0, 2.0),
+                     metadata={"axes": "TZYX", "spacing": 1.0, "unit": "micron"})
+    return path
+
+
+def _reference(data, camera: dict, size=(32, 32), time_index=None, model_data=None):
+    """render_image with the keyframe's camera on the scene the CLI makes for a file."""
+    from vtkvol.engine.api import render_image
+    from vtkvol.model.defaults import scene_for
+
+    model = scene_for(model_data if model_data is not None else data)
+    model.camera.update({k: tuple(v) for k, v in camera.items()})
+    return render_image(data, model=model, size=size)
+
+
+@pytest.mark.gl
+def test_cli_keyframe_mp4_reads_back_with_frames_duration_and_the_orbit(tmp_path, capsys,
+                                                                         small_stack):
+    import json
+
+    path, data = small_stack
+    cams = [_orbit_camera(data, 0.0), _orbit_camera(data, 90.0)]
+    keys = tmp_path / "orbit.keyframes.json"
+    keys.write_text(json.dumps(_keyframe_doc(cams, [0.0, 1.0], easing="linear")))
+    out = tmp_path / "orbit.mp4"
+    assert main(["render", str(path), "--keyframes", str(keys), "--fps", "6",
+                 "--size", "63", "48", "-o", str(out)]) == 0
+    captured = capsys.readouterr()
+    assert "even sizes: rendering 64×48" in captured.err and "frame 7/7" in captured.err
+    meta, frames = _read_mp4(out)
+    assert len(frames) == 7 and meta["size"] == (64, 48)  # 1 s at 6 fps, both ends
+    n, seconds = imageio_ffmpeg.count_frames_and_secs(str(out))
+    assert n == 7 and seconds == pytest.approx(7 / 6, abs=0.05)
+    # The ends are the keyframes' views (H.264 at crf 18: within a few grey levels) ...
+    for frame, cam in ((frames[0], cams[0]), (frames[-1], cams[1])):
+        expected = _reference(data, cam, size=(64, 48)).astype(float)
+        assert np.abs(frame - expected).mean() < 3.0
+    # ... and every frame moves on from the one before: the view turns throughout.
+    steps = [np.abs(frames[i + 1].astype(float) - frames[i]).mean() for i in range(6)]
+    assert min(steps) > 1.0
+    assert np.abs(frames[-1].astype(float) - frames[0]).mean() > max(steps)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["orbit.keyframes.json", "orbit.mp4"]
+
+
+@pytest.mark.gl
+def test_cli_keyframes_play_time_points_into_a_png_sequence(tmp_path, capsys, time_series):
+    import json
+
+    import vtk
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    from vtkvol.io import read_volume
+
+    first = read_volume(time_series, time_index=0)
+    cam = _orbit_camera(first, 20.0)
+    keys = tmp_path / "t.keyframes.json"
+    keys.write_text(json.dumps(_keyframe_doc([cam, cam], [0.0, 3.0], time_indices=[0, 3])))
+    out = tmp_path / "frames" / "t.png"
+    assert main(["render", str(time_series), "--keyframes", str(keys), "--fps", "1",
+                 "--size", "32", "32", "-o", str(out)]) == 0
+    files = sorted((tmp_path / "frames").iterdir())
+    assert [p.name for p in files] == [f"t_000{i}.png" for i in range(4)]
+    for t, file in enumerate(files):
+        reader = vtk.vtkPNGReader()
+        reader.SetFileName(str(file))
+        reader.Update()
+        png = vtk_to_numpy(reader.GetOutput().GetPointData().GetScalars()).reshape(32, 32, 3)
+        # frame t shows time point t, with the scene (contrast) of the first time point
+        expected = _reference(read_volume(time_series, time_index=t), cam, model_data=first)
+        np.testing.assert_array_equal(png[::-1], expected)
+    assert "wrote" in capsys.readouterr().out
+
+    # asking for a time point the file lacks is refused before rendering
+    keys.write_text(json.dumps(_keyframe_doc([cam, cam], [0.0, 1.0], time_indices=[0, 9])))
+    assert main(["render", str(time_series), "--keyframes", str(keys),
+                 "-o", str(tmp_path / "x.mp4")]) == 2
+    assert "time point 9, but series.tif has 4 (0–3)" in capsys.readouterr().err
+    assert main(["render", "sample", "--keyframes", str(keys), "-o", str(tmp_path / "x.mp4")]) == 2
+    assert "has only one time point" in capsys.readouterr().err
+
+
+@pytest.mark.gl
+def test_time_points_are_read_once_each_through_the_cache(time_series):
+    from vtkvol.io import read_volume
+    from vtkvol.model.keyframes import Animation, CameraState, Keyframe
+    from vtkvol.movie import TimePointCache, keyframe_frames
+
+    first = read_volume(time_series, time_index=0)
+    cam = CameraState(**_orbit_camera(first, 0.0))
+    anim = Animation((Keyframe(0, cam, 0), Keyframe(3, cam, 3), Keyframe(6, cam, 0)),
+                     easing="linear")
+    cache = TimePointCache.for_file(time_series, size=4)
+    cache.put(0, first)
+    frames = list(keyframe_frames(first, anim, fps=1, size=(16, 16), time_points=cache))
+    assert len(frames) == 7 and cache.reads == 3  # 1, 2, 3 read once; back down from the cache
+    for a, b in ((0, 6), (1, 5), (2, 4)):  # there and back: the same time points, same images
+        np.testing.assert_array_equal(frames[a], frames[b])
+    assert np.abs(frames[3].astype(float) - frames[0]).mean() > 1.0
+    with pytest.raises(ValueError, match="not a file they can be read from"):
+        next(keyframe_frames(first, anim, fps=1, size=(16, 16)))
+
+
+def test_cli_keyframe_option_conflicts_and_bad_files_before_reading(tmp_path, capsys):
+    import json
+
+    keys = tmp_path / "k.keyframes.json"
+    cam = {"position": [0, -10, 0], "focal_point": [0, 0, 0], "view_up": [0, 0, 1]}
+    keys.write_text(json.dumps(_keyframe_doc([cam, cam], [0.0, 1.0], time_indices=[0, 1])))
+    base = ["render", "no-such-file.tif", "--keyframes", str(keys), "-o", str(tmp_path / "m.mp4")]
+    for extra, message in (
+        (["--turntable", "360"], "--turntable and --keyframes are two kinds of movie"),
+        (["--frames", "10"], "--frames does not apply to --keyframes"),
+        (["--azimuth", "10"], "--azimuth does not apply to --keyframes: the keyframes place"),
+        (["--time", "2"], "--time does not apply: the keyframes choose the time points"),
+        (["--fps", "0"], "fps must be > 0"),
+        (["--fps", "2000"], "--fps must be between 0 and 1000"),
+    ):
+        assert main(base + extra) == 2, extra
+        err = capsys.readouterr().err
+        assert message in err and err.count("\n") == 1, (extra, err)
+    assert main(["render", "no-such-file.tif", "--frames", "3", "-o", str(tmp_path / "a.png")]) == 2
+    assert "--frames applies to --turntable movies only" in capsys.readouterr().err
+    keys.write_text('{"format": "vtkvol-keyframes", "version": 1, "keyframes": [{"time": NaN}]}')
+    assert main(base) == 2
+    assert capsys.readouterr().err == ("vtkvol: k.keyframes.json: is not valid JSON: NaN is not "
+                                       "a number JSON allows\n")
+    assert main(["render", "no-such-file.tif", "--keyframes", str(tmp_path / "none.json"),
+                 "-o", str(tmp_path / "m.mp4")]) == 2
+    assert "none.json: no such file" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == [keys]
+
+
+def test_cli_names_the_movie_extra_when_the_encoder_is_missing(tmp_path, capsys, monkeypatch):
+    import vtkvol.movie
+
+    monkeypatch.setattr(vtkvol.movie, "has_video_encoder", lambda: False)
+    assert main(["render", "no-such-file.tif", "--turntable", "90", "-o",
+                 str(tmp_path / "a.mp4")]) == 2
+    err = capsys.readouterr().err
+    assert "pip install 'vtkvol[movie]'" in err and err.count("\n") == 1
+    with pytest.raises(ValueError, match=r"vtkvol\[movie\]"):
+        write_movie(iter(_frames(2, 4, 4)), tmp_path / "b.mp4", n_frames=2)
+    assert list(tmp_path.iterdir()) == []

@@ -77,6 +77,7 @@ from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
+from vtkvol.ui.movie_dialog import MovieDialog
 from vtkvol.ui.time_series import MIB, TimeBar, TimeSeriesPlayer
 from vtkvol.ui.undo import UndoRecorder, apply_state
 from vtkvol.ui.view_actions import ViewActions
@@ -342,6 +343,11 @@ class MainWindow(QMainWindow):
         self.save_session_as_action = self._action(
             "Save session &as…", lambda: self.save_session_interactive(choose=True),
             QKeySequence.StandardKey.SaveAs, "Save the view to a new session file")
+        self.movie_action = self._action(
+            "Export &movie…", self.show_movie_dialog, None,
+            "A turntable or keyframe animation (camera, lights, time point) to MP4, PNG frames "
+            "or a TIFF stack")
+        self.movie_dialog: MovieDialog | None = None
         self.quit_action = self._action("&Quit", self.request_quit, QKeySequence.StandardKey.Quit)
         self.undo_action = self.recorder.stack.createUndoAction(self, "&Undo")
         self.undo_action.setShortcuts([QKeySequence.StandardKey.Undo])
@@ -391,6 +397,7 @@ class MainWindow(QMainWindow):
         # two actions triggers neither.
         self.screenshot_actions[1].setShortcut(QKeySequence(SCREENSHOT_SHORTCUT))
         self.screenshot_menu.aboutToShow.connect(self._label_screenshot_actions)
+        file_menu.addAction(self.movie_action)
         file_menu.addSeparator()
         file_menu.addAction(self.quit_action)
         file_menu.aboutToShow.connect(self._refresh_recent)
@@ -580,6 +587,7 @@ class MainWindow(QMainWindow):
         for action in (self.save_session_action, self.save_session_as_action):
             action.setEnabled(has_data)
         self.screenshot_menu.setEnabled(has_data)
+        self.movie_action.setEnabled(has_data)
         self.voxel_size_action.setEnabled(has_data)
 
     def _on_reduce_toggled(self, on: bool) -> None:
@@ -914,6 +922,19 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(
             f"Saved {target.name} ({image.shape[1]} × {image.shape[0]} px)", 6000)
         return target
+
+    # -- movies ---------------------------------------------------------------------------------
+    def show_movie_dialog(self) -> MovieDialog | None:
+        """File → Export movie…: the (not modal) movie dialog; its keyframes stay while the
+        window lives."""
+        if self.data is None:
+            return None
+        if self.movie_dialog is None:
+            self.movie_dialog = MovieDialog(self)
+        self.movie_dialog.show()
+        self.movie_dialog.raise_()
+        self.movie_dialog.activateWindow()
+        return self.movie_dialog
 
     # -- recent files ---------------------------------------------------------------------------
     def recent_files(self) -> list[str]:

@@ -59,16 +59,22 @@ def _parser() -> argparse.ArgumentParser:
     p_render = sub.add_parser("render", help="render a volume or session to PNG, headless")
     p_render.add_argument("file", help="volume file/folder, session file, or 'sample'")
     p_render.add_argument("-o", "--output", required=True,
-                          help="PNG file to write; with --turntable: .mp4, a .png sequence "
-                               "(spin.png → spin_0000.png…), a .tif stack or a folder of PNGs")
+                          help="PNG file to write; with --turntable or --keyframes: .mp4, a "
+                               ".png sequence (spin.png → spin_0000.png…), a .tif stack or a "
+                               "folder of PNGs")
     _add_view_options(p_render)
     p_render.add_argument("--time", type=int, default=0, help="time point to render")
     p_render.add_argument("--overwrite", action="store_true",
                           help="replace the output file if it exists")
     p_render.add_argument("--turntable", type=float, default=None, metavar="DEG",
                           help="render a movie turning the view by DEG degrees (360: a loop)")
-    p_render.add_argument("--frames", type=int, default=120, metavar="N",
-                          help="frames of the turntable movie (default 120)")
+    p_render.add_argument("--keyframes", metavar="FILE",
+                          help="render the keyframe animation of a *.keyframes.json file "
+                               "(camera, time point, lights; saved by the app's File → Export "
+                               "movie…)")
+    p_render.add_argument("--frames", type=int, default=None, metavar="N",
+                          help="frames of the turntable movie (default 120; a keyframe movie "
+                               "has duration × fps + 1)")
     p_render.add_argument("--fps", type=float, default=30.0,
                           help="frames per second of the movie (default 30)")
     p_render.add_argument("--iterations", type=int, default=None, metavar="N",
@@ -199,7 +205,30 @@ def cmd_render(args: argparse.Namespace) -> int:
         print(f"vtkvol: {problem}", file=sys.stderr)
         return 2
     out = Path(args.output)
-    if args.turntable is not None:
+    animation = None
+    if args.keyframes is not None:
+        from vtkvol.model.keyframes import KeyframeError, read_keyframes
+
+        problem = _keyframe_option_problem(args, out)
+        if problem:
+            print(f"vtkvol: {problem}", file=sys.stderr)
+            return 2
+        try:
+            animation = read_keyframes(args.keyframes)
+            args.frames = animation.frame_count(args.fps)
+        except KeyframeError as exc:
+            print(f"vtkvol: {exc}", file=sys.stderr)
+            return 2
+        if animation.animates_time and args.time:
+            print("vtkvol: --time does not apply: the keyframes choose the time points",
+                  file=sys.stderr)
+            return 2
+    if args.frames is not None and args.turntable is None and animation is None:
+        print("vtkvol: --frames applies to --turntable movies only", file=sys.stderr)
+        return 2
+    if args.turntable is not None or animation is not None:
+        if args.turntable is not None and args.frames is None:
+            args.frames = 120
         problem = _movie_problem(args, out)
         if problem:
             print(f"vtkvol: {problem}", file=sys.stderr)
@@ -235,6 +264,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         return 2
     if args.turntable is not None:
         return _render_turntable(args, out, data, model, params)
+    if animation is not None:
+        return _render_keyframes(args, out, data, model, params, animation)
     if args.iterations is not None and args.iterations < 1:
         print(f"vtkvol: --iterations must be at least 1, got {args.iterations}", file=sys.stderr)
         return 2
@@ -292,16 +323,18 @@ def _show_labels(model, data) -> str | None:
 
 def _movie_problem(args: argparse.Namespace, out: Path) -> str | None:
     """What is wrong with the movie options, before anything is read or rendered."""
-    from vtkvol.movie import existing_outputs, movie_kind
+    from vtkvol.movie import encoder_problem, existing_outputs
 
     if args.frames < 1:
         return f"--frames must be at least 1, got {args.frames}"
     if not (args.fps > 0 and args.fps < 1000):
         return f"--fps must be between 0 and 1000, got {args.fps}"
     try:
-        movie_kind(out)
+        problem = encoder_problem(out)  # checks the suffix too
     except ValueError as exc:
         return str(exc)
+    if problem:
+        return problem
     existing = existing_outputs(out, args.frames)
     if existing and not args.overwrite:
         more = f" (and {len(existing) - 1} more frame files)" if len(existing) > 1 else ""
@@ -309,20 +342,78 @@ def _movie_problem(args: argparse.Namespace, out: Path) -> str | None:
     return None
 
 
-def _render_turntable(args: argparse.Namespace, out: Path, data, model, params) -> int:
-    """``--turntable``: render the frames and write them; progress on stderr."""
-    from vtkvol.movie import even_size, movie_kind, turntable_frames, write_movie
+def _keyframe_option_problem(args: argparse.Namespace, out: Path) -> str | None:
+    """Options that make no sense with ``--keyframes`` (the keyframes fix the view)."""
+    if args.turntable is not None:
+        return ("--turntable and --keyframes are two kinds of movie; choose one (a turn can "
+                "be made of keyframes too)")
+    for name, flag in (("frames", "--frames"), ("azimuth", "--azimuth"),
+                       ("elevation", "--elevation")):
+        if getattr(args, name) is not None:
+            why = ("the frame count follows from the last keyframe's time and --fps"
+                   if name == "frames" else "the keyframes place the camera")
+            return f"{flag} does not apply to --keyframes: {why}"
+    if Path(args.keyframes).resolve() == out.resolve():
+        return f"{out} is the keyframe file; choose another name for the movie"
+    return None
+
+
+def _movie_size(args: argparse.Namespace, out: Path) -> tuple[int, int]:
+    """``--size``, rounded up to even numbers for H.264 (said on stderr)."""
+    from vtkvol.movie import even_size, movie_kind
 
     size = tuple(args.size)
     if movie_kind(out) == "video" and even_size(size) != size:
         size = even_size(size)
         print(f"vtkvol: H.264 needs even sizes: rendering {size[0]}×{size[1]}", file=sys.stderr)
+    return size  # type: ignore[return-value]
+
+
+def _render_turntable(args: argparse.Namespace, out: Path, data, model, params) -> int:
+    """``--turntable``: render the frames and write them; progress on stderr."""
+    from vtkvol.movie import turntable_frames
+
+    size = _movie_size(args, out)
     frames = turntable_frames(
         data, frames=args.frames, degrees=args.turntable, model=model, size=size,
         method=args.method, preset=args.preset, azimuth=args.azimuth, elevation=args.elevation,
         parameters=params or None,
         on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
     )
+    return _write_movie(args, out, frames, size)
+
+
+def _render_keyframes(args: argparse.Namespace, out: Path, data, model, params,
+                      animation) -> int:
+    """``--keyframes``: check the time points, render the frames and write them. Time points
+    other than the one read are read per frame (a few kept in memory)."""
+    from vtkvol.movie import TimePointCache, keyframe_frames, keyframe_problem
+
+    source = data.source if args.file != "sample" else None
+    current = int(model.volume.time_index) if model is not None else args.time
+    problem = keyframe_problem(animation, data, current, can_read_time_points=bool(source))
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
+        return 2
+    time_points = None
+    if source:
+        voxel = model.volume.voxel_size_um if model is not None else args.voxel_size
+        fit = model.volume.fit if model is not None else "auto"
+        time_points = TimePointCache.for_file(source, voxel_size_um=voxel, fit=fit)
+        time_points.put(current, data)
+    size = _movie_size(args, out)
+    frames = keyframe_frames(
+        data, animation, fps=args.fps, model=model, size=size, method=args.method,
+        preset=args.preset, parameters=params or None, time_points=time_points,
+        on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
+    )
+    return _write_movie(args, out, frames, size)
+
+
+def _write_movie(args: argparse.Namespace, out: Path, frames, size: tuple[int, int]) -> int:
+    """Write the movie's frames (turntable or keyframes) to ``out``; progress on stderr."""
+    from vtkvol.movie import write_movie
+
     end = "\r" if sys.stderr.isatty() else "\n"
 
     def progress(done: int, total: int) -> None:

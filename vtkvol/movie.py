@@ -1,9 +1,12 @@
-"""Turntable movies rendered offscreen: MP4 (H.264), PNG sequences, multi-page TIFF for Fiji.
+"""Turntable and keyframe movies rendered offscreen: MP4 (H.264), PNG sequences, multi-page
+TIFF for Fiji.
 
-Library code, no Qt. :func:`turntable_frames` renders the frames through the same path as
+Library code, no Qt. :func:`turntable_frames` (a turn about the vertical axis) and
+:func:`keyframe_frames` (camera, time point and lights interpolated between keyframes,
+:mod:`vtkvol.model.keyframes`) render the frames through one loop on the same path as
 :func:`vtkvol.engine.api.render_image` (one scene, built once; a progressive technique refines
-each frame until it converges or ``max_seconds`` pass); :func:`write_movie` encodes them by the
-output's suffix:
+each frame until it converges or ``max_seconds`` pass); :func:`write_movie` encodes either by
+the output's suffix:
 
 * ``.mp4``, ``.mov``, ``.m4v``: H.264 in yuv420p (what QuickTime, PowerPoint and browsers play)
   through ``imageio-ffmpeg``, which ships its own ffmpeg (optional extra ``movie``). H.264 in
@@ -21,6 +24,11 @@ The turntable turns the camera around the vertical axis through the focal point:
 axis for the default view (z up, the elevation stays constant: a real turntable), the view-up of
 a session's camera otherwise. ``degrees / frames`` separate two frames, so a 360° turn loops
 without a repeated frame.
+
+A keyframe animation of ``T`` seconds at ``fps`` has ``round(T · fps) + 1`` frames, frame ``i``
+at ``i / fps`` s (both the first and the last keyframe are shown). Time points other than the
+one given are read per frame through ``time_points(index)``, e.g. a :class:`TimePointCache`
+over :func:`vtkvol.io.read_volume` that keeps the last few.
 """
 
 from __future__ import annotations
@@ -30,6 +38,7 @@ import os
 import re
 import shutil
 import tempfile
+from collections import OrderedDict
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -37,15 +46,23 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
+    from vtkvol.engine.scene import VolumeScene
     from vtkvol.io import VolumeData
+    from vtkvol.model.keyframes import Animation
     from vtkvol.model.scene import SceneModel
 
 __all__ = [
     "MOVIE_SUFFIXES",
     "MovieCancelled",
+    "TimePointCache",
+    "encoder_problem",
     "even_size",
     "existing_outputs",
+    "has_video_encoder",
+    "keyframe_frames",
+    "keyframe_problem",
     "movie_kind",
+    "time_point_count",
     "turntable_frames",
     "write_movie",
 ]
@@ -81,6 +98,22 @@ def movie_kind(path: str | os.PathLike[str]) -> str:
         return "folder"
     raise ValueError(f"{Path(path).name}: unknown movie format {suffix!r}; use "
                      f"{', '.join(MOVIE_SUFFIXES)}, .png (a sequence), .tif (a stack) or a folder")
+
+
+def has_video_encoder() -> bool:
+    """Whether ``imageio-ffmpeg`` (the optional extra ``movie``) is installed."""
+    import importlib.util
+
+    return importlib.util.find_spec("imageio_ffmpeg") is not None
+
+
+def encoder_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why a movie cannot be written to ``path`` with what is installed (one line), or None.
+    PNG and TIFF need nothing extra; MP4 needs ``imageio-ffmpeg``."""
+    if movie_kind(path) == "video" and not has_video_encoder():
+        return (f"{Path(path).name}: writing MP4 needs the optional package 'imageio-ffmpeg': "
+                "pip install 'vtkvol[movie]' (PNG sequences and TIFF stacks need nothing more)")
+    return None
 
 
 def _frame_names(path: Path, n: int) -> tuple[Path, list[str]]:
@@ -126,30 +159,174 @@ def turntable_frames(
     """
     import vtk
 
-    from vtkvol.engine.api import offscreen_view, settled_frame
-
     if frames < 1:
         raise ValueError(f"frames must be at least 1, got {frames}")
-    with offscreen_view(data, model=model, size=size, method=method, preset=preset,
-                        azimuth=azimuth, elevation=elevation, parameters=parameters,
-                        on_error=on_error) as (rw, scene, has_camera):
-        renderer = scene.renderer
-        cam = renderer.GetActiveCamera()
-        focal = np.array(cam.GetFocalPoint())
-        position0 = np.array(cam.GetPosition())
-        up0 = np.array(cam.GetViewUp())
-        axis = up0 if has_camera else np.array([0.0, 0.0, 1.0])
-        step = float(degrees) / frames
-        for i in range(frames):
-            if i:
-                turn = vtk.vtkTransform()
-                turn.RotateWXYZ(i * step, *axis)
-                cam.SetPosition(*(focal + np.array(turn.TransformVector(*(position0 - focal)))))
-                cam.SetViewUp(*turn.TransformVector(*up0))
-                renderer.ResetCameraClippingRange()
-                scene.sync_camera_to_model()  # lights that follow the camera follow it here too
+    start: dict[str, Any] = {}
+
+    def turn(scene: VolumeScene, i: int, has_camera: bool) -> None:
+        cam = scene.renderer.GetActiveCamera()
+        if i == 0:
+            start.update(focal=np.array(cam.GetFocalPoint()),
+                         position=np.array(cam.GetPosition()), up=np.array(cam.GetViewUp()))
+            start["axis"] = start["up"] if has_camera else np.array([0.0, 0.0, 1.0])
+            return
+        rotation = vtk.vtkTransform()
+        rotation.RotateWXYZ(i * float(degrees) / frames, *start["axis"])
+        offset = rotation.TransformVector(*(start["position"] - start["focal"]))
+        cam.SetPosition(*(start["focal"] + np.array(offset)))
+        cam.SetViewUp(*rotation.TransformVector(*start["up"]))
+        scene.renderer.ResetCameraClippingRange()
+        scene.sync_camera_to_model()  # lights that follow the camera follow it here too
+
+    yield from _rendered_frames(
+        data, frames, turn, model=model, size=size, method=method, preset=preset,
+        azimuth=azimuth, elevation=elevation, parameters=parameters, max_seconds=max_seconds,
+        on_error=on_error)
+
+
+def keyframe_frames(
+    data: VolumeData,
+    animation: Animation,
+    *,
+    fps: float = 30.0,
+    model: SceneModel | None = None,
+    size: tuple[int, int] = (800, 600),
+    method: str | None = None,
+    preset: str | None = None,
+    parameters: dict[str, Any] | None = None,
+    max_seconds: float | None = 60.0,
+    time_points: Callable[[int], VolumeData] | None = None,
+    on_error: Callable[[str], None] | None = None,
+) -> Iterator[np.ndarray]:
+    """Yield the ``animation.frame_count(fps)`` images ``(h, w, 3)`` uint8 of a keyframe
+    animation (:class:`vtkvol.model.keyframes.Animation`): frame ``i`` shows the state
+    ``i / fps`` seconds in. ``data`` is the time point ``model.volume.time_index`` (0 without a
+    model); where the animation shows other time points, ``time_points(index)`` reads them
+    (e.g. a :class:`TimePointCache`). Other arguments as :func:`turntable_frames`.
+
+    Raises
+    ------
+    ValueError
+        (before anything renders) a time index the data does not have, or time points to show
+        and no ``time_points`` to read them with.
+    """
+    current = {"index": _time_index(data, model)}
+    problem = keyframe_problem(animation, data, current["index"],
+                               can_read_time_points=time_points is not None)
+    if problem:
+        raise ValueError(problem)
+    times = animation.frame_times(fps)
+
+    def show(scene: VolumeScene, i: int, has_camera: bool) -> None:
+        state = animation.state_at(times[i])
+        model_ = scene.model
+        if state.time_index is not None and state.time_index != current["index"]:
+            assert time_points is not None
+            scene.set_data(time_points(state.time_index))
+            current["index"] = state.time_index
+            model_.volume.time_index = state.time_index
+        if state.lights is not None and (
+                [light.model_dump() for light in state.lights]
+                != [light.model_dump() for light in model_.lights]):
+            model_.lights = [light.model_copy(deep=True) for light in state.lights]
+        model_.camera.update(state.camera.model_fields())
+
+    yield from _rendered_frames(
+        data, len(times), show, model=model, size=size, method=method, preset=preset,
+        parameters=parameters, max_seconds=max_seconds, on_error=on_error)
+
+
+def _rendered_frames(
+    data: VolumeData,
+    n: int,
+    prepare: Callable[[VolumeScene, int, bool], None],
+    *,
+    max_seconds: float | None,
+    **view: Any,
+) -> Iterator[np.ndarray]:
+    """The frame loop turntables and keyframe animations share: one offscreen view
+    (:func:`vtkvol.engine.api.offscreen_view` with ``view``), ``prepare(scene, i, has_camera)``
+    sets frame ``i`` up, :func:`~vtkvol.engine.api.settled_frame` renders it as users see it."""
+    from vtkvol.engine.api import offscreen_view, settled_frame
+
+    with offscreen_view(data, **view) as (rw, scene, has_camera):
+        for i in range(n):
+            prepare(scene, i, has_camera)
             # only the first frame can be the failed build's blank one
             yield settled_frame(rw, scene, max_seconds=max_seconds, retry_failed=i == 0)[0]
+
+
+def _time_index(data: VolumeData, model: SceneModel | None) -> int:
+    """The time point ``data`` holds: the model's, else the reader's metadata, else 0."""
+    if model is not None:
+        return int(model.volume.time_index)
+    return int(data.metadata.get("time_index", 0) or 0)
+
+
+def time_point_count(data: VolumeData) -> int:
+    """How many time points the file of ``data`` has (1 when its reader says nothing)."""
+    count = data.metadata.get("time_points", 1)
+    return int(count) if isinstance(count, int) and count >= 1 else 1
+
+
+def keyframe_problem(animation: Animation, data: VolumeData, current_index: int = 0, *,
+                     can_read_time_points: bool = True) -> str | None:
+    """What stops ``animation`` from being shown with ``data`` (one line), or None: a time
+    index past the file's time points, or other time points than ``data``'s and no way to
+    read them (in-memory data, the built-in sample)."""
+    wanted = sorted(set(animation.time_indices()))
+    if not wanted:
+        return None
+    count = time_point_count(data)
+    name = Path(data.source).name if data.source else "the data"
+    if wanted[-1] >= count:
+        return (f"the keyframes show time point {wanted[-1]}, but {name} has "
+                f"{'only one time point (0)' if count == 1 else f'{count} (0–{count - 1})'}")
+    if not can_read_time_points and wanted != [current_index]:
+        return (f"the keyframes show time points {wanted[0]}–{wanted[-1]}, but {name} is not a "
+                "file they can be read from")
+    return None
+
+
+class TimePointCache:
+    """Time points of one file read on demand through ``read(index)``; the last ``size`` stay
+    in memory (least recently used goes first), so an animation that goes back and forth reads
+    each time point once. ``cache.reads`` counts the reads done."""
+
+    def __init__(self, read: Callable[[int], VolumeData], *, size: int = 3) -> None:
+        if size < 1:
+            raise ValueError(f"the cache must hold at least one time point, not {size}")
+        self._read = read
+        self.size = size
+        self._cache: OrderedDict[int, VolumeData] = OrderedDict()
+        self.reads = 0
+
+    def put(self, index: int, data: VolumeData) -> None:
+        """Keep ``data`` (already read) as time point ``index``."""
+        self._cache[index] = data
+        self._cache.move_to_end(index)
+        while len(self._cache) > self.size:
+            self._cache.popitem(last=False)
+
+    def __call__(self, index: int) -> VolumeData:
+        if index in self._cache:
+            self._cache.move_to_end(index)
+            return self._cache[index]
+        data = self._read(index)
+        self.reads += 1
+        self.put(index, data)
+        return data
+
+    @classmethod
+    def for_file(cls, path: str | os.PathLike[str], *, voxel_size_um: Any = None,
+                 fit: str = "auto", size: int = 3) -> TimePointCache:
+        """Time points of ``path`` through :func:`vtkvol.io.read_volume` (with the voxel size
+        and fit the first one was read with)."""
+        from vtkvol.io import read_volume
+
+        return cls(lambda index: read_volume(path, voxel_size_um=voxel_size_um,
+                                             time_index=index, fit=fit),  # type: ignore[arg-type]
+                   size=size)
 
 
 def write_movie(
@@ -184,14 +361,9 @@ def write_movie(
     if existing and not overwrite:
         shown = existing[0] if len(existing) == 1 else f"{existing[0]} and {len(existing) - 1} more"
         raise FileExistsError(f"{shown} exists; pass --overwrite (overwrite=True) to replace it")
-    if kind == "video":
-        import importlib
-
-        try:
-            importlib.import_module("imageio_ffmpeg")
-        except ImportError:
-            raise ValueError(f"{path.name}: writing MP4 needs the optional package "
-                             "'imageio-ffmpeg': pip install 'vtkvol[movie]'") from None
+    problem = encoder_problem(path)
+    if problem:
+        raise ValueError(problem)
     folder = path if kind == "folder" else path.parent
     folder.mkdir(parents=True, exist_ok=True)
     writer = {"video": _VideoWriter, "tiff": _TiffWriter}.get(kind, _PngWriter)(path, n_frames, fps)
