@@ -121,3 +121,31 @@ def test_bench_needs_an_output_folder_and_readable_data(tmp_path, capsys):
     assert main(["bench", "-o", str(tmp_path / "out"), "--data", str(bad)]) == 1
     assert capsys.readouterr().err.startswith("vtkvol: bad.tif: ")
     assert not (tmp_path / "out" / "benchmarks.json").exists()
+
+
+@pytest.mark.gl
+def test_render_of_a_session_shows_its_time_point_unless_time_is_given(tmp_path):
+    """A session saved at time point 3 renders time point 3; ``--time 0`` renders point 0.
+    The ball of the time-lapse moves one voxel along x per point, so the images differ."""
+    from tests_support_time import write_time_lapse
+
+    from vtkvol.io import read_volume
+    from vtkvol.model.defaults import scene_for
+    from vtkvol.model.session import save_session
+
+    lapse = tmp_path / "lapse.tif"
+    write_time_lapse(lapse, 4)
+    data3 = read_volume(lapse, time_index=3)
+    model = scene_for(data3)
+    model.volume.time_index = 3
+    session = save_session(tmp_path / "view", model, data=data3)
+
+    def render(name: str, *extra: str) -> np.ndarray:
+        out = tmp_path / name
+        assert main(["render", str(session), "-o", str(out), "--size", "96", "64", *extra]) == 0
+        return foreground(out)
+
+    saved, at3, at0 = render("saved.png"), render("t3.png", "--time", "3"), render(
+        "t0.png", "--time", "0")
+    assert np.array_equal(saved, at3)
+    assert np.abs(saved - at0).max() > 30

@@ -63,7 +63,8 @@ def _parser() -> argparse.ArgumentParser:
                                ".png sequence (spin.png → spin_0000.png…), a .tif stack or a "
                                "folder of PNGs")
     _add_view_options(p_render)
-    p_render.add_argument("--time", type=int, default=0, help="time point to render")
+    p_render.add_argument("--time", type=int, default=None, metavar="T",
+                          help="time point to render (0-based; a session's own otherwise)")
     p_render.add_argument("--overwrite", action="store_true",
                           help="replace the output file if it exists")
     p_render.add_argument("--turntable", type=float, default=None, metavar="DEG",
@@ -190,7 +191,7 @@ def _render_option_problem(args: argparse.Namespace) -> str | None:
         if args.file.endswith(SESSION_SUFFIX):
             return ("--voxel-size does not apply to a session: it keeps its data's voxel size "
                     "(set it in the app with Edit → Voxel size…)")
-    if args.time < 0:
+    if args.time is not None and args.time < 0:
         return f"--time must be a time point index >= 0, got {args.time}"
     if args.time and args.file == "sample":
         return "--time does not apply to the built-in sample (it has one time point)"
@@ -242,7 +243,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
         model, data = load_session_with_data(args.file, time_index=args.time)
     else:
-        data = _load(args.file, args.voxel_size, args.time)
+        data = _load(args.file, args.voxel_size, args.time or 0)
     inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
@@ -390,7 +391,7 @@ def _render_keyframes(args: argparse.Namespace, out: Path, data, model, params,
     from vtkvol.movie import TimePointCache, keyframe_frames, keyframe_problem
 
     source = data.source if args.file != "sample" else None
-    current = int(model.volume.time_index) if model is not None else args.time
+    current = int(model.volume.time_index) if model is not None else (args.time or 0)
     problem = keyframe_problem(animation, data, current, can_read_time_points=bool(source))
     if problem:
         print(f"vtkvol: {problem}", file=sys.stderr)
