@@ -12,8 +12,8 @@ Merging (so a slider drag is one step, not fifty):
 * outside a gesture, consecutive edits of the same fields within :data:`MERGE_WINDOW_S`
   merge (spin-box arrows, slider drags, typing).
 
-The camera, the slice views' cursor and the data source are not edits: they are recorded in the snapshot (so undo
-never reverts them) but never make a command.
+The camera, the slice views' cursor and the data source are not edits: they are recorded in
+the snapshot (so undo never reverts them) but never make a command.
 """
 
 from __future__ import annotations
