@@ -74,6 +74,7 @@ from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.docks.channels import ChannelsDock
 from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
+from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.undo import UndoRecorder, apply_state
@@ -277,11 +278,12 @@ class MainWindow(QMainWindow):
 
     def arrange_docks(self) -> None:
         """The default layout: TF and slice editors tabbed below, channels above tabbed
-        lights and ranges on the right. Done once the window is shown: Qt 6.12 leaves a stray
-        tab bar in the middle of the window when docks are tabified before that."""
+        lights and ranges on the right; the slice views (left of the 3-D view) are hidden
+        until View → Slice views shows them. Done once the window is shown: Qt 6.12 leaves a
+        stray tab bar in the middle of the window when docks are tabified before that."""
         for dock in self.docks:
             dock.setFloating(False)
-            dock.show()
+            dock.setVisible(dock is not self.slice_views_dock)
         self.tabifyDockWidget(self.tf_dock, self.slice_dock)
         self.tabifyDockWidget(self.lights_dock, self.ranges_dock)
         self.tf_dock.raise_()
@@ -314,8 +316,10 @@ class MainWindow(QMainWindow):
         self.channels_dock = ChannelsDock(self.model, self)
         self.lights_dock = LightsDock(self.model, self)
         self.ranges_dock = RangesDock(self.model, self)
+        self.slice_views_dock = SliceViewsDock(self.model, self)
         self.docks: list[ModelDock] = [self.tf_dock, self.slice_dock, self.channels_dock,
-                                       self.lights_dock, self.ranges_dock]
+                                       self.lights_dock, self.ranges_dock,
+                                       self.slice_views_dock]
         bottom = Qt.DockWidgetArea.BottomDockWidgetArea
         right = Qt.DockWidgetArea.RightDockWidgetArea
         self.addDockWidget(bottom, self.tf_dock)
@@ -324,6 +328,8 @@ class MainWindow(QMainWindow):
         self.addDockWidget(right, self.channels_dock)
         self.addDockWidget(right, self.lights_dock)
         self.addDockWidget(right, self.ranges_dock)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.slice_views_dock)
+        self.slice_views_dock.hide()
         self._docks_arranged = False  # tabs are made when first shown (see showEvent)
         for dock in self.docks:
             dock.gestureStarted.connect(self.recorder.begin_gesture)
