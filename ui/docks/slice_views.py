@@ -221,8 +221,10 @@ class SliceView(QWidget):
         axis = AXES[p.normal]
         limit = (dock.data.array.shape[3], dock.data.array.shape[2],
                  dock.data.array.shape[1])[p.normal] - 1
-        title = (f"{p.name}   {axis} = {format_um(cursor[p.normal], spacing[p.normal])} "
-                 f"· slice {index[p.normal]} / {limit}")
+        title = (f"{p.name}  {axis} {format_um(cursor[p.normal], spacing[p.normal])} "
+                 f"· slice {index[p.normal]}/{limit}")
+        title = painter.fontMetrics().elidedText(title, Qt.TextElideMode.ElideRight,
+                                                 self.width() - 4)
         painter.drawText(QRectF(2, 0, self.width() - 4, MARGIN_TOP),
                          Qt.AlignmentFlag.AlignLeft | Qt.AlignmentFlag.AlignVCenter, title)
         # Axis labels: the column axis under the image's right end, the row axis left of its
