@@ -921,7 +921,9 @@ class MainWindow(QMainWindow):
             self, "Mouse and keyboard",
             "<b>3-D view</b><br>Left drag: rotate · Shift+left or middle drag: pan · "
             "Right drag or wheel: zoom · Ctrl+left drag: spin<br>Drag the light's handle to "
-            "move the light selected in the Lights dock.<br><br><b>Function editors</b><br>"
+            "move the light selected in the Lights dock.<br><br><b>Slice views</b><br>"
+            "Click or drag: move the cursor · wheel or PageUp/PageDown: next slice<br><br>"
+            "<b>Function editors</b><br>"
             "Points mode: click to add a node, drag to move, right-click or Delete to remove."
             "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
             "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
