@@ -139,6 +139,33 @@ def test_wheel_and_page_keys_step_one_voxel(window, qtbot):
     for _ in range(3):  # past the first slice: clamped
         wheel(yz, yz.rect().center().toPointF(), -120 * 40)
     assert dock.cursor_voxel()[0] == 0
+    # A touchpad's small deltas add up: three of 40 make one notch, one slice.
+    for expected in (0, 0, 1):
+        wheel(yz, yz.rect().center().toPointF(), 40)
+        assert dock.cursor_voxel()[0] == expected
+
+
+def test_voxel_size_keeps_the_cursor_on_its_voxel(window, qtbot):
+    dock = window.slice_views_dock
+    sx, sy, sz = window.data.voxel_size_um
+    window.model.cursor = (9 * sx, 17 * sy, 5 * sz)
+    window.set_voxel_size((0.3, 0.7, 2.5))
+    try:
+        assert dock.cursor_voxel() == (9, 17, 5)
+        assert window.model.cursor == pytest.approx((9 * 0.3, 17 * 0.7, 5 * 2.5))
+        dock.refresh_now()
+        assert "voxel (9, 17, 5)" in dock.readout.text()
+        rect = dock.views["xz"].image_rect()  # the new aspect: x 48·0.3 µm, z 24·2.5 µm
+        assert rect.width() / rect.height() == pytest.approx(48 * 0.3 / (24 * 2.5), rel=0.03)
+    finally:
+        window.set_voxel_size((sx, sy, sz))
+
+
+def test_readout_shows_channel_names_as_text(window):
+    dock = window.slice_views_dock
+    window.model.channels[0].name = "<b>DAPI</b>"
+    dock.refresh_now()
+    assert "&lt;b&gt;DAPI&lt;/b&gt;: " in dock.readout.text()
 
 
 def test_tf_colour_and_visibility_change_the_pixels(window):
@@ -194,8 +221,10 @@ def test_a_phantoms_bright_voxel_is_at_its_pixel(main_window, qtbot, small_volum
     window = main_window
     array = np.zeros((1, 6, 8, 10), dtype=np.uint16)
     array[0, 4, 3, 7] = 4000  # z 4, y 3, x 7
+    window.model.cursor = (1.0, 1.0, 1.0)
     window.show_volume(VolumeData.from_array(array, (0.4, 0.4, 0.8), ["bead"]))
     try:
+        assert window.model.cursor is None  # new data: the slice views start at its centre
         dock = window.slice_views_dock
         if not dock.isVisible():
             dock.toggleViewAction().trigger()

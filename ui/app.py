@@ -635,6 +635,7 @@ class MainWindow(QMainWindow):
                 "crop": CropBox().model_dump(),
                 "slice_weights": SliceWeights().model_dump(),
                 "camera": Camera().model_dump(),
+                "cursor": None,  # the slice views start at the new data's centre
             })
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self.session_path = None
@@ -943,8 +944,9 @@ class MainWindow(QMainWindow):
     def set_voxel_size(self, size: tuple[float, float, float]) -> None:
         """Show the same voxels with voxel size ``size`` (x, y, z µm).
 
-        Transfer functions, channels, slice weights and illumination stay; crop ranges keep
-        the same voxels (their µm scale with the axis); the view is framed again. The model's
+        Transfer functions, channels, slice weights and illumination stay; crop ranges and the
+        slice views' cursor keep the same voxels (their µm scale with the axis); the view is
+        framed again. The model's
         ``volume.voxel_size_um`` records the override for sessions (None when it equals the
         file's own value). Like opening data, this starts a fresh undo history; the window
         counts it as an unsaved change.
@@ -970,9 +972,12 @@ class MainWindow(QMainWindow):
                 metadata={**read.metadata, "voxel_size_source": "set in the app"},
                 # The reader's "assumed 1 µm" note no longer holds once the user set a size.
                 notes=[n for n in read.notes if not is_assumed_size_note(n)])
+        cursor = self.model.cursor
         with self.model.batch():
             self.model.volume.voxel_size_um = override
             self.model.crop.update(crop)
+            if cursor is not None:  # the same voxel under the slice views' cursor
+                self.model.cursor = tuple(cursor[i] * new[i] / old[i] for i in range(3))
             self.model.camera.update(Camera().model_dump())  # framed again for the new shape
             self._set_data(resized, reset_channels=False, sample_args=self._sample_args)
         # The old steps would restore crop ranges in the old µm on the new data.

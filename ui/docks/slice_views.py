@@ -17,6 +17,7 @@ lies outside it.
 
 from __future__ import annotations
 
+import html
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -79,6 +80,7 @@ class SliceView(QWidget):
         self.setCursor(Qt.CursorShape.CrossCursor)
         self._rgba8: np.ndarray | None = None  # keeps the QImage's buffer alive
         self._qimage: QImage | None = None
+        self._wheel = 0  # wheel movement not yet turned into slices (eighths of a degree)
         axis = AXES[plane.normal]
         self.setToolTip(f"The {plane.name} slice through the cursor. Click or drag: move the "
                         f"cursor · wheel, PageUp/PageDown: next {axis} slice")
@@ -257,9 +259,10 @@ class SliceView(QWidget):
             self.dock.move_cursor(self.plane, *um)
 
     def wheelEvent(self, event: QWheelEvent) -> None:
-        delta = event.angleDelta().y()
-        # A notch is one slice; touchpads send smaller deltas, one slice per gesture event.
-        steps = int(delta / WHEEL_NOTCH) or (1 if delta > 0 else -1 if delta < 0 else 0)
+        # A notch is one slice; touchpads send many small deltas, which add up to notches.
+        self._wheel += event.angleDelta().y()
+        steps = int(self._wheel / WHEEL_NOTCH)
+        self._wheel -= steps * WHEEL_NOTCH
         if steps:
             self.dock.step(self.plane, steps)
         event.accept()
@@ -434,8 +437,11 @@ class SliceViewsDock(ModelDock):
         position = self.cursor_um()
         spacing = data.voxel_size_um
         where = "<br>".join(f"{AXES[a]} {format_um(position[a], spacing[a])}" for a in range(3))
-        values = "<br>".join(f"{name}: {_number(float(data.array[c, k, j, i]))}"
-                             for c, name in enumerate(data.channel_names))
+        channels = self.model.channels
+        names = [channels[c].name if c < len(channels) else name
+                 for c, name in enumerate(data.channel_names)]
+        values = "<br>".join(f"{html.escape(name)}: {_number(float(data.array[c, k, j, i]))}"
+                             for c, name in enumerate(names))
         self.readout.setText(f"<b>Cursor</b><br>{where}<br>voxel {index}<br>{values}")
 
     def _repaint(self) -> None:
