@@ -146,3 +146,22 @@ def test_planes_cover_the_three_axes():
     assert sorted(p.normal for p in PLANES.values()) == [0, 1, 2]
     for p in PLANES.values():
         assert sorted((p.normal, p.column, p.row)) == [0, 1, 2]
+
+
+@pytest.mark.parametrize(("dtype", "high"), [(np.uint16, 30), (np.uint16, 60000), (np.int16, 40),
+                                             (np.uint8, 255), (np.float32, 30)])
+def test_table_lookup_equals_evaluating_each_voxel(dtype, high):
+    """Integer slices of a narrow value span go through a table of the TF; wide spans and
+    floats evaluate it per voxel; both give the same pixels."""
+    from vtkvol.engine.slices import _tf_lookup
+
+    rng = np.random.default_rng(5)
+    values = rng.integers(-10 if dtype is np.int16 else 0, high, size=(40, 50)).astype(dtype)
+    tf = two_channel_model().channels[1].tf
+    color, alpha = _tf_lookup(tf, values)
+    np.testing.assert_array_equal(color, tf.color_at(values))
+    np.testing.assert_array_equal(alpha, tf.opacity_at(values))
+    data = VolumeData.from_array(values[None, None].astype(dtype), (1.0, 1.0, 1.0), ["v"])
+    model = SceneModel(channels=[Channel(tf=tf)])
+    want = expected_rgba(data.array, model, lambda c: data.array[c, 0])
+    np.testing.assert_allclose(slice_rgba(data, model, "xy", 0), want, atol=1e-5)

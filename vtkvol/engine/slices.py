@@ -132,6 +132,23 @@ def slice_values(array: np.ndarray, plane: Plane | str, index: int) -> np.ndarra
     return taken.transpose(order)
 
 
+#: Integer slices look their values up in a table of the TF over the slice's value span when
+#: that span is at most this many values and smaller than the slice (the same numbers as
+#: evaluating the TF per voxel, several times faster for 16-bit data).
+MAX_TABLE = 1 << 16
+
+
+def _tf_lookup(tf: TransferFunction, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(RGB ``[..., 3]``, opacity ``[...]``), float32, of ``tf`` at data ``values``."""
+    if np.issubdtype(values.dtype, np.integer) and values.size:
+        lo, hi = int(values.min()), int(values.max())
+        if hi - lo < min(MAX_TABLE, values.size):
+            table = np.arange(lo, hi + 1, dtype=np.float64)
+            offsets = np.asarray(values, dtype=np.int64) - lo
+            return tf.color_at(table)[offsets], tf.opacity_at(table)[offsets]
+    return tf.color_at(values), tf.opacity_at(values)
+
+
 def slice_rgba(data: VolumeData, model: SceneModel, plane: Plane | str,
                index: int) -> np.ndarray:
     """Slice ``index`` of ``plane`` coloured as the 3-D view colours its voxels.
@@ -149,10 +166,7 @@ def slice_rgba(data: VolumeData, model: SceneModel, plane: Plane | str,
     for c, channel in enumerate(model.channels[: values.shape[0]]):
         if not channel.visible:
             continue
-        tf = effective_tf(model, c)
-        v = values[c]
-        alpha = tf.opacity_at(v)
-        color = tf.color_at(v)
+        color, alpha = _tf_lookup(effective_tf(model, c), values[c])
         if composite:
             rgb += alpha[..., None] * color
             weight += alpha
