@@ -362,3 +362,17 @@ def test_a_hostile_cursor_in_a_session_is_a_one_line_error(tmp_path, window, qtb
         window.open_session(broken)
     assert len(dialogs) == 1 and expected in dialogs[0].informativeText()
     assert window.model.cursor == cursor
+
+
+def test_a_cursor_move_renders_a_3d_frame_only_with_the_planes_shown(window, monkeypatch):
+    scene = window.viewport.scene
+    requests: list[int] = []
+    monkeypatch.setattr(scene, "_request_render", lambda: requests.append(1))
+    sx, sy, sz = window.data.voxel_size_um
+    window.model.cursor = (3 * sx, 4 * sy, 5 * sz)
+    assert requests == []  # only the slice views show the cursor
+    window.model.overlays.slice_planes = True
+    requests.clear()
+    window.model.cursor = (6 * sx, 4 * sy, 5 * sz)
+    assert requests
+    np.testing.assert_allclose(scene.overlays.plane_outlines[0, :, 0], 6 * sx)
