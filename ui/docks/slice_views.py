@@ -35,9 +35,9 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QGridLayout, QLabel, QSizePolicy, QWidget
 
-from vtkvol.engine.overlays import PLANE_COLORS
 from vtkvol.engine.slices import (
     AXES,
+    PLANE_COLORS,
     PLANES,
     Plane,
     cursor_index,

@@ -30,6 +30,7 @@ from collections.abc import Sequence
 import numpy as np
 import vtk
 
+from vtkvol.engine.slices import PLANE_COLORS
 from vtkvol.model.scene import RGB, Overlays
 
 #: Width of the scale bar, as a share of the view's width, before rounding its length.
@@ -40,8 +41,6 @@ AXES_VIEWPORT = (0.0, 0.0, 0.2, 0.2)
 MARGIN_PX = 14
 #: Font size of the scale bar's label, pixels.
 FONT_PX = 14
-#: Colours of the slice planes' outlines by normal axis (x, y, z): the orientation axes'.
-PLANE_COLORS: tuple[RGB, RGB, RGB] = ((1.0, 0.25, 0.25), (0.3, 1.0, 0.3), (0.35, 0.55, 1.0))
 
 
 def round_length(length: float) -> float:

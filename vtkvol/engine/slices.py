@@ -37,6 +37,9 @@ if TYPE_CHECKING:
 Vec3 = tuple[float, float, float]
 Index3 = tuple[int, int, int]
 AXES = "xyz"
+#: Colour of each plane by its normal axis (x, y, z), as the orientation axes colour the axes:
+#: the slice views' frames and crosshairs and the 3-D view's plane outlines.
+PLANE_COLORS: tuple[Vec3, Vec3, Vec3] = ((1.0, 0.25, 0.25), (0.3, 1.0, 0.3), (0.35, 0.55, 1.0))
 
 
 @dataclass(frozen=True)
