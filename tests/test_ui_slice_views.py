@@ -376,3 +376,23 @@ def test_a_cursor_move_renders_a_3d_frame_only_with_the_planes_shown(window, mon
     window.model.cursor = (6 * sx, 4 * sy, 5 * sz)
     assert requests
     np.testing.assert_allclose(scene.overlays.plane_outlines[0, :, 0], 6 * sx)
+
+
+def test_a_drag_renders_the_3d_view_coarser_only_with_the_planes(window, qtbot):
+    dock, scene = window.slice_views_dock, window.viewport.scene
+    view = dock.views["xy"]
+    sx, sy, _ = window.data.voxel_size_um
+    start, end = view.to_widget(5 * sx, 5 * sy).toPoint(), view.to_widget(20 * sx, 9 * sy)
+    qtbot.mousePress(view, Qt.MouseButton.LeftButton, pos=start)
+    assert not scene.interactive  # no planes in 3-D: the drag does not touch the 3-D view
+    qtbot.mouseRelease(view, Qt.MouseButton.LeftButton, pos=start)
+    window.model.overlays.slice_planes = True
+    qtbot.mousePress(view, Qt.MouseButton.LeftButton, pos=start)
+    qtbot.mouseMove(view, end.toPoint())
+    assert scene.interactive  # coarse while the planes move
+    qtbot.mouseRelease(view, Qt.MouseButton.LeftButton, pos=end.toPoint())
+    qtbot.waitUntil(lambda: not scene.interactive, timeout=5000)  # full quality once settled
+    assert dock.cursor_voxel()[:2] == (20, 9)
+    # The drags made no undo step: the only one is the overlay switched on above.
+    assert window.recorder.stack.count() == 1
+    assert window.undo_action.text() == "&Undo Toggle overlay"

@@ -334,8 +334,23 @@ class MainWindow(QMainWindow):
         for dock in self.docks:
             dock.gestureStarted.connect(self.recorder.begin_gesture)
             dock.gestureFinished.connect(self.recorder.end_gesture)
+        self.slice_views_dock.gestureStarted.connect(self._slice_drag_started)
+        self.slice_views_dock.gestureFinished.connect(self._slice_drag_finished)
+        self._slice_dragging = False
         self.lights_dock.currentLightChanged.connect(self.viewport.set_gizmo_light)
         self.viewport.set_gizmo_light(self.lights_dock.current_light)
+
+    def _slice_drag_started(self) -> None:
+        # The 3-D view follows a drag in the slice views only through the plane outlines;
+        # without them it renders nothing for the cursor, so there is nothing to make coarse.
+        if self.model.overlays.slice_planes:
+            self._slice_dragging = True
+            self.viewport.begin_interaction()
+
+    def _slice_drag_finished(self) -> None:
+        if self._slice_dragging:
+            self._slice_dragging = False
+            self.viewport.end_interaction()
 
     def _action(self, text: str, slot: Callable[..., Any], shortcut: Any = None,
                 tip: str = "") -> QAction:

@@ -241,10 +241,18 @@ class SliceView(QWidget):
     # -- input ----------------------------------------------------------------------------------
     def mousePressEvent(self, event: QMouseEvent) -> None:
         if event.button() == Qt.MouseButton.LeftButton:
+            self.dock.gestureStarted.emit()  # a drag: the 3-D view may render coarser
             self._move_to(event.position())
             event.accept()
         else:
             super().mousePressEvent(event)
+
+    def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        if event.button() == Qt.MouseButton.LeftButton:
+            self.dock.gestureFinished.emit()
+            event.accept()
+        else:
+            super().mouseReleaseEvent(event)
 
     def mouseMoveEvent(self, event: QMouseEvent) -> None:
         if event.buttons() & Qt.MouseButton.LeftButton:
@@ -285,6 +293,9 @@ class SliceViewsDock(ModelDock):
     Slices are recomputed only for what changed (a cursor step redraws one plane's slice; a
     TF, visibility or channel-mixing edit all three), coalesced to once per event-loop pass,
     and only while the dock is shown.
+
+    Signals (ModelDock's): ``gestureStarted`` / ``gestureFinished`` bracket a click or drag
+    in a view; the window renders the 3-D view coarser meanwhile when it shows the planes.
     """
 
     TITLE = "Slice views"
