@@ -37,3 +37,11 @@ def test_library_never_imports_qt():
 def test_io_model_and_references_do_not_import_vtk(package):
     loaded = imported_after([package])
     assert not any(m == "vtk" or m.startswith("vtkmodules") for m in loaded)
+
+
+def test_slice_views_do_not_import_vtk():
+    """ui/viewport.py is the only ui module that touches VTK: the slice views paint numpy
+    slices (vtkvol.engine.slices, pure numpy) with Qt."""
+    loaded = imported_after(["vtkvol.engine.slices", "vtkvol.ui.docks.slice_views"])
+    assert "vtkvol.ui.docks.slice_views" in loaded
+    assert not any(m == "vtk" or m.startswith("vtkmodules") for m in loaded)

@@ -124,8 +124,9 @@ def rich_model() -> SceneModel:
             background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3, interpolation="corrected",
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
-                          color_legend=True),
+                          color_legend=True, slice_planes=True),
         clip_plane=ClipPlane(enabled=True, origin=(2.0, 2.5, 1.0), normal=(0.6, 0.0, 0.8)),
+        cursor=(1.5, 2.0, 3.0),
     )
 
 
@@ -431,7 +432,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 5)"),
+         "(format version 99; this version reads up to 6)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -797,7 +798,7 @@ def test_migrate_v4_to_v5_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[4](raw)
     assert out == load_fixture("v4_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert out["scene"]["clip_plane"]["enabled"] is False  # v4 had no clipping plane
     assert raw == untouched
 
@@ -808,8 +809,26 @@ def test_v4_file_reads_without_warnings_and_no_clipping_plane() -> None:
     assert session.model.clip_plane == ClipPlane()
 
 
+def test_migrate_v5_to_v6_matches_fixture() -> None:
+    raw = load_fixture("v5_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[5](raw)
+    assert out == load_fixture("v5_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # v5 had no slice views: the data's centre, and no plane outlines in the 3-D view.
+    assert out["scene"]["cursor"] is None
+    assert out["scene"]["overlays"]["slice_planes"] is False
+    assert raw == untouched
+
+
+def test_v5_file_reads_without_warnings_and_a_centred_cursor() -> None:
+    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.cursor is None and session.model.overlays.slice_planes is False
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v5_complete.vtkvol.json")
+    doc = load_fixture("v6_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -839,8 +858,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v5 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -860,8 +879,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 6; this version reads up to 5"):
-        migrate({"format": FORMAT, "version": 6})
+    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
+        migrate({"format": FORMAT, "version": 7})
 
 
 @pytest.mark.parametrize(

@@ -1,8 +1,10 @@
 """Screenshots of the app for the documentation: ``docs/screenshots/*.png``.
 
 The whole window twice (the two tabbed dock pairs each in front once) and every dock on its
-own. Only the two whole-window images need a 3-D frame (a few seconds each on a software GL);
-the dock images cost nothing. Deselect with ``-m "not screenshots"``.
+own; on real data from ``../shared/data``, the window with the slice views, the 3-D view with
+every overlay, and the slice views alone. Only the whole-window images and the 3-D view need
+a 3-D frame (seconds each on a software GL); the dock images cost nothing.
+Deselect with ``-m "not screenshots"``.
 """
 
 from __future__ import annotations
@@ -12,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PySide6.QtCore import QSettings
+from PySide6.QtCore import QSettings, Qt
 from PySide6.QtGui import QImage
 
-from vtkvol.ui.app import MainWindow, configure_gl_platform
+from vtkvol.ui.app import MainWindow, configure_gl_platform, write_png
 from vtkvol.ui.docks.channels import ChannelsDock
 from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
@@ -103,6 +105,95 @@ def test_write_docs_screenshots(qapp, qtbot, tmp_path):
     window.close()
     for path in written:
         assert _nonblank(path) > 10.0, path
+
+
+DATA = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
+NUCLEI = DATA / "platynereis_nuclei_labels_256x256x103.tif"
+BEADS = DATA / "Bead_Image1_crop.tif"
+
+
+@pytest.mark.skipif(not (NUCLEI.exists() and BEADS.exists()), reason="../shared/data not present")
+def test_write_slice_view_and_overlay_screenshots(qapp, qtbot, tmp_path):
+    """Real data: the platynereis nuclei (labels) with the slice views beside the 3-D view,
+    the slice planes and every overlay; the 3-D view alone with the overlays; and the slice
+    views alone on the bead stack, whose z-elongated PSF shows the voxels' true aspect."""
+    from vtkvol.engine.slices import cursor_index
+    from vtkvol.io import read_volume
+    from vtkvol.model.defaults import scene_for
+    from vtkvol.model.labels import apply_labels, detect_labels
+    from vtkvol.ui.docks.slice_views import SliceViewsDock
+
+    configure_gl_platform(qapp)
+    window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    qtbot.addWidget(window)
+    window.resize(1240, 800)
+    window.show()
+    qtbot.waitExposed(window)
+    window.model.render.sample_distance = 1.0
+    window.model.illumination.method = "shadow_volume" if "shadow_volume" in (
+        window.lights_dock.techniques) else "local"
+    with qtbot.waitSignal(window.dataShown, timeout=60_000):
+        window.open_path(NUCLEI)
+    found = detect_labels(window.data.array[0])
+    assert found.is_labels, found.reason
+    apply_labels(window.model, found.labels)
+    # The cursor on a nucleus: the centre of the label nearest the middle of the stack.
+    array = window.data.array[0]
+    spacing = tuple(window.data.voxel_size_um)
+    z, y, x = (np.asarray(v) for v in np.nonzero(array[:, ::2, ::2]))
+    middle = np.array(array.shape) / 2
+    nearest = np.argmin((z - middle[0]) ** 2 + (2 * y - middle[1]) ** 2
+                        + (2 * x - middle[2]) ** 2)
+    label = array[z[nearest], 2 * y[nearest], 2 * x[nearest]]
+    zz, yy, xx = np.nonzero(array == label)
+    centre = (xx.mean() * spacing[0], yy.mean() * spacing[1], zz.mean() * spacing[2])
+    window.model.cursor = tuple(
+        float(i * s) for i, s in zip(cursor_index(centre, array.shape, spacing), spacing,
+                                     strict=True))
+    window.model.overlays.update({"scale_bar": True, "orientation_axes": True,
+                                  "bounding_box": True, "color_legend": False,
+                                  "slice_planes": True})
+    window.gizmo_action.setChecked(False)  # the light's handle is no part of the picture
+    window.viewport.scene.orbit(-30.0, 15.0)
+    dock = window.slice_views_dock
+    dock.toggleViewAction().trigger()
+    qtbot.waitUntil(dock.isVisible, timeout=5000)
+    window.resizeDocks([dock], [400], Qt.Orientation.Horizontal)
+    qtbot.wait(100)
+    dock.refresh_now()
+    OUT.mkdir(parents=True, exist_ok=True)
+    written = [OUT / "main-window-slice-views.png"]
+    assert window.grab().save(str(written[-1]))
+
+    # The 3-D view alone with all four overlays (the legend of the label colours too).
+    dock.toggleViewAction().trigger()
+    window.model.overlays.update({"color_legend": True, "slice_planes": False})
+    qtbot.wait(100)
+    written.append(OUT / "overlays.png")
+    write_png(window.viewport.screenshot(), written[-1])
+    window.close()
+
+    # The slice views alone on the beads, the cursor on the brightest bead.
+    beads = read_volume(BEADS)
+    model = scene_for(beads)
+    k, j, i = np.unravel_index(int(np.argmax(beads.array[0])), beads.array.shape[1:])
+    model.cursor = (i * beads.voxel_size_um[0], j * beads.voxel_size_um[1],
+                    k * beads.voxel_size_um[2])
+    alone = SliceViewsDock(model)
+    qtbot.addWidget(alone)
+    alone.set_data(beads)
+    alone.resize(620, 560)
+    alone.show()
+    qtbot.waitExposed(alone)
+    alone.refresh_now()
+    qtbot.wait(30)
+    written.append(OUT / "slice-views-beads.png")
+    assert alone.grab().save(str(written[-1]))
+    alone.release()
+    alone.close()
+    for path in written:
+        assert _nonblank(path) > 10.0, path
+        assert path.stat().st_size < 300_000, path
 
 
 def test_write_time_slider_screenshot(qapp, qtbot, tmp_path):

@@ -75,6 +75,7 @@ from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.docks.channels import ChannelsDock
 from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
+from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.movie_dialog import MovieDialog
@@ -262,11 +263,12 @@ class MainWindow(QMainWindow):
 
     def arrange_docks(self) -> None:
         """The default layout: TF and slice editors tabbed below, channels above tabbed
-        lights and ranges on the right. Done once the window is shown: Qt 6.12 leaves a stray
-        tab bar in the middle of the window when docks are tabified before that."""
+        lights and ranges on the right; the slice views (left of the 3-D view) are hidden
+        until View → Slice views shows them. Done once the window is shown: Qt 6.12 leaves a
+        stray tab bar in the middle of the window when docks are tabified before that."""
         for dock in self.docks:
             dock.setFloating(False)
-            dock.show()
+            dock.setVisible(dock is not self.slice_views_dock)
         self.tabifyDockWidget(self.tf_dock, self.slice_dock)
         self.tabifyDockWidget(self.lights_dock, self.ranges_dock)
         self.tf_dock.raise_()
@@ -299,8 +301,10 @@ class MainWindow(QMainWindow):
         self.channels_dock = ChannelsDock(self.model, self)
         self.lights_dock = LightsDock(self.model, self)
         self.ranges_dock = RangesDock(self.model, self)
+        self.slice_views_dock = SliceViewsDock(self.model, self)
         self.docks: list[ModelDock] = [self.tf_dock, self.slice_dock, self.channels_dock,
-                                       self.lights_dock, self.ranges_dock]
+                                       self.lights_dock, self.ranges_dock,
+                                       self.slice_views_dock]
         bottom = Qt.DockWidgetArea.BottomDockWidgetArea
         right = Qt.DockWidgetArea.RightDockWidgetArea
         self.addDockWidget(bottom, self.tf_dock)
@@ -309,12 +313,29 @@ class MainWindow(QMainWindow):
         self.addDockWidget(right, self.channels_dock)
         self.addDockWidget(right, self.lights_dock)
         self.addDockWidget(right, self.ranges_dock)
+        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.slice_views_dock)
+        self.slice_views_dock.hide()
         self._docks_arranged = False  # tabs are made when first shown (see showEvent)
         for dock in self.docks:
             dock.gestureStarted.connect(self.recorder.begin_gesture)
             dock.gestureFinished.connect(self.recorder.end_gesture)
+        self.slice_views_dock.gestureStarted.connect(self._slice_drag_started)
+        self.slice_views_dock.gestureFinished.connect(self._slice_drag_finished)
+        self._slice_dragging = False
         self.lights_dock.currentLightChanged.connect(self.viewport.set_gizmo_light)
         self.viewport.set_gizmo_light(self.lights_dock.current_light)
+
+    def _slice_drag_started(self) -> None:
+        # The 3-D view follows a drag in the slice views only through the plane outlines;
+        # without them it renders nothing for the cursor, so there is nothing to make coarse.
+        if self.model.overlays.slice_planes:
+            self._slice_dragging = True
+            self.viewport.begin_interaction()
+
+    def _slice_drag_finished(self) -> None:
+        if self._slice_dragging:
+            self._slice_dragging = False
+            self.viewport.end_interaction()
 
     def _action(self, text: str, slot: Callable[..., Any], shortcut: Any = None,
                 tip: str = "") -> QAction:
@@ -710,6 +731,7 @@ class MainWindow(QMainWindow):
                 "crop": CropBox().model_dump(),
                 "slice_weights": SliceWeights().model_dump(),
                 "camera": Camera().model_dump(),
+                "cursor": None,  # the slice views start at the new data's centre
             })
             # Before the batch's event: the player must not take time point 0 for a request.
             self.time_player.data_opened(data, time_index)
@@ -1016,7 +1038,9 @@ class MainWindow(QMainWindow):
             self, "Mouse and keyboard",
             "<b>3-D view</b><br>Left drag: rotate · Shift+left or middle drag: pan · "
             "Right drag or wheel: zoom · Ctrl+left drag: spin<br>Drag the light's handle to "
-            "move the light selected in the Lights dock.<br><br><b>Function editors</b><br>"
+            "move the light selected in the Lights dock.<br><br><b>Slice views</b><br>"
+            "Click or drag: move the cursor · wheel or PageUp/PageDown: next slice<br><br>"
+            "<b>Function editors</b><br>"
             "Points mode: click to add a node, drag to move, right-click or Delete to remove."
             "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
             "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
@@ -1037,8 +1061,9 @@ class MainWindow(QMainWindow):
     def set_voxel_size(self, size: tuple[float, float, float]) -> None:
         """Show the same voxels with voxel size ``size`` (x, y, z µm).
 
-        Transfer functions, channels, slice weights and illumination stay; crop ranges keep
-        the same voxels (their µm scale with the axis); the view is framed again. The model's
+        Transfer functions, channels, slice weights and illumination stay; crop ranges and the
+        slice views' cursor keep the same voxels (their µm scale with the axis); the view is
+        framed again. The model's
         ``volume.voxel_size_um`` records the override for sessions (None when it equals the
         file's own value). Like opening data, this starts a fresh undo history; the window
         counts it as an unsaved change.
@@ -1058,9 +1083,12 @@ class MainWindow(QMainWindow):
         read = self._as_read if self._as_read is not None else data
         # None (the file's own value): the data exactly as read.
         resized = with_voxel_size(read, override)
+        cursor = self.model.cursor
         with self.model.batch():
             self.model.volume.voxel_size_um = override
             self.model.crop.update(crop)
+            if cursor is not None:  # the same voxel under the slice views' cursor
+                self.model.cursor = tuple(cursor[i] * new[i] / old[i] for i in range(3))
             self.model.camera.update(Camera().model_dump())  # framed again for the new shape
             self._set_data(resized, reset_channels=False, sample_args=self._sample_args)
         # The old steps would restore crop ranges in the old µm on the new data.

@@ -12,8 +12,8 @@ Merging (so a slider drag is one step, not fifty):
 * outside a gesture, consecutive edits of the same fields within :data:`MERGE_WINDOW_S`
   merge (spin-box arrows, slider drags, typing).
 
-The camera and the data source are not edits: they are recorded in the snapshot (so undo
-never reverts them) but never make a command.
+The camera, the slice views' cursor and the data source are not edits: they are recorded in
+the snapshot (so undo never reverts them) but never make a command.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ from vtkvol.model.evented import EventedModel, fields_of
 from vtkvol.model.scene import SceneModel
 
 #: Top-level fields whose changes are view state or provenance, not undoable edits.
-NOT_EDITS = frozenset({"camera", "volume"})
+NOT_EDITS = frozenset({"camera", "volume", "cursor"})
 #: Edits of the same fields closer together than this merge into one undo step (seconds).
 MERGE_WINDOW_S = 0.8
 _COMMAND_ID = 0x7654  # any constant: QUndoStack only merges commands with equal ids

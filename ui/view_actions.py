@@ -1,7 +1,8 @@
 """View-menu actions bound to the model: the overlays, the clipping plane and the background
 colour.
 
-Each overlay (``model.overlays``: scale bar, orientation axes, bounding box, colour legend)
+Each overlay (``model.overlays``: scale bar, orientation axes, bounding box, colour legend,
+slice planes)
 is a checkable action; ticking it writes the model, and a model change (undo, a session)
 ticks it. **Background colour…** asks for a colour and writes ``model.render.background``.
 The engine draws what the model says; nothing here touches VTK.
@@ -26,6 +27,8 @@ OVERLAYS: tuple[tuple[str, str, str], ...] = (
     ("bounding_box", "&Bounding box", "The outline of the data's box"),
     ("color_legend", "Colour &legend",
      "A colour bar per visible channel over its transfer function's values"),
+    ("slice_planes", "Slice &planes",
+     "Outline the slice views' three planes through the cursor (x red, y green, z blue)"),
 )
 
 

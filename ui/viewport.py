@@ -396,6 +396,16 @@ class Viewport(QWidget):
     def _on_style_end(self, *_: Any) -> None:
         self._interaction_ended()
 
+    def begin_interaction(self) -> None:
+        """Another control moves what the view shows (a drag in the slice views while their
+        planes are drawn): render coarser until :meth:`end_interaction`, as for a camera
+        move."""
+        self._interaction_started()
+
+    def end_interaction(self) -> None:
+        """The drag of :meth:`begin_interaction` ended: one full-quality frame once settled."""
+        self._interaction_ended()
+
     def _interaction_started(self) -> None:
         self._settle_timer.stop()
         if self.scene is not None and self.reduce_while_moving:

@@ -15,6 +15,9 @@ volume or its illumination.
   above it; recomputed before each frame from the camera.
 * **Colour legend**: a ``vtkScalarBarActor`` per visible channel over its colour function's
   value span (data units), titled with the channel's name.
+* **Slice planes**: the outlines of the three orthogonal slice planes through the slice
+  views' cursor (world µm), each in its normal axis's colour (x red, y green, z blue, as the
+  orientation axes), spanning the data's box.
 
 Line and text colours follow the background's brightness (light on dark, dark on light).
 """
@@ -27,6 +30,7 @@ from collections.abc import Sequence
 import numpy as np
 import vtk
 
+from vtkvol.engine.slices import PLANE_COLORS
 from vtkvol.model.scene import RGB, Overlays
 
 #: Width of the scale bar, as a share of the view's width, before rounding its length.
@@ -113,6 +117,20 @@ class SceneOverlays:
         self.bar_length_px = 0.0
         self._hold = False
 
+        self._bounds: tuple[float, ...] = (0.0, 1.0, 0.0, 1.0, 0.0, 1.0)
+        self._cursor: tuple[float, float, float] = (0.5, 0.5, 0.5)
+        self._planes = vtk.vtkPolyData()
+        planes_mapper = vtk.vtkPolyDataMapper()
+        planes_mapper.SetInputData(self._planes)
+        planes_mapper.SetScalarModeToUseCellData()
+        planes_mapper.SetColorModeToDirectScalars()
+        self.planes_actor = vtk.vtkActor()
+        self.planes_actor.SetMapper(planes_mapper)
+        self.planes_actor.PickableOff()
+        self.planes_actor.GetProperty().SetLineWidth(2.0)
+        self.planes_actor.GetProperty().LightingOff()
+        self._build_planes()
+
         self.legends: list[vtk.vtkScalarBarActor] = []
         self._legend_sources: list[tuple[str, vtk.vtkScalarsToColors]] = []
         self._tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._before_frame)
@@ -125,6 +143,41 @@ class SceneOverlays:
     def set_bounds(self, bounds: Sequence[float]) -> None:
         """The data's box (xmin, xmax, ymin, ymax, zmin, zmax) in µm."""
         self._outline.SetBounds(*(float(b) for b in bounds))
+        self._bounds = tuple(float(b) for b in bounds)
+        self._build_planes()
+
+    def set_cursor(self, cursor_um: Sequence[float]) -> None:
+        """The point (x, y, z world µm) the slice planes pass through."""
+        self._cursor = tuple(float(c) for c in cursor_um)  # type: ignore[assignment]
+        self._build_planes()
+
+    @property
+    def plane_outlines(self) -> np.ndarray:
+        """The slice planes' corners, ``[3 planes (normal x, y, z), 4 corners, xyz µm]``."""
+        b, c = self._bounds, self._cursor
+        out = np.empty((3, 4, 3))
+        for normal in range(3):
+            u, v = (a for a in range(3) if a != normal)
+            for corner, (su, sv) in enumerate(((0, 0), (1, 0), (1, 1), (0, 1))):
+                out[normal, corner, normal] = c[normal]
+                out[normal, corner, u] = b[2 * u + su]
+                out[normal, corner, v] = b[2 * v + sv]
+        return out
+
+    def _build_planes(self) -> None:
+        corners = self.plane_outlines
+        points = vtk.vtkPoints()
+        lines = vtk.vtkCellArray()
+        colors = vtk.vtkUnsignedCharArray()
+        colors.SetNumberOfComponents(3)
+        for normal in range(3):
+            ids = [points.InsertNextPoint(*corners[normal, k]) for k in range(4)]
+            lines.InsertNextCell(5, [*ids, ids[0]])
+            colors.InsertNextTuple3(*(round(255 * v) for v in PLANE_COLORS[normal]))
+        self._planes.SetPoints(points)
+        self._planes.SetLines(lines)
+        self._planes.GetCellData().SetScalars(colors)
+        self._planes.Modified()
 
     def set_background(self, background: RGB) -> None:
         self._ink = ink_for(background)
@@ -152,6 +205,7 @@ class SceneOverlays:
         self._state = state.model_copy()
         ren = self.renderer
         _show(ren, self.box_actor, state.bounding_box)
+        _show(ren, self.planes_actor, state.slice_planes)
         _show(ren, self.bar_actor, state.scale_bar)
         _show(ren, self.bar_text, state.scale_bar)
         self._build_legends()
@@ -254,7 +308,7 @@ class SceneOverlays:
 
     def close(self) -> None:
         self.renderer.RemoveObserver(self._tag)
-        for actor in (self.box_actor,):
+        for actor in (self.box_actor, self.planes_actor):
             self.renderer.RemoveActor(actor)
         for actor in (self.bar_actor, self.bar_text, *self.legends):
             self.renderer.RemoveViewProp(actor)

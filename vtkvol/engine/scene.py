@@ -23,6 +23,7 @@ from vtk.util.numpy_support import numpy_to_vtk
 from vtkvol.engine.framing import visible_bounds
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.overlays import SceneOverlays
+from vtkvol.engine.slices import snap_cursor
 from vtkvol.model.defaults import default_channels
 from vtkvol.model.evented import Signal, element_fields, fields_of, subfields, touches
 from vtkvol.model.scene import Channel, SceneModel
@@ -198,6 +199,10 @@ class VolumeScene:
         paths = frozenset(p for p in paths if tuple(fields_of(p)[:3]) not in _EDITOR_ONLY)
         if not paths:
             return
+        if touches(paths, "cursor"):
+            self._apply_cursor()
+            if paths == {"cursor"} and not self.model.overlays.slice_planes:
+                return  # only the slice views show it: no frame
         if touches(paths, "channels"):
             self._on_channels_change(paths)
         if touches(paths, "render"):
@@ -282,7 +287,15 @@ class VolumeScene:
         assert self.illuminator is not None
         self.illuminator.set_lights(self.model.lights)
         self._apply_legend()
+        self._apply_cursor()
         self.overlays.apply(self.model.overlays)
+
+    def _apply_cursor(self) -> None:
+        """The slice planes' outlines pass through the cursor (snapped to a voxel centre and
+        clamped into the data, as the slice views show it)."""
+        if self.data is not None:
+            self.overlays.set_cursor(snap_cursor(self.model.cursor, self.data.array.shape,
+                                                 tuple(self.data.voxel_size_um)))
 
     def _apply_legend(self) -> None:
         """The colour legend shows each visible channel's colour function."""

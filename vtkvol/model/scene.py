@@ -293,12 +293,15 @@ class Overlays(EventedModel):
     * ``bounding_box``: the outline of the data's box (voxel centres, world µm).
     * ``color_legend``: a colour bar per visible channel over its TF's value span (data
       units), titled with the channel's name.
+    * ``slice_planes``: the outlines of the three orthogonal slice planes through
+      ``SceneModel.cursor`` (x red, y green, z blue: the colour of the plane's normal axis).
     """
 
     scale_bar: bool = False
     orientation_axes: bool = False
     bounding_box: bool = False
     color_legend: bool = False
+    slice_planes: bool = False
 
 
 class SceneModel(EventedModel):
@@ -314,6 +317,14 @@ class SceneModel(EventedModel):
     render: RenderSettings = Field(default_factory=RenderSettings)
     overlays: Overlays = Field(default_factory=Overlays)
     clip_plane: ClipPlane = Field(default_factory=ClipPlane)
+    #: The point the orthogonal slice views pass through, world µm (x, y, z); ``None`` = the
+    #: data's centre voxel. Views clamp it into the data's box (vtkvol.engine.slices).
+    cursor: Vec3 | None = None
+
+    @field_validator("cursor")
+    @classmethod
+    def _cursor_finite(cls, v: Vec3 | None):
+        return None if v is None else _finite3(v, "cursor")
 
     @model_validator(mode="after")
     def _limits(self):
