@@ -151,6 +151,7 @@ def test_2d_tf_removes_high_gradient_voxels_from_image_and_shadow(views) -> None
     v1 = views(data, models[0])
     v2 = views(data, models[1])
     _, (g0, gmax) = v2.scene.tf2d_axes(0)
+    assert g0 == 0.0
     assert gmax == pytest.approx(0.25 * 200 / 1.0)  # VTK's axis: ¼ of the range per voxel
     low_gradient_only(models[1], 0.3 * gmax)
 
