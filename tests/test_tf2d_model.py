@@ -137,3 +137,21 @@ def test_hostile_session_value_gives_one_line_message(tmp_path: Path) -> None:
     assert "\n" not in text
     assert "channels[0].tf2d.primitives[0].value_range" in text
     assert "must be increasing" in text
+
+
+def test_table_rasterises_each_primitive_inside_its_box_only_with_the_same_result() -> None:
+    from vtkvol.model.transfer_function import rasterise
+
+    rng = np.random.default_rng(3)
+    prims = [TFPrimitive(kind=str(rng.choice(["rectangle", "triangle"])),
+                         value_range=tuple(sorted(rng.uniform(-10, 300, 2))),
+                         gradient_range=tuple(sorted(rng.uniform(0, 60, 2))),
+                         soft_edge=float(rng.uniform()), opacity=float(rng.uniform()),
+                         color=tuple(rng.uniform(size=3))) for _ in range(12)]
+    # and edges exactly on texel centres
+    prims.append(TFPrimitive(value_range=(5.0, 45.0), gradient_range=(12.5, 37.5)))
+    tf = TransferFunction2D(primitives=prims)
+    np.testing.assert_array_equal(tf.table((0, 100), (0, 50), (20, 10)),
+                                  rasterise(tf.evaluate, (0, 100), (0, 50), (20, 10)))
+    np.testing.assert_array_equal(tf.table((0, 255), (0, 50), (64, 128)),
+                                  rasterise(tf.evaluate, (0, 255), (0, 50), (64, 128)))

@@ -32,51 +32,24 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
 
+from vtkvol.model.gradient import (  # re-exported: the engine's view of VTK's gradient
+    GRADIENT_RANGE_FRACTION,
+    gradient_axis_max,
+    normalised_gradient,
+    vtk_gradient,
+)
+
+__all__ = ["GRADIENT_RANGE_FRACTION", "TABLE_SHAPE", "UNIT_ALPHA_ARRAY", "TableImage",
+           "gradient_axis_max", "lookup", "multi_component_fixes", "normalised_gradient",
+           "normalised_values", "per_sample_alpha", "per_unit_alpha", "unit_alpha_mtime",
+           "unit_alpha_table", "vtk_gradient"]
+
 #: (height = gradient rows, width = value columns) of the tables the engine uploads: VTK's
 #: smallest size (``vtkOpenGLVolumeLookupTable::GetMaximumSupportedTextureWidth``), so VTK
 #: never resamples them.
 TABLE_SHAPE = (1024, 1024)
 #: Name of the table image's second point array: alpha per opacity unit distance (h·w).
 UNIT_ALPHA_ARRAY = "vtkvol_alpha_per_unit_distance"
-#: VTK normalises |∇I| by this fraction of the value range (``computeGradient``).
-GRADIENT_RANGE_FRACTION = 0.25
-
-
-def gradient_axis_max(value_range: tuple[float, float],
-                      spacing: tuple[float, float, float]) -> float:
-    """|∇I| (data units per µm) at the top of VTK's gradient axis (t = 1)."""
-    span = float(value_range[1] - value_range[0]) or 1.0
-    return GRADIENT_RANGE_FRACTION * span / (sum(spacing) / 3.0)
-
-
-def vtk_gradient(values: np.ndarray, spacing: tuple[float, float, float]) -> np.ndarray:
-    """VTK's shading gradient at every voxel centre, ``[z, y, x, 3]`` (x, y, z order),
-    in data units scaled by the mean spacing: ``(I[i+1] − I[i−1]) / (2·sᵢ / mean(s))`` with
-    the edge voxel repeated outside (the texture's clamp to edge). float32."""
-    v = np.asarray(values, dtype=np.float32)
-    mean = sum(spacing) / 3.0
-    out = np.empty((*v.shape, 3), np.float32)
-    padded = np.pad(v, 1, mode="edge")
-    core = (slice(1, -1),) * 3
-    for k, axis in enumerate((2, 1, 0)):  # x, y, z are array axes 2, 1, 0
-        hi = list(core)
-        lo = list(core)
-        hi[axis] = slice(2, None)
-        lo[axis] = slice(None, -2)
-        out[..., k] = (padded[tuple(hi)] - padded[tuple(lo)]) / np.float32(
-            2.0 * spacing[k] / mean)
-    return out
-
-
-def normalised_gradient(values: np.ndarray, spacing: tuple[float, float, float],
-                        value_range: tuple[float, float]) -> np.ndarray:
-    """The gradient-axis coordinate ``t`` in 0…1 that VTK's shader computes per voxel."""
-    g = vtk_gradient(values, spacing)
-    magnitude = np.sqrt(np.einsum("...k,...k->...", g, g, dtype=np.float32))
-    span = float(value_range[1] - value_range[0]) or 1.0
-    return np.clip(magnitude / np.float32(GRADIENT_RANGE_FRACTION * span), 0.0, 1.0)
-
-
 def normalised_values(values: np.ndarray, value_range: tuple[float, float]) -> np.ndarray:
     """The value-axis coordinate ``s`` (0…1 inside the range) of every voxel."""
     lo, hi = (float(r) for r in value_range)

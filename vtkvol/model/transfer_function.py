@@ -272,7 +272,29 @@ class TransferFunction2D(EventedModel):
         Texel (j, i) holds the TF at the texel's centre: value ``v0 + (i + ½)·(v1 − v0)/width``
         and gradient ``g0 + (j + ½)·(g1 − g0)/height`` (the convention of an OpenGL texture
         sampled with linear filtering, so a lookup interpolates between these samples)."""
-        return rasterise(self.evaluate, value_range, gradient_range, shape)
+        values, gradients = table_axes(value_range, gradient_range, shape)
+        h, w = len(gradients), len(values)
+        transparency = np.ones((h, w))
+        weighted = np.zeros((h, w, 3))
+        total = np.zeros((h, w))
+        for prim in self.primitives:
+            # A primitive covers nothing outside its box: evaluate only the texels inside.
+            i0 = np.searchsorted(values, prim.value_range[0], side="left")
+            i1 = np.searchsorted(values, prim.value_range[1], side="right")
+            j0 = np.searchsorted(gradients, prim.gradient_range[0], side="left")
+            j1 = np.searchsorted(gradients, prim.gradient_range[1], side="right")
+            if i0 >= i1 or j0 >= j1:
+                continue
+            box = (slice(j0, j1), slice(i0, i1))
+            alpha = prim.opacity * prim.coverage(values[None, i0:i1], gradients[j0:j1, None])
+            transparency[box] *= 1.0 - alpha
+            weighted[box] += alpha[..., None] * np.asarray(prim.color, dtype=np.float64)
+            total[box] += alpha
+        out = np.zeros((h, w, 4), np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[..., :3] = np.where(total[..., None] > 0, weighted / total[..., None], 0.0)
+        out[..., 3] = 1.0 - transparency
+        return out
 
 
 def table_axes(value_range: tuple[float, float], gradient_range: tuple[float, float],
