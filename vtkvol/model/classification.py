@@ -117,9 +117,8 @@ def spatialized_classes(sample: FeatureSample, value_range: tuple[float, float],
     Per bin T: barycentre b(T) = mean of its voxels' normalised positions, spatial variance
     v(T) = mean ‖p − b(T)‖. Repeatedly take the unclassified bin T₀ with the most voxels and
     put every unclassified bin T with ‖b(T) − b(T₀)‖ + |v(T₀) − v(T)| < ``radius`` in its
-    class. Then denoise the label image: each class's indicator is Gaussian-blurred (σ = 1
-    bin) and every bin takes the class of the largest blurred indicator where that is ≥ ½
-    (a majority vote that also closes one-bin gaps between bins of one class)."""
+    class. Then denoise the label image (:func:`_smooth_labels`: a Gaussian majority vote
+    and a closing of one-bin gaps)."""
     lo, hi = RADIUS_RANGE
     if not (math.isfinite(radius) and lo <= radius <= hi):
         raise ValueError(f"radius {radius} must lie in {lo}…{hi}")
@@ -159,7 +158,11 @@ def spatialized_classes(sample: FeatureSample, value_range: tuple[float, float],
 
 
 def _smooth_labels(labels: np.ndarray, n_classes: int) -> np.ndarray:
-    """Gaussian vote (σ = 1 bin) between classes; bins without a majority stay empty."""
+    """Denoise the label image with a Gaussian vote (σ = 1 bin) per class: a labelled bin
+    takes another class where that class's vote is over twice its own (a majority filter),
+    and an empty bin takes the strongest class whose vote reaches 0.3 (a closing: one-bin
+    gaps inside a class are filled). Isolated bins keep their class (rare values still get
+    a colour)."""
     if n_classes == 0:
         return labels.copy()
     kernel = np.exp(-0.5 * np.arange(-2, 3) ** 2)
@@ -172,8 +175,11 @@ def _smooth_labels(labels: np.ndarray, n_classes: int) -> np.ndarray:
                                        mask)
         votes[k] = mask
     best = votes.argmax(axis=0)
-    strong = votes.max(axis=0) >= 0.5
-    return np.where(strong, best, -1)
+    strongest = votes.max(axis=0)
+    own = np.take_along_axis(votes, np.clip(labels, 0, None)[None], axis=0)[0]
+    relabel = (labels >= 0) & (best != labels) & (strongest > 2.0 * own)
+    fill = (labels < 0) & (strongest >= 0.3)
+    return np.where(relabel | fill, best, labels)
 
 
 def class_colors(n: int, seed: int = 0) -> list[tuple[float, float, float]]:
