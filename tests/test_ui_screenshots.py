@@ -128,7 +128,7 @@ def test_write_tf2d_editor_screenshot_on_real_data(qapp, qtbot, tmp_path):
     window.tf_dock.raise_()
     dock = window.tf_dock
     dock.dimension_combo.setCurrentIndex(1)
-    (v0, v1), (_g0, g1) = dock.axes_2d()
+    (_v0, v1), (_g0, g1) = dock.axes_2d()
     window.model.channels[0].tf2d.primitives = [
         TFPrimitive(value_range=(40.0, v1 + 1.0), gradient_range=(0.0, g1 * 1.01),
                     color=(1.0, 0.55, 0.1), opacity=0.8, soft_edge=0.3),
