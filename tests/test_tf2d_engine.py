@@ -273,3 +273,41 @@ def test_lookup_is_an_opengl_linear_filter() -> None:
     s = np.array([0.0, 0.125, 0.25, 0.5, 0.875, 1.0])
     np.testing.assert_allclose(tf2d.lookup(table, s, np.zeros_like(s)),
                                [0.0, 0.0, 0.5, 1.5, 3.0, 3.0])
+
+
+def test_nan_voxels_and_degenerate_ranges_classify_without_failing() -> None:
+    values = np.full((4, 4, 4), 5.0, np.float32)
+    values[1, 1, 1] = np.nan
+    s = tf2d.normalised_values(values, (0.0, 10.0))
+    t = tf2d.normalised_gradient(values, (1.0, 1.0, 1.0), (0.0, 10.0))
+    assert np.isfinite(s).all() and np.isfinite(t).all()
+    assert s[1, 1, 1] == 0.0 and t[1, 1, 2] == 0.0
+    assert (tf2d.normalised_values(values, (3.0, 3.0)) == 0).all()
+    assert np.isfinite(tf2d.normalised_gradient(values, (1.0, 1.0, 1.0), (0.0, np.inf))).all()
+    table = np.linspace(0, 1, 16, dtype=np.float32).reshape(4, 4)
+    assert np.isfinite(tf2d.lookup(table, s, t)).all()
+
+
+def test_a_1d_channel_beside_a_2d_channel_follows_its_1d_edits(views) -> None:
+    arr = np.zeros((2, 16, 16, 16), np.uint8)
+    arr[0, 4:12, 4:12, 2:7] = 200
+    arr[1, 4:12, 4:12, 9:14] = 200
+    data = VolumeData.from_array(arr, (1.0, 1.0, 1.0), ["a", "b"])
+    model = scene_for(data)
+    for channel in model.channels:
+        channel.tf = ramp_1d(99.5, 100.5, 0.5)
+    view = views(data, model)
+    model.channels[0].tf2d = TransferFunction2D(primitives=[TFPrimitive(
+        value_range=(100.0, 256.0), gradient_range=(0.0, 1e3), opacity=0.5)])
+    model.channels[0].tf_mode = "2d"
+    il = view.scene.illuminator
+    before = il.opacity_volume().copy()
+    np.testing.assert_allclose(before[8, 8, 10], 0.5, rtol=1e-6)  # channel 1 through its table
+    model.channels[1].tf = ramp_1d(99.5, 100.5, 0.2)
+    after = il.opacity_volume()
+    np.testing.assert_allclose(after[8, 8, 10], 0.2, rtol=1e-6)
+    np.testing.assert_array_equal(after[..., :8], before[..., :8])  # channel 0 untouched
+    # A channel linked to the 2-D one follows its mode and its regions.
+    model.channels[1].tf_linked_to = 0
+    linked = il.opacity_volume()
+    np.testing.assert_allclose(linked[8, 8, 10], 0.5, rtol=1e-6)

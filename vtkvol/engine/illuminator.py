@@ -188,6 +188,9 @@ class Illuminator:
         self._uniforms: set[str] = set()  # custom uniforms set for the technique (host-owned)
         self._expected_markers: tuple[set[str], set[str]] | None = None
         self._opacity_cache: tuple[tuple, np.ndarray] | None = None
+        #: Per component, VTK's table coordinates (s, t) of every voxel: they depend on the
+        #: data only, so a 2-D TF edit pays the lookup, not the gradient.
+        self._coords_cache: dict[int, tuple[tuple, tuple[np.ndarray, np.ndarray]]] = {}
         self._fragment_source = ""
         self._closed = False
         self._albedo = 1.0
@@ -549,9 +552,8 @@ class Illuminator:
             value_range = scalars.GetRange(c)
             if two_d and prop.GetTransferFunction2D(fc) is not None:
                 table = tf2d.unit_alpha_table(prop.GetTransferFunction2D(fc), step, uc)
-                alpha = tf2d.lookup(
-                    table, tf2d.normalised_values(values[..., c], value_range),
-                    tf2d.normalised_gradient(values[..., c], spacing, value_range))
+                alpha = tf2d.lookup(table, *self._table_coords(c, values[..., c], spacing,
+                                                               value_range))
             else:
                 alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[..., c])
                 if _gradient_opacity_on(prop, fc):
@@ -572,6 +574,19 @@ class Illuminator:
         opacity = np.ascontiguousarray(opacity, dtype=np.float32)
         self._opacity_cache = (key, opacity)
         return opacity
+
+    def _table_coords(self, c: int, values: np.ndarray, spacing: tuple[float, float, float],
+                      value_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """VTK's 2-D table coordinates (s, t) of component ``c``'s voxels, cached per data."""
+        key = (self.image.GetMTime(), values.shape, spacing, tuple(value_range))
+        cached = self._coords_cache.get(c)
+        if cached is None or cached[0] != key:
+            coords = (tf2d.normalised_values(values, value_range),
+                      tf2d.normalised_gradient(values, spacing, value_range))
+            if values.size > _COORDS_CACHE_VOXELS:
+                return coords  # 8 bytes a voxel: large volumes recompute instead
+            self._coords_cache[c] = cached = (key, coords)
+        return cached[1]
 
     def _apply_crop(self, opacity: np.ndarray) -> None:
         """Zero what the mapper does not show: its cropping regions (any of VTK's 27-region
@@ -975,6 +990,7 @@ class Illuminator:
 
     def _release(self) -> None:
         self._closed = True
+        self._coords_cache.clear()
         if self.render_window is not None:  # GL resources exist only after a first frame
             self.render_window.MakeCurrent()
         self._release_technique()
@@ -1085,6 +1101,10 @@ def _set_uniform(fu: vtk.vtkUniforms, name: str, value: Any) -> None:
             fu.SetUniform4f(name, arr.tolist())
         else:
             fu.SetUniform1fv(name, int(arr.size), arr.tolist())
+
+
+#: Largest component (voxels) whose 2-D table coordinates are kept between TF edits (256 MB).
+_COORDS_CACHE_VOXELS = 32 * 1024 * 1024
 
 
 def _gradient_opacity_on(prop: vtk.vtkVolumeProperty, c: int) -> bool:

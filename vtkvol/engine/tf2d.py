@@ -51,12 +51,14 @@ TABLE_SHAPE = (1024, 1024)
 #: Name of the table image's second point array: alpha per opacity unit distance (h·w).
 UNIT_ALPHA_ARRAY = "vtkvol_alpha_per_unit_distance"
 def normalised_values(values: np.ndarray, value_range: tuple[float, float]) -> np.ndarray:
-    """The value-axis coordinate ``s`` (0…1 inside the range) of every voxel."""
+    """The value-axis coordinate ``s`` (0…1 inside the range) of every voxel; NaN reads the
+    first column (the 1-D path maps NaN to the first node likewise)."""
     lo, hi = (float(r) for r in value_range)
     span = hi - lo
-    if span == 0.0:
+    if not (np.isfinite(span) and span > 0.0):
         return np.zeros(np.shape(values), np.float32)
-    return ((np.asarray(values, dtype=np.float64) - lo) / span).astype(np.float32)
+    s = ((np.asarray(values, dtype=np.float64) - lo) / span).astype(np.float32)
+    return np.nan_to_num(s, nan=0.0, posinf=1.0, neginf=0.0)
 
 
 def lookup(table: np.ndarray, s: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -64,20 +66,22 @@ def lookup(table: np.ndarray, s: np.ndarray, t: np.ndarray) -> np.ndarray:
     ``s`` (columns) and ``t`` (rows) in 0…1, as an OpenGL linear filter with clamp to edge
     reads it (texel centres at (i + ½)/w)."""
     h, w = table.shape[:2]
-    x = np.clip(np.asarray(s, dtype=np.float32) * w - 0.5, 0.0, w - 1)
-    y = np.clip(np.asarray(t, dtype=np.float32) * h - 0.5, 0.0, h - 1)
-    x0 = np.minimum(x.astype(np.int64), w - 2) if w > 1 else np.zeros(x.shape, np.int64)
-    y0 = np.minimum(y.astype(np.int64), h - 2) if h > 1 else np.zeros(y.shape, np.int64)
-    fx = (x - x0).astype(np.float32)
-    fy = (y - y0).astype(np.float32)
-    x1 = np.minimum(x0 + 1, w - 1)
-    y1 = np.minimum(y0 + 1, h - 1)
+    x = np.clip(np.asarray(s, dtype=np.float32) * np.float32(w) - np.float32(0.5), 0, w - 1)
+    y = np.clip(np.asarray(t, dtype=np.float32) * np.float32(h) - np.float32(0.5), 0, h - 1)
+    x0 = np.minimum(x.astype(np.int32), max(w - 2, 0))
+    y0 = np.minimum(y.astype(np.int32), max(h - 2, 0))
+    fx = x - x0
+    fy = y - y0
+    dx = 1 if w > 1 else 0
+    dy = w if h > 1 else 0
+    flat = table.reshape(h * w, *table.shape[2:])
+    i00 = y0 * np.int32(w) + x0
     if table.ndim == 3:
         fx = fx[..., None]
         fy = fy[..., None]
-    top = table[y0, x0] * (1 - fx) + table[y0, x1] * fx
-    bottom = table[y1, x0] * (1 - fx) + table[y1, x1] * fx
-    return (top * (1 - fy) + bottom * fy).astype(np.float32)
+    top = flat[i00] * (1 - fx) + flat[i00 + dx] * fx
+    bottom = flat[i00 + dy] * (1 - fx) + flat[i00 + dy + dx] * fx
+    return (top * (1 - fy) + bottom * fy).astype(np.float32, copy=False)
 
 
 def per_sample_alpha(alpha_per_unit: np.ndarray, step: float, unit: float) -> np.ndarray:

@@ -47,11 +47,15 @@ def vtk_gradient(values: np.ndarray, spacing: tuple[float, float, float]) -> np.
 
 def normalised_gradient(values: np.ndarray, spacing: tuple[float, float, float],
                         value_range: tuple[float, float]) -> np.ndarray:
-    """The gradient-axis coordinate ``t`` in 0…1 that VTK's shader computes per voxel."""
+    """The gradient-axis coordinate ``t`` in 0…1 that VTK's shader computes per voxel
+    (a NaN neighbour gives 0: the bottom row)."""
     g = vtk_gradient(values, spacing)
     magnitude = np.sqrt(np.einsum("...k,...k->...", g, g, dtype=np.float32))
-    span = float(value_range[1] - value_range[0]) or 1.0
-    return np.clip(magnitude / np.float32(GRADIENT_RANGE_FRACTION * span), 0.0, 1.0)
+    span = float(value_range[1] - value_range[0])
+    if not (np.isfinite(span) and span > 0.0):
+        span = 1.0
+    t = np.clip(magnitude / np.float32(GRADIENT_RANGE_FRACTION * span), 0.0, 1.0)
+    return np.nan_to_num(t, nan=0.0)
 
 
 def gradient_magnitude(values: np.ndarray, spacing: tuple[float, float, float]) -> np.ndarray:
