@@ -311,3 +311,16 @@ def test_a_1d_channel_beside_a_2d_channel_follows_its_1d_edits(views) -> None:
     model.channels[1].tf_linked_to = 0
     linked = il.opacity_volume()
     np.testing.assert_allclose(linked[8, 8, 10], 0.5, rtol=1e-6)
+
+
+def test_the_editor_axis_zoom_does_not_rebuild_the_tables(views) -> None:
+    data = sphere_and_slab()
+    model = scene_for(data)
+    view = views(data, model)
+    low_gradient_only(model, 20.0)
+    array = view.scene._tables[0].image.GetPointData().GetArray(tf2d.UNIT_ALPHA_ARRAY)
+    stamp = array.GetMTime()
+    model.channels[0].tf2d.gradient_max = 5.0  # the editor's axis only
+    assert array.GetMTime() == stamp
+    model.channels[0].tf2d.primitives[0].opacity = 0.5
+    assert array.GetMTime() > stamp

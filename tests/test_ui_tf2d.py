@@ -122,6 +122,16 @@ def test_model_to_widget(window) -> None:
     assert poly.size() == 3  # drawn as a triangle
     channel.tf2d.primitives = channel.tf2d.primitives[1:]
     assert dock.editor_2d.selected in (-1, 0) and len(dock.editor_2d._tf.primitives) == 1
+    full_top = dock.editor_2d.axes[1][1]
+    assert dock.gradient_top.value() == pytest.approx(full_top, rel=1e-3)
+    assert not dock.gradient_full.isEnabled()
+    channel.tf2d.gradient_max = 100.0  # zoom the gradient axis from the model …
+    assert dock.editor_2d.axes[1] == (0.0, 100.0) and dock.gradient_top.value() == 100.0
+    dock.gradient_full.click()  # … and back from the widget
+    assert channel.tf2d.gradient_max is None
+    assert dock.editor_2d.axes[1][1] == pytest.approx(full_top)
+    dock.gradient_top.setValue(50.0)
+    assert channel.tf2d.gradient_max == 50.0
     channel.tf_mode = "1d"
     assert dock.dimension_combo.currentIndex() == 0 and dock.pages.currentIndex() == 0
 

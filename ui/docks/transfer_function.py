@@ -391,6 +391,8 @@ class TransferFunctionDock(ModelDock):
         b.connect_qt(self.primitive_soft.valueChanged,
                      lambda v: self._set_selected(soft_edge=float(v)))
         b.connect_qt(self.propose_button.clicked, self.propose_classes)
+        b.connect_qt(self.gradient_top.valueChanged, self._on_gradient_top)
+        b.connect_qt(self.gradient_full.clicked, self._on_gradient_full)
 
     def _build_2d_page(self) -> QWidget:
         page = QWidget()
@@ -456,11 +458,23 @@ class TransferFunctionDock(ModelDock):
             step=0.1, object_name="tf2d_stf_opacity",
             tooltip="c_α: opacity = c_α · |∇I| / top of the gradient axis (capped at 1)")
         self.stf_opacity.setValue(DEFAULT_OPACITY_SCALE)
+        self.gradient_top = number_box(
+            minimum=1e-6, maximum=1e12, decimals=3, object_name="tf2d_gradient_top",
+            tooltip="Top of the editor's gradient axis (data units per µm): zoom into the "
+                    "low gradients where most voxels lie. The renderer's own axis ends at "
+                    "¼ of the value range per mean voxel edge.")
+        self.gradient_full = QPushButton("Full")
+        self.gradient_full.setObjectName("tf2d_gradient_full")
+        self.gradient_full.setToolTip("Show the renderer's whole gradient axis again")
         stf.addWidget(self.propose_button)
         stf.addWidget(QLabel("r"))
         stf.addWidget(self.stf_radius)
         stf.addWidget(QLabel("c_α"))
         stf.addWidget(self.stf_opacity)
+        stf.addSpacing(10)
+        stf.addWidget(QLabel("|∇I| axis"))
+        stf.addWidget(self.gradient_top)
+        stf.addWidget(self.gradient_full)
         stf.addStretch(1)
         layout.addLayout(stf)
         return page
@@ -614,6 +628,9 @@ class TransferFunctionDock(ModelDock):
             return
         values, gradients = self.axes_2d()
         self.editor_2d.set_axes(values, gradients)
+        with signals_blocked(self.gradient_top):
+            self.gradient_top.setValue(gradients[1])
+        self.gradient_full.setEnabled(channel.tf2d.gradient_max is not None)
         self.editor_2d.set_function(channel.tf2d)
         self._update_histogram_2d()
         self._show_selected()
@@ -645,6 +662,12 @@ class TransferFunctionDock(ModelDock):
                 self.primitive_opacity.setValue(prim.opacity)
                 self.primitive_soft.setValue(prim.soft_edge)
             self.primitive_color.set_rgb(prim.color)
+
+    def _on_gradient_top(self, value: float) -> None:
+        self.current_tf2d().gradient_max = float(value)
+
+    def _on_gradient_full(self) -> None:
+        self.current_tf2d().gradient_max = None
 
     def _on_dimension(self, index: int) -> None:
         self.current_channel().tf_mode = _DIMENSIONS[index][0]

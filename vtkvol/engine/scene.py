@@ -48,7 +48,8 @@ _BLEND = {
     "isosurface": vtk.vtkVolumeMapper.ISOSURFACE_BLEND,
 }
 #: Fields that are editor state only (the TF editor's displayed-value window): no VTK change.
-_EDITOR_ONLY = (("channels", "tf", "window"), ("channels", "tf", "window_range"))
+_EDITOR_ONLY = (("channels", "tf", "window"), ("channels", "tf", "window_range"),
+                ("channels", "tf2d", "gradient_max"))
 #: Per-channel fields that change nothing VTK shows (the channel list's name and tint).
 _LABEL_ONLY = ("name", "color")
 #: Weight-table resolution for the slice-contribution functions.
