@@ -324,3 +324,40 @@ def test_the_editor_axis_zoom_does_not_rebuild_the_tables(views) -> None:
     assert array.GetMTime() == stamp
     model.channels[0].tf2d.primitives[0].opacity = 0.5
     assert array.GetMTime() > stamp
+
+
+def test_2d_mode_on_dependent_components_falls_back_with_one_message() -> None:
+    import vtkvol
+    from vtkvol.engine.offscreen import image_from_array
+
+    arr = np.zeros((16, 16, 16, 4), np.uint8)
+    arr[4:12, 4:12, 4:12] = 200
+    prop = vtk.vtkVolumeProperty()
+    prop.SetIndependentComponents(0)
+    table = vtk.vtkImageData()
+    table.SetDimensions(8, 8, 1)
+    table.AllocateScalars(vtk.VTK_FLOAT, 4)
+    table.GetPointData().GetScalars().Fill(0.5)
+    prop.SetTransferFunction2D(table)
+    prop.SetTransferFunctionModeTo2D()
+    mapper = vtk.vtkOpenGLGPUVolumeRayCastMapper()
+    mapper.SetInputData(image_from_array(arr))
+    volume = vtk.vtkVolume()
+    volume.SetMapper(mapper)
+    volume.SetProperty(prop)
+    rw = make_render_window((48, 48))
+    renderer = vtk.vtkRenderer()
+    rw.AddRenderer(renderer)
+    renderer.AddVolume(volume)
+    renderer.ResetCamera()
+    il = vtkvol.illuminate(volume, renderer, method="shadow_volume")
+    messages: list[str] = []
+    il.on_error = messages.append
+    try:
+        rw.Render()
+        assert il.failed_method == "shadow_volume"
+        assert len(messages) == 1
+        assert "2-D transfer functions need independent components" in messages[0]
+    finally:
+        il.release()
+        rw.Finalize()
