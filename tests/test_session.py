@@ -49,6 +49,7 @@ from vtkvol.model.session import (
     save_session,
 )
 from vtkvol.model.techniques import TechniqueSpec, register
+from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
 
 FIXTURES = Path(__file__).parent / "fixtures" / "sessions"
 HEADER = '{"format": "vtkvol-session", "version": 1, '
@@ -96,6 +97,17 @@ def rich_model() -> SceneModel:
                     opacity=[(10.0, 0.0), (120.0, 0.25), (200.0, 0.6)],
                     window=(0.0, 230.0),
                     window_range=(0.0, 255.0),
+                ),
+                tf_mode="2d",
+                tf2d=TransferFunction2D(
+                    primitives=[
+                        TFPrimitive(value_range=(40.0, 180.0), gradient_range=(0.0, 12.5),
+                                    color=(0.2, 0.9, 0.4), opacity=0.3, soft_edge=0.25),
+                        TFPrimitive(kind="triangle", value_range=(60.0, 220.0),
+                                    gradient_range=(2.0, 40.0), color=(1.0, 0.5, 0.1),
+                                    opacity=0.8),
+                    ],
+                    gradient_max=50.0,
                 ),
             ),
             Channel(name="membrane", visible=False, color=(1.0, 0.2, 1.0), tf_linked_to=0),
@@ -432,7 +444,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 6)"),
+         "(format version 99; this version reads up to 7)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -814,7 +826,7 @@ def test_migrate_v5_to_v6_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[5](raw)
     assert out == load_fixture("v5_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     # v5 had no slice views: the data's centre, and no plane outlines in the 3-D view.
     assert out["scene"]["cursor"] is None
     assert out["scene"]["overlays"]["slice_planes"] is False
@@ -827,8 +839,25 @@ def test_v5_file_reads_without_warnings_and_a_centred_cursor() -> None:
     assert session.model.cursor is None and session.model.overlays.slice_planes is False
 
 
+def test_migrate_v6_to_v7_matches_fixture() -> None:
+    raw = load_fixture("v6_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[6](raw)
+    assert out == load_fixture("v6_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    assert [c["tf_mode"] for c in out["scene"]["channels"]] == ["1d", "1d"]  # v6 was 1-D
+    assert raw == untouched
+
+
+def test_v6_file_reads_without_warnings_and_1d_classification() -> None:
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
+    assert session.warnings == []
+    assert all(c.tf_mode == "1d" and c.tf2d == TransferFunction2D()
+               for c in session.model.channels)
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v6_complete.vtkvol.json")
+    doc = load_fixture("v7_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -858,8 +887,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
+    """The checked-in v7 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -879,8 +908,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
-        migrate({"format": FORMAT, "version": 7})
+    with pytest.raises(ValueError, match="format version 8; this version reads up to 7"):
+        migrate({"format": FORMAT, "version": 8})
 
 
 @pytest.mark.parametrize(

@@ -223,3 +223,40 @@ def test_write_time_slider_screenshot(qapp, qtbot, tmp_path):
     assert window.grab().save(str(whole))
     assert _nonblank(whole) > 5.0
     window.close()
+
+
+@pytest.mark.skipif(not BEADS.exists(), reason="../shared/data not present")
+def test_write_tf2d_editor_screenshot_on_real_data(qapp, qtbot, tmp_path):
+    """``docs/screenshots/tf2d-editor.png``: the confocal bead stack of ../shared/data
+    classified in 2-D: the beads' bright cores (a rectangle over every gradient) in orange
+    and their steep flanks (a triangle rising from |∇I| = 0) in cyan, over the stack's
+    value × gradient histogram; the rectangle is selected."""
+    from vtkvol.model.transfer_function import TFPrimitive
+
+    configure_gl_platform(qapp)
+    window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    qtbot.addWidget(window)
+    window.resize(1240, 800)
+    window.show()
+    qtbot.waitExposed(window)
+    window.model.render.sample_distance = 1.0
+    with qtbot.waitSignal(window.dataShown, timeout=60_000):
+        window.open_path(BEADS)
+    window.tf_dock.raise_()
+    dock = window.tf_dock
+    dock.dimension_combo.setCurrentIndex(1)
+    (_v0, v1), (_g0, g1) = dock.axes_2d()
+    window.model.channels[0].tf2d.primitives = [
+        TFPrimitive(value_range=(40.0, v1 + 1.0), gradient_range=(0.0, g1 * 1.01),
+                    color=(1.0, 0.55, 0.1), opacity=0.8, soft_edge=0.3),
+        TFPrimitive(kind="triangle", value_range=(8.0, 60.0), gradient_range=(0.0, g1),
+                    color=(0.2, 0.85, 1.0), opacity=0.25, soft_edge=0.4),
+    ]
+    dock.editor_2d.select(0)
+    window.viewport.scene.orbit(-25.0, 15.0)
+    qtbot.wait(100)
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / "tf2d-editor.png"
+    assert window.grab().save(str(path))
+    window.close()
+    assert _nonblank(path) > 10.0

@@ -16,9 +16,11 @@ are throttled by the editor and grouped into one undo step through ``gestureStar
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -38,6 +40,7 @@ from PySide6.QtWidgets import (
     QPushButton,
     QRadioButton,
     QSizePolicy,
+    QStackedWidget,
     QToolButton,
     QVBoxLayout,
     QWidget,
@@ -45,15 +48,28 @@ from PySide6.QtWidgets import (
 from superqt import QDoubleRangeSlider
 
 from vtkvol.io.atomic import write_atomic
+from vtkvol.model.classification import (
+    DEFAULT_OPACITY_SCALE,
+    DEFAULT_RADIUS,
+    OPACITY_SCALE_RANGE,
+    RADIUS_RANGE,
+    FeatureSample,
+    classes_to_tf,
+    feature_sample,
+    histogram2d,
+    spatialized_classes,
+)
 from vtkvol.model.evented import touches
+from vtkvol.model.gradient import gradient_axis_max
 from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
 from vtkvol.model.scene import SceneModel
-from vtkvol.model.transfer_function import TransferFunction
+from vtkvol.model.transfer_function import TFPrimitive, TransferFunction, TransferFunction2D
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks import base as dock_base
-from vtkvol.ui.docks.base import ModelDock, hint_label, number_box
+from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 from vtkvol.ui.docks.function_editor import ColorBar, Curve, FunctionEditor, format_value
+from vtkvol.ui.docks.tf2d_editor import TF2DEditor
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -63,6 +79,8 @@ TF_FILE_VERSION = 1
 TF_FILE_FILTER = "Transfer function (*.tf.json);;JSON (*.json)"
 HISTOGRAM_BINS = 256
 HISTOGRAM_SAMPLE = 1_000_000  #: voxels per channel the histogram is computed from (strided)
+HISTOGRAM_2D_BINS = (96, 192)  #: gradient × value bins of the 2-D editor's histogram
+_DIMENSIONS = (("1d", "Value (1-D)"), ("2d", "Value × gradient (2-D)"))
 COLORMAPS = ("gray", "viridis", "magma", "inferno", "plasma", "cividis", "turbo", "hot",
              "bone", "copper", "cubehelix")
 _ASK_COLORMAP = "\0ask"  #: menu data of "By name…" (not a valid preset or colormap name)
@@ -123,6 +141,23 @@ class HistogramCache:
         return counts
 
 
+class FeatureCache:
+    """Each channel's (value, |∇I|) sample (:func:`vtkvol.model.classification.feature_sample`),
+    read once per data set: the 2-D histogram and the proposed classes share it."""
+
+    def __init__(self) -> None:
+        self._key: int | None = None
+        self._samples: dict[int, FeatureSample] = {}
+
+    def sample(self, data: VolumeData, channel: int) -> FeatureSample:
+        if self._key != id(data):
+            self._key, self._samples = id(data), {}
+        if channel not in self._samples:
+            self._samples[channel] = feature_sample(data.array[channel],
+                                                    tuple(data.voxel_size_um))
+        return self._samples[channel]
+
+
 def write_tf_file(path: str | os.PathLike[str], tf: TransferFunction) -> Path:
     """Save one transfer function as JSON, atomically (vtkvol.io.atomic: a failed write raises
     OSError and leaves any previous file as it was)."""
@@ -161,6 +196,8 @@ class TransferFunctionDock(ModelDock):
         self._channel = 0
         self._tf: TransferFunction | None = None
         self._histograms = HistogramCache()
+        self._features = FeatureCache()
+        self._histogram_2d_key: tuple[Any, ...] | None = None
         self._editing = False
         self._histogram_key: tuple[Any, ...] | None = None
         self._build()
@@ -208,7 +245,14 @@ class TransferFunctionDock(ModelDock):
         window_row.addWidget(self.window_max)
         window_row.addWidget(self.window_full)
         left.addLayout(window_row)
-        outer.addLayout(left, 1)
+        page_1d = QWidget()
+        page_1d.setLayout(left)
+        left.setContentsMargins(0, 0, 0, 0)
+        self.pages = QStackedWidget()
+        self.pages.setObjectName("tf_pages")
+        self.pages.addWidget(page_1d)
+        self.pages.addWidget(self._build_2d_page())
+        outer.addWidget(self.pages, 1)
 
         side = QWidget()
         side.setFixedWidth(228)
@@ -226,6 +270,18 @@ class TransferFunctionDock(ModelDock):
         self.link_label.setVisible(False)
         grid.addWidget(self.link_label, row, 0, 1, 4)
         row += 1
+        grid.addWidget(QLabel("Classify"), row, 0)
+        self.dimension_combo = QComboBox()
+        self.dimension_combo.setObjectName("tf_dimension")
+        for _, label in _DIMENSIONS:
+            self.dimension_combo.addItem(label)
+        self.dimension_combo.setToolTip(
+            "Classify the channel by its values (1-D transfer function) or by value and "
+            "gradient magnitude (2-D): boundaries between materials have large gradients. "
+            "Switching keeps both functions.")
+        grid.addWidget(self.dimension_combo, row, 1, 1, 3)
+        row += 1
+        first_1d_row = row
         grid.addWidget(QLabel("Edit"), row, 0)
         self.curve_group = QButtonGroup(self)
         self.curve_buttons: dict[str, QToolButton] = {}
@@ -293,6 +349,12 @@ class TransferFunctionDock(ModelDock):
         buttons.addWidget(self.save_button)
         grid.addLayout(buttons, row, 0, 1, 4)
         row += 1
+        # The 1-D editor's controls: hidden while the channel is classified in 2-D.
+        self._controls_1d = [
+            item.widget() for r in range(first_1d_row, row) for c in range(4)
+            if (item := grid.itemAtPosition(r, c)) is not None and item.widget() is not None
+        ] + [*self.curve_buttons.values(), self.preset_button, self.load_button,
+             self.save_button]
         grid.setRowStretch(row, 1)
         grid.setColumnStretch(3, 1)
         outer.addWidget(side)
@@ -315,6 +377,107 @@ class TransferFunctionDock(ModelDock):
         b.connect_qt(self.window_full.clicked, self._on_window_full)
         b.connect_qt(self.load_button.clicked, self._on_load)
         b.connect_qt(self.save_button.clicked, self._on_save)
+        b.connect_qt(self.dimension_combo.currentIndexChanged, self._on_dimension)
+        b.connect_qt(self.editor_2d.selectionChanged, self._on_2d_selection)
+        b.connect_qt(self.editor_2d.primitiveMoved, self._on_2d_moved)
+        b.connect_qt(self.editor_2d.editStarted, self._on_edit_started)
+        b.connect_qt(self.editor_2d.editFinished, self._on_2d_edit_finished)
+        b.connect_qt(self.add_rectangle.clicked, lambda: self.add_primitive("rectangle"))
+        b.connect_qt(self.add_triangle.clicked, lambda: self.add_primitive("triangle"))
+        b.connect_qt(self.delete_primitive.clicked, self._on_delete_primitive)
+        b.connect_qt(self.primitive_color.colorPicked, self._on_primitive_color)
+        b.connect_qt(self.primitive_opacity.valueChanged,
+                     lambda v: self._set_selected(opacity=float(v)))
+        b.connect_qt(self.primitive_soft.valueChanged,
+                     lambda v: self._set_selected(soft_edge=float(v)))
+        b.connect_qt(self.propose_button.clicked, self.propose_classes)
+        b.connect_qt(self.gradient_top.valueChanged, self._on_gradient_top)
+        b.connect_qt(self.gradient_full.clicked, self._on_gradient_full)
+
+    def _build_2d_page(self) -> QWidget:
+        page = QWidget()
+        layout = QVBoxLayout(page)
+        layout.setContentsMargins(0, 0, 0, 0)
+        layout.setSpacing(2)
+        self.editor_2d = TF2DEditor()
+        self.editor_2d.setObjectName("tf2d_editor")
+        self.editor_2d.setToolTip(
+            "Value × gradient-magnitude histogram (log counts) with the 2-D transfer "
+            "function over it. Press inside a region to select and move it; drag a corner "
+            "handle of the selected region to resize it.")
+        layout.addWidget(self.editor_2d, 1)
+        row = QHBoxLayout()
+        row.setSpacing(4)
+        self.add_rectangle = QPushButton("+ Rectangle")
+        self.add_rectangle.setObjectName("tf2d_add_rectangle")
+        self.add_rectangle.setToolTip("Add a rectangle: a range of values and gradients")
+        self.add_triangle = QPushButton("+ Triangle")
+        self.add_triangle.setObjectName("tf2d_add_triangle")
+        self.add_triangle.setToolTip(
+            "Add a triangle rising from |∇I| = 0: Kniss's widget for the boundary arcs "
+            "between two materials")
+        self.delete_primitive = QPushButton("Delete")
+        self.delete_primitive.setObjectName("tf2d_delete")
+        self.delete_primitive.setToolTip("Remove the selected region")
+        self.primitive_color = ColorButton("Region colour")
+        self.primitive_color.setObjectName("tf2d_color")
+        self.primitive_opacity = number_box(
+            minimum=0.0, maximum=1.0, decimals=3, step=0.01, object_name="tf2d_opacity",
+            tooltip="Opacity of the selected region (per opacity unit distance)")
+        self.primitive_soft = number_box(
+            minimum=0.0, maximum=1.0, decimals=2, step=0.05, object_name="tf2d_soft_edge",
+            tooltip="Soft edge: the fraction of the region's half-size over which its "
+                    "opacity fades to 0 at the border (0 = hard edge)")
+        for widget in (self.add_rectangle, self.add_triangle, self.delete_primitive):
+            row.addWidget(widget)
+        row.addSpacing(6)
+        row.addWidget(self.primitive_color)
+        row.addWidget(QLabel("α"))
+        row.addWidget(self.primitive_opacity)
+        row.addWidget(QLabel("soft"))
+        row.addWidget(self.primitive_soft)
+        row.addStretch(1)
+        layout.addLayout(row)
+        stf = QHBoxLayout()
+        stf.setSpacing(4)
+        self.propose_button = QPushButton("Propose classes")
+        self.propose_button.setObjectName("tf2d_propose")
+        self.propose_button.setToolTip(
+            "Spatialized transfer function (Roettger et al.): group histogram bins whose "
+            "voxels lie in the same place, colour each group, opacity growing with the "
+            "gradient. Replaces this channel's regions; edit the result.")
+        self.stf_radius = number_box(
+            minimum=RADIUS_RANGE[0], maximum=RADIUS_RANGE[1], decimals=2, step=0.01,
+            object_name="tf2d_stf_radius",
+            tooltip="r: how far apart (barycentre distance + spread difference, in units of "
+                    "the volume's size) two bins may be and still form one class; larger "
+                    "gives fewer classes")
+        self.stf_radius.setValue(DEFAULT_RADIUS)
+        self.stf_opacity = number_box(
+            minimum=OPACITY_SCALE_RANGE[0], maximum=OPACITY_SCALE_RANGE[1], decimals=2,
+            step=0.1, object_name="tf2d_stf_opacity",
+            tooltip="c_α: opacity = c_α · |∇I| / top of the gradient axis (capped at 1)")
+        self.stf_opacity.setValue(DEFAULT_OPACITY_SCALE)
+        self.gradient_top = number_box(
+            minimum=1e-6, maximum=1e12, decimals=3, object_name="tf2d_gradient_top",
+            tooltip="Top of the editor's gradient axis (data units per µm): zoom into the "
+                    "low gradients where most voxels lie. The renderer's own axis ends at "
+                    "¼ of the value range per mean voxel edge.")
+        self.gradient_full = QPushButton("Full")
+        self.gradient_full.setObjectName("tf2d_gradient_full")
+        self.gradient_full.setToolTip("Show the renderer's whole gradient axis again")
+        stf.addWidget(self.propose_button)
+        stf.addWidget(QLabel("r"))
+        stf.addWidget(self.stf_radius)
+        stf.addWidget(QLabel("c_α"))
+        stf.addWidget(self.stf_opacity)
+        stf.addSpacing(10)
+        stf.addWidget(QLabel("|∇I| axis"))
+        stf.addWidget(self.gradient_top)
+        stf.addWidget(self.gradient_full)
+        stf.addStretch(1)
+        layout.addLayout(stf)
+        return page
 
     def _preset_menu(self) -> QMenu:
         menu = QMenu(self)
@@ -392,6 +555,7 @@ class TransferFunctionDock(ModelDock):
                     f"“{channels[effective].name}”: edits here change both.")
         self._tf = self.current_tf()
         self._show_tf()
+        self._show_2d()
 
     def _show_tf(self) -> None:
         tf = self._tf
@@ -434,6 +598,161 @@ class TransferFunctionDock(ModelDock):
         if key != self._histogram_key:  # edits of the curves leave the histogram as it is
             self._histogram_key = key
             self.editor.set_histogram(self._histograms.counts(self.data, index, lo, hi))
+
+    # -- 2-D transfer function ------------------------------------------------------------------
+    def current_channel(self):
+        """The channel whose transfer functions are edited (the linked one when following)."""
+        return self.model.channels[self._effective_index()]
+
+    def current_tf2d(self) -> TransferFunction2D:
+        return self.current_channel().tf2d
+
+    def axes_2d(self) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(values in data units, |∇I| in data units per µm) of the 2-D editor: the data's
+        value range and the renderer's gradient axis (docs/transfer-functions-2d.md)."""
+        tf2d = self.current_tf2d()
+        if self.data is None:
+            lo, hi = self.current_tf().window_range
+            return (lo, hi), (0.0, tf2d.gradient_max or 1.0)
+        index = min(self._channel, self.data.n_channels - 1)
+        lo, hi = self.data.channel_range(index)
+        if hi <= lo:
+            hi = lo + 1.0
+        top = tf2d.gradient_max or gradient_axis_max((lo, hi), tuple(self.data.voxel_size_um))
+        return (lo, hi), (0.0, top)
+
+    def _show_2d(self) -> None:
+        channel = self.current_channel()
+        two_d = channel.tf_mode == "2d"
+        with signals_blocked(self.dimension_combo):
+            self.dimension_combo.setCurrentIndex(1 if two_d else 0)
+        self.pages.setCurrentIndex(1 if two_d else 0)
+        for widget in self._controls_1d:
+            widget.setVisible(not two_d)
+        if not two_d:
+            return
+        values, gradients = self.axes_2d()
+        self.editor_2d.set_axes(values, gradients)
+        with signals_blocked(self.gradient_top):
+            self.gradient_top.setValue(gradients[1])
+        self.gradient_full.setEnabled(channel.tf2d.gradient_max is not None)
+        self.editor_2d.set_function(channel.tf2d)
+        self._update_histogram_2d()
+        self._show_selected()
+
+    def _update_histogram_2d(self) -> None:
+        if self.data is None:
+            self._histogram_2d_key = None
+            self.editor_2d.set_histogram(None)
+            return
+        index = min(self._channel, self.data.n_channels - 1)
+        values, gradients = self.editor_2d.axes
+        key = (id(self.data), index, values, gradients)
+        if key != self._histogram_2d_key:
+            self._histogram_2d_key = key
+            sample = self._features.sample(self.data, index)
+            self.editor_2d.set_histogram(histogram2d(sample, values, gradients,
+                                                     HISTOGRAM_2D_BINS))
+
+    def _show_selected(self) -> None:
+        prims = self.current_tf2d().primitives
+        index = self.editor_2d.selected
+        has = 0 <= index < len(prims)
+        for widget in (self.delete_primitive, self.primitive_color, self.primitive_opacity,
+                       self.primitive_soft):
+            widget.setEnabled(has)
+        if has:
+            prim = prims[index]
+            with signals_blocked(self.primitive_opacity, self.primitive_soft):
+                self.primitive_opacity.setValue(prim.opacity)
+                self.primitive_soft.setValue(prim.soft_edge)
+            self.primitive_color.set_rgb(prim.color)
+
+    def _on_gradient_top(self, value: float) -> None:
+        self.current_tf2d().gradient_max = float(value)
+
+    def _on_gradient_full(self) -> None:
+        self.current_tf2d().gradient_max = None
+
+    def _on_dimension(self, index: int) -> None:
+        self.current_channel().tf_mode = _DIMENSIONS[index][0]
+
+    def add_primitive(self, kind: str) -> None:
+        """Add a rectangle or triangle in the middle of the editor's axes and select it."""
+        (v0, v1), (_g0, g1) = self.axes_2d()
+        span = v1 - v0
+        tint = self.current_channel().color
+        prim = TFPrimitive(kind=kind, value_range=(v0 + span / 3, v0 + 2 * span / 3),
+                           gradient_range=(0.0, g1 * (0.5 if kind == "rectangle" else 0.9)),
+                           color=tint, opacity=0.3, soft_edge=0.2)
+        tf2d = self.current_tf2d()
+        try:
+            with self._step():
+                tf2d.primitives = [*tf2d.primitives, prim]
+        except ValueError as exc:
+            errors.show_error(self, exc, action="Could not add the region")
+            return
+        self.editor_2d.select(len(tf2d.primitives) - 1)
+
+    @contextlib.contextmanager
+    def _step(self) -> Iterator[None]:
+        """One undo step of its own (not merged with a quick edit just before it)."""
+        self.gestureStarted.emit()
+        try:
+            yield
+        finally:
+            self.gestureFinished.emit()
+
+    def _on_delete_primitive(self) -> None:
+        index = self.editor_2d.selected
+        tf2d = self.current_tf2d()
+        if 0 <= index < len(tf2d.primitives):
+            self.editor_2d.select(-1)
+            with self._step():
+                tf2d.primitives = [p for i, p in enumerate(tf2d.primitives) if i != index]
+
+    def _on_2d_selection(self, _index: int) -> None:
+        self._show_selected()
+
+    def _on_2d_moved(self, index: int, values: tuple[float, float],
+                     gradients: tuple[float, float]) -> None:
+        prims = self.current_tf2d().primitives
+        if 0 <= index < len(prims):
+            try:
+                prims[index].update({"value_range": values, "gradient_range": gradients})
+            except ValueError:
+                self._show_2d()
+
+    def _on_2d_edit_finished(self) -> None:
+        self._editing = False
+        self.gestureFinished.emit()
+        self._show_2d()
+
+    def _on_primitive_color(self, rgb: tuple[float, float, float]) -> None:
+        self._set_selected(color=rgb)
+
+    def _set_selected(self, **values: Any) -> None:
+        prims = self.current_tf2d().primitives
+        index = self.editor_2d.selected
+        if 0 <= index < len(prims):
+            prims[index].update(values)
+
+    def propose_classes(self) -> None:
+        """Replace the channel's regions by spatialized classes (one undoable step)."""
+        if self.data is None:
+            return
+        index = min(self._channel, self.data.n_channels - 1)
+        values, gradients = self.axes_2d()
+        try:
+            classes = spatialized_classes(self._features.sample(self.data, index), values,
+                                          gradients, radius=self.stf_radius.value())
+            proposed = classes_to_tf(classes, opacity_scale=self.stf_opacity.value())
+        except ValueError as exc:
+            errors.show_error(self, exc, action="Could not propose classes")
+            return
+        self.editor_2d.select(-1)
+        with self._step():
+            self.current_tf2d().primitives = proposed.primitives
 
     # -- widget → model -------------------------------------------------------------------------
     def _on_channel_chosen(self, index: int) -> None:

@@ -30,7 +30,7 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
-from vtkvol.engine import shaders
+from vtkvol.engine import shaders, tf2d
 from vtkvol.engine.gl import Texture2D
 from vtkvol.engine.technique import Technique, technique_class
 from vtkvol.model.params import Invalidates
@@ -188,6 +188,9 @@ class Illuminator:
         self._uniforms: set[str] = set()  # custom uniforms set for the technique (host-owned)
         self._expected_markers: tuple[set[str], set[str]] | None = None
         self._opacity_cache: tuple[tuple, np.ndarray] | None = None
+        #: Per component, VTK's table coordinates (s, t) of every voxel: they depend on the
+        #: data only, so a 2-D TF edit pays the lookup, not the gradient.
+        self._coords_cache: dict[int, tuple[tuple, tuple[np.ndarray, np.ndarray]]] = {}
         self._fragment_source = ""
         self._closed = False
         self._albedo = 1.0
@@ -509,10 +512,14 @@ class Illuminator:
     def opacity_volume(self) -> np.ndarray:
         """Per-voxel opacity (per ``unit_distance`` µm) as the ray caster sees it.
 
-        float32 ``[z, y, x]``: every visible component's scalar opacity function applied to its
-        values and combined as independent absorbers (α = 1 − Π(1 − α_c)), then zeroed outside
-        the cropping box and multiplied by the slice weights, so what is cropped away casts no
-        shadow. Gradient opacity is not included. Cached until an input changes.
+        float32 ``[z, y, x]``: every visible component classified as VTK's shader does and
+        combined as independent absorbers (α = 1 − Π(1 − α_c)), then zeroed outside the
+        cropping box and multiplied by the slice weights, so what is cropped away casts no
+        shadow. Classification (docs/transfer-functions-2d.md): in 1-D mode the scalar
+        opacity function times the gradient-opacity function, if one is set; in 2-D mode the
+        component's (value, gradient magnitude) table, looked up bilinearly at VTK's
+        coordinates. Gradients are VTK's central differences at the voxel centres. Cached
+        until an input changes.
         """
         key = self._opacity_signature()
         if self._opacity_cache is not None and self._opacity_cache[0] == key:
@@ -526,6 +533,13 @@ class Illuminator:
         prop = self.volume.GetProperty()
         ncomp = values.shape[-1]
         independent = ncomp == 1 or bool(prop.GetIndependentComponents())
+        two_d = prop.GetTransferFunctionMode() == vtk.vtkVolumeProperty.TF_2D
+        if two_d and not independent:
+            raise ValueError(
+                "2-D transfer functions need independent components: VTK classifies "
+                f"dependent {ncomp}-component data (RGB/RGBA colour) without a 2-D table")
+        spacing = self.spacing
+        step = float(self.volume.GetMapper().GetSampleDistance())
         u0 = prop.GetScalarOpacityUnitDistance(0)
         transparency = np.ones((nz, ny, nx), np.float32)
         comps = range(ncomp) if independent else [ncomp - 1]
@@ -534,8 +548,22 @@ class Illuminator:
             weight = prop.GetComponentWeight(fc) if independent and ncomp > 1 else 1.0
             if weight <= 0:
                 continue
-            alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[..., c]) * weight
             uc = prop.GetScalarOpacityUnitDistance(fc)
+            value_range = scalars.GetRange(c)
+            if two_d and prop.GetTransferFunction2D(fc) is not None:
+                table = tf2d.unit_alpha_table(prop.GetTransferFunction2D(fc), step, uc)
+                alpha = tf2d.lookup(table, *self._table_coords(c, values[..., c], spacing,
+                                                               value_range))
+            else:
+                alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[..., c])
+                if _gradient_opacity_on(prop, fc):
+                    # VTK's table spans |g| in 0…¼·range and |g| is clamped to it.
+                    span = float(value_range[1] - value_range[0]) or 1.0
+                    t = tf2d.normalised_gradient(values[..., c], spacing, value_range)
+                    alpha = alpha * _evaluate_piecewise(
+                        prop.GetGradientOpacity(fc),
+                        t * np.float32(tf2d.GRADIENT_RANGE_FRACTION * span))
+            alpha = alpha * weight
             if uc != u0:  # express every component per the same unit distance
                 alpha = 1.0 - np.power(1.0 - np.clip(alpha, 0, 1), u0 / uc)
             transparency *= 1.0 - np.clip(alpha, 0.0, 1.0)
@@ -546,6 +574,19 @@ class Illuminator:
         opacity = np.ascontiguousarray(opacity, dtype=np.float32)
         self._opacity_cache = (key, opacity)
         return opacity
+
+    def _table_coords(self, c: int, values: np.ndarray, spacing: tuple[float, float, float],
+                      value_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+        """VTK's 2-D table coordinates (s, t) of component ``c``'s voxels, cached per data."""
+        key = (self.image.GetMTime(), values.shape, spacing, tuple(value_range))
+        cached = self._coords_cache.get(c)
+        if cached is None or cached[0] != key:
+            coords = (tf2d.normalised_values(values, value_range),
+                      tf2d.normalised_gradient(values, spacing, value_range))
+            if values.size > _COORDS_CACHE_VOXELS:
+                return coords  # 8 bytes a voxel: large volumes recompute instead
+            self._coords_cache[c] = cached = (key, coords)
+        return cached[1]
 
     def _apply_crop(self, opacity: np.ndarray) -> None:
         """Zero what the mapper does not show: its cropping regions (any of VTK's 27-region
@@ -813,6 +854,10 @@ class Illuminator:
         prop = self.volume.GetProperty()
         if prop.GetInterpolationType() == vtk.VTK_NEAREST_INTERPOLATION:
             return []  # the correction assumes trilinear fetches (label data use nearest)
+        if prop.GetTransferFunctionMode() == vtk.vtkVolumeProperty.TF_2D:
+            # VTK's 2-D colour lookup reads the uncorrected scalar and its own gradient; a
+            # corrected opacity beside it would classify one sample two ways.
+            return []
         ncomp = self.image.GetPointData().GetScalars().GetNumberOfComponents()
         independent = ncomp > 1 and bool(prop.GetIndependentComponents())
         if ncomp > 1 and not independent:
@@ -902,12 +947,27 @@ class Illuminator:
         img = self.image
         ncomp = img.GetPointData().GetScalars().GetNumberOfComponents() if img else 0
         funcs = tuple(prop.GetScalarOpacity(c).GetMTime() for c in range(max(1, ncomp)))
+        if prop.GetTransferFunctionMode() == vtk.vtkVolumeProperty.TF_2D:
+            tables = tuple(
+                tf2d.unit_alpha_mtime(prop.GetTransferFunction2D(c))
+                if prop.GetTransferFunction2D(c) is not None else None
+                for c in range(max(1, ncomp)))
+            # A foreign table holds alpha per step: its conversion depends on the step.
+            classification: tuple = ("2d", tables, float(mapper.GetSampleDistance()) if any(
+                prop.GetTransferFunction2D(c) is not None and prop.GetTransferFunction2D(c)
+                .GetPointData().GetArray(tf2d.UNIT_ALPHA_ARRAY) is None
+                for c in range(max(1, ncomp))) else None)
+        else:
+            classification = ("1d", tuple(
+                prop.GetGradientOpacity(c).GetMTime() if _gradient_opacity_on(prop, c) else None
+                for c in range(max(1, ncomp))))
         weights = tuple(prop.GetComponentWeight(c) for c in range(max(1, ncomp)))
         units = tuple(prop.GetScalarOpacityUnitDistance(c) for c in range(max(1, ncomp)))
         matrix = self.volume.GetMatrix()
         return (
             img.GetMTime(),
             funcs,
+            classification,
             weights,
             units,
             bool(prop.GetIndependentComponents()),
@@ -930,6 +990,7 @@ class Illuminator:
 
     def _release(self) -> None:
         self._closed = True
+        self._coords_cache.clear()
         if self.render_window is not None:  # GL resources exist only after a first frame
             self.render_window.MakeCurrent()
         self._release_technique()
@@ -1040,6 +1101,16 @@ def _set_uniform(fu: vtk.vtkUniforms, name: str, value: Any) -> None:
             fu.SetUniform4f(name, arr.tolist())
         else:
             fu.SetUniform1fv(name, int(arr.size), arr.tolist())
+
+
+#: Largest component (voxels) whose 2-D table coordinates are kept between TF edits (256 MB).
+_COORDS_CACHE_VOXELS = 32 * 1024 * 1024
+
+
+def _gradient_opacity_on(prop: vtk.vtkVolumeProperty, c: int) -> bool:
+    """True when VTK multiplies component ``c``'s opacity by a gradient-opacity function
+    (1-D mode; VTK ignores it in 2-D mode)."""
+    return bool(prop.HasGradientOpacity(c)) and not prop.GetDisableGradientOpacity(c)
 
 
 def _evaluate_piecewise(function: vtk.vtkPiecewiseFunction, values: np.ndarray) -> np.ndarray:

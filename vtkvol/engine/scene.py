@@ -23,10 +23,18 @@ from vtk.util.numpy_support import numpy_to_vtk
 from vtkvol.engine.framing import visible_bounds
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.overlays import SceneOverlays
+from vtkvol.engine.shaders import ReplacementSet
 from vtkvol.engine.slices import snap_cursor
+from vtkvol.engine.tf2d import (
+    TABLE_SHAPE,
+    TableImage,
+    gradient_axis_max,
+    multi_component_fixes,
+)
 from vtkvol.model.defaults import default_channels
 from vtkvol.model.evented import Signal, element_fields, fields_of, subfields, touches
 from vtkvol.model.scene import Channel, SceneModel
+from vtkvol.model.transfer_function import table_from_1d
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -41,7 +49,8 @@ _BLEND = {
     "isosurface": vtk.vtkVolumeMapper.ISOSURFACE_BLEND,
 }
 #: Fields that are editor state only (the TF editor's displayed-value window): no VTK change.
-_EDITOR_ONLY = (("channels", "tf", "window"), ("channels", "tf", "window_range"))
+_EDITOR_ONLY = (("channels", "tf", "window"), ("channels", "tf", "window_range"),
+                ("channels", "tf2d", "gradient_max"))
 #: Per-channel fields that change nothing VTK shows (the channel list's name and tint).
 _LABEL_ONLY = ("name", "color")
 #: Weight-table resolution for the slice-contribution functions.
@@ -104,6 +113,10 @@ class VolumeScene:
             contextlib.nullcontext)
         self._color_functions: list[vtk.vtkColorTransferFunction] = []
         self._opacity_functions: list[vtk.vtkPiecewiseFunction] = []
+        #: One 2-D table per channel while any channel uses a 2-D TF (VTK's TF mode is per
+        #: property, so then every channel is classified through a table; 1-D channels
+        #: through their TF made constant along the gradient axis).
+        self._tables: list[TableImage] = []
         self.volume = vtk.vtkVolume()
         self.mapper = vtk.vtkOpenGLGPUVolumeRayCastMapper()
         self.mapper.SetAutoAdjustSampleDistances(0)  # quality never changes behind the user's back
@@ -112,6 +125,7 @@ class VolumeScene:
         self.property.SetInterpolationTypeToLinear()
         self.volume.SetMapper(self.mapper)
         self.volume.SetProperty(self.property)
+        self._tf2d_fixes = ReplacementSet(self.volume.GetShaderProperty())
         #: Scale bar, orientation axes, bounding box and colour legend (``model.overlays``).
         self.overlays = SceneOverlays(renderer)
         model.changed.connect(self._on_model_changed)
@@ -233,14 +247,17 @@ class VolumeScene:
             # A new channel list or a new link: which function follows which has changed.
             self._apply_channels()
             return
+        if any("tf_mode" in names for names in changed.values()):
+            self._apply_tf_mode()  # the property's mode may flip: every table is rebuilt
         for c, names in changed.items():
             if names <= set(_LABEL_ONLY):
                 continue
-            if "tf" in names or "" in names:
+            if names & {"tf", "tf2d"} or "" in names:
                 # A channel linked to this one follows it.
                 for target, channel in enumerate(self.model.channels):
                     if target == c or channel.tf_linked_to == c:
                         self._apply_channel_tf(target)
+                        self._apply_channel_table(target)
                 if c == 0 and self.model.render.blend_mode == "isosurface":
                     self._apply_shading_constants()  # the default isovalue follows channel 0
             if "visible" in names or "" in names:
@@ -319,6 +336,81 @@ class VolumeScene:
             self._apply_channel_tf(c)
             self._apply_channel_visibility(c)
         self._apply_shading_constants()
+        self._apply_tf_mode()
+
+    # -- 2-D transfer functions (docs/transfer-functions-2d.md) ---------------------------------
+    @property
+    def uses_2d_tf(self) -> bool:
+        """True when some channel is classified by its 2-D TF (VTK's property is then in
+        2-D mode for every channel)."""
+        return any(self._effective_channel(ch).tf_mode == "2d" for ch in self.model.channels)
+
+    def tf2d_axes(self, c: int) -> tuple[tuple[float, float], tuple[float, float]]:
+        """(value range in data units, gradient range in data units per µm) of channel
+        ``c``'s 2-D table: VTK's axes for this data (the editor shows the same)."""
+        value_range = self._value_range(c)
+        spacing = self.data.voxel_size_um if self.data is not None else (1.0, 1.0, 1.0)
+        return value_range, (0.0, gradient_axis_max(value_range, tuple(spacing)))
+
+    def _value_range(self, c: int) -> tuple[float, float]:
+        if self._image is None:
+            return (0.0, 1.0)
+        lo, hi = self._image.GetPointData().GetScalars().GetRange(c)
+        return (float(lo), float(hi))
+
+    def _apply_tf_mode(self) -> None:
+        """Switch VTK between 1-D and 2-D classification and (re)build every table."""
+        prop = self.property
+        n = len(self.model.channels)
+        if not self.uses_2d_tf or self._image is None:
+            if prop.GetTransferFunctionMode() != vtk.vtkVolumeProperty.TF_1D:
+                prop.SetTransferFunctionModeTo1D()
+            self._tables = []
+            self._tf2d_fixes.clear()
+            return
+        if len(self._tables) != n:
+            self._tables = [TableImage() for _ in range(n)]
+        for c in range(n):
+            self._apply_channel_table(c)
+            prop.SetTransferFunction2D(c, self._tables[c].image)
+        prop.SetTransferFunctionModeTo2D()
+        fixes = multi_component_fixes(n) if n > 1 else {}
+        self._tf2d_fixes.install({(tag, "pre"): code for tag, code in fixes.items()})
+
+    def _apply_channel_table(self, c: int) -> None:
+        """Rasterise channel ``c``'s classification into its table (2-D mode only)."""
+        if not self._tables or c >= len(self._tables):
+            return
+        channel = self.model.channels[c]
+        effective = self._effective_channel(channel)
+        value_range, gradient_range = self.tf2d_axes(c)
+        if value_range[1] <= value_range[0]:
+            value_range = (value_range[0], value_range[0] + 1.0)
+        if len(self.model.channels) == 1 and not channel.visible:
+            rgba = np.zeros((*TABLE_SHAPE, 4), np.float32)  # a single channel: hide it here
+        elif effective.tf_mode == "2d":
+            rgba = effective.tf2d.table(value_range, gradient_range, TABLE_SHAPE)
+        else:
+            rgba = table_from_1d(effective.tf, value_range, TABLE_SHAPE)
+        step, unit = self._table_step(c)
+        self._tables[c].set_table(rgba, step, unit)
+
+    def _table_step(self, c: int) -> tuple[float, float]:
+        """(ray step, opacity unit distance) in µm that the table's alpha is made for."""
+        return (float(self.mapper.GetSampleDistance()),
+                float(self.property.GetScalarOpacityUnitDistance(c)))
+
+    def _apply_table_steps(self) -> None:
+        for c, table in enumerate(self._tables):
+            table.set_step(*self._table_step(c))
+
+    def _effective_channel(self, channel: Channel) -> Channel:
+        """The channel whose transfer functions ``channel`` shows (itself or its link)."""
+        link = channel.tf_linked_to
+        channels = self.model.channels
+        if link is not None and 0 <= link < len(channels) and channels[link] is not channel:
+            return channels[link]
+        return channel
 
     def _apply_channel_tf(self, c: int) -> None:
         channel = self.model.channels[c]
@@ -339,6 +431,7 @@ class VolumeScene:
         channel = self.model.channels[c]
         if len(self.model.channels) == 1:
             self._apply_channel_tf(c)
+            self._apply_channel_table(c)
         else:
             self.property.SetComponentWeight(c, 1.0 if channel.visible else 0.0)
 
@@ -354,6 +447,7 @@ class VolumeScene:
             prop.SetDiffuse(c, render.diffuse)
             prop.SetSpecular(c, render.specular)
             prop.SetSpecularPower(c, render.specular_power)
+        self._apply_table_steps()
         if render.blend_mode == "isosurface":
             iso = prop.GetIsoSurfaceValues()
             iso.SetNumberOfContours(1)
@@ -395,6 +489,7 @@ class VolumeScene:
         self.mapper.SetImageSampleDistance(
             render.interactive_image_factor if self._interactive else 1.0
         )
+        self._apply_table_steps()  # 2-D tables hold alpha per ray step
 
     def _apply_illumination(self) -> None:
         assert self.illuminator is not None

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 6
+VERSION = 7
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -164,8 +164,24 @@ def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v6_to_v7(raw: dict[str, Any]) -> dict[str, Any]:
+    """v6 → v7: each channel gained ``tf_mode`` and ``tf2d`` (the 2-D transfer function over
+    value × gradient magnitude). v6 classified by the 1-D ``tf`` only, which ``"1d"`` with an
+    empty 2-D TF states exactly."""
+    out = copy.deepcopy(raw)
+    out["version"] = 7
+    scene = out.get("scene")
+    channels = scene.get("channels") if isinstance(scene, dict) else None
+    if isinstance(channels, list):
+        for channel in channels:
+            if isinstance(channel, dict):
+                channel.setdefault("tf_mode", "1d")
+                channel.setdefault("tf2d", {"primitives": [], "gradient_max": None})
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
-                                    4: _v4_to_v5, 5: _v5_to_v6}
+                                    4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

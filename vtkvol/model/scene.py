@@ -16,7 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from vtkvol.model.evented import EventedModel
-from vtkvol.model.transfer_function import RGB, TransferFunction
+from vtkvol.model.transfer_function import RGB, TransferFunction, TransferFunction2D
 
 BlendMode = Literal["composite", "mip", "minip", "average", "additive", "isosurface"]
 BLEND_MODES: tuple[str, ...] = BlendMode.__args__  # type: ignore[attr-defined]
@@ -69,6 +69,10 @@ class Channel(EventedModel):
     color: RGB = (1.0, 1.0, 1.0)  #: tint used by presets and the channel list
     tf: TransferFunction = Field(default_factory=TransferFunction)
     tf_linked_to: int | None = None  #: index of a channel whose TF this one follows
+    #: Which transfer function classifies the channel: the 1-D ``tf`` over values, or the 2-D
+    #: ``tf2d`` over value × gradient magnitude. Switching keeps both, so nothing is lost.
+    tf_mode: Literal["1d", "2d"] = "1d"
+    tf2d: TransferFunction2D = Field(default_factory=TransferFunction2D)
 
     @field_validator("color")
     @classmethod

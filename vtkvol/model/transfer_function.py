@@ -8,6 +8,9 @@ Interpolation between points is linear; outside the first/last point the end val
 
 from __future__ import annotations
 
+import math
+from typing import Literal
+
 import numpy as np
 from pydantic import Field, field_validator, model_validator
 
@@ -129,3 +132,211 @@ class TransferFunction(EventedModel):
             window=(rlo, rhi),
             window_range=(rlo, rhi),
         )
+
+
+# -- 2-D transfer functions (seed 001 eq. 2.45) ------------------------------------------------
+#: Largest lookup table a 2-D TF rasterises to, per axis (VTK uploads at least 1024 × 1024).
+MAX_TABLE_SIZE = 4096
+#: Most primitives one 2-D TF may hold (an editor's widget list, not a paint buffer).
+MAX_PRIMITIVES = 256
+
+
+class TFPrimitive(EventedModel):
+    """One region of a 2-D transfer function in (value, gradient magnitude) space.
+
+    Coordinates: ``value_range`` in **data units**, ``gradient_range`` in **data units per
+    µm** (|∇I| with the voxel size applied), both ``(low, high)`` with low < high.
+
+    * ``kind="rectangle"``: the box ``value_range × gradient_range``.
+    * ``kind="triangle"``: Kniss's boundary widget inscribed in that box: apex at
+      (centre value, gradient low), base along gradient high from value low to value high.
+      Boundaries between two materials form arcs that rise from the axis, which it covers.
+
+    ``opacity`` (0…1, per opacity unit distance like the 1-D TF) and ``color`` (r, g, b in 0…1)
+    hold inside. ``soft_edge`` (0…1) is the fraction of the half-width (and half-height) over
+    which opacity ramps linearly from 0 at the border to full inside; 0 is a hard edge. A
+    border lying on the gradient axis' origin (gradient low ≤ 0) does not fade: nothing lies
+    below it.
+    """
+
+    kind: Literal["rectangle", "triangle"] = "rectangle"
+    value_range: tuple[float, float] = (0.0, 255.0)
+    gradient_range: tuple[float, float] = (0.0, 1.0)
+    color: RGB = (1.0, 1.0, 1.0)
+    opacity: float = Field(0.5, ge=0.0, le=1.0)
+    soft_edge: float = Field(0.0, ge=0.0, le=1.0)
+
+    @field_validator("value_range", "gradient_range")
+    @classmethod
+    def _increasing(cls, v: tuple[float, float], info):
+        lo, hi = v
+        what = info.field_name.replace("_", " ")
+        if not (math.isfinite(lo) and math.isfinite(hi)):
+            raise ValueError(f"{what} {v} must be finite")
+        if not lo < hi:
+            raise ValueError(f"{what} {v} must be increasing (low < high)")
+        if abs(lo) > 1e30 or abs(hi) > 1e30:
+            raise ValueError(f"{what} {v} is out of range (|x| ≤ 1e30)")
+        return (float(lo), float(hi))
+
+    @field_validator("color")
+    @classmethod
+    def _rgb(cls, v: RGB):
+        if not all(math.isfinite(c) and 0.0 <= c <= 1.0 for c in v):
+            raise ValueError(f"primitive colour {v}: r, g, b must lie in 0…1")
+        return v
+
+    def coverage(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+        """Weight 0…1 of this primitive (before ``opacity``) at broadcastable ``values`` (data
+        units) and ``gradients`` (data units per µm); float64."""
+        v = np.asarray(values, dtype=np.float64)
+        g = np.asarray(gradients, dtype=np.float64)
+        v0, v1 = self.value_range
+        g0, g1 = self.gradient_range
+        half_g = 0.5 * (g1 - g0)
+        if self.kind == "rectangle":
+            half_v = 0.5 * (v1 - v0)
+            inside_v = np.minimum(v - v0, v1 - v) / half_v
+        else:
+            # Half-width grows linearly from 0 at the apex (g0) to (v1 - v0)/2 at the base (g1).
+            half_v = 0.5 * (v1 - v0) * np.clip((g - g0) / (g1 - g0), 0.0, None)
+            centre = 0.5 * (v0 + v1)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                inside_v = np.where(half_v > 0, 1.0 - np.abs(v - centre) / half_v, -1.0)
+        top = (g1 - g) / half_g
+        if self.kind == "triangle":
+            inside = np.minimum(inside_v, top)  # inside_v < 0 below the apex
+        elif g0 > 0:
+            inside = np.minimum(np.minimum(inside_v, top), (g - g0) / half_g)
+        else:  # the bottom border lies on the axis' origin: it does not fade
+            inside = np.where(g >= g0, np.minimum(inside_v, top), -1.0)
+        if self.soft_edge > 0:
+            return np.clip(inside / self.soft_edge, 0.0, 1.0)
+        return (inside >= 0).astype(np.float64)
+
+
+class TransferFunction2D(EventedModel):
+    """A 2-D transfer function over (value, gradient magnitude): RGBA from a list of
+    :class:`TFPrimitive` regions (seed 001 eq. 2.45).
+
+    Overlapping primitives combine as independent absorbers, α = 1 − Π(1 − αᵢ), with the
+    opacity-weighted mean colour; outside every primitive α = 0. ``gradient_max`` is the top of
+    the editor's gradient axis in data units per µm (``None``: the renderer's own axis, which
+    VTK fixes at a quarter of the channel's value range per mean voxel edge, see
+    docs/transfer-functions-2d.md).
+    """
+
+    primitives: list[TFPrimitive] = Field(default_factory=list)
+    gradient_max: float | None = Field(None, gt=0.0)
+
+    @field_validator("primitives")
+    @classmethod
+    def _count(cls, v: list[TFPrimitive]):
+        if len(v) > MAX_PRIMITIVES:
+            raise ValueError(f"a 2-D transfer function holds at most {MAX_PRIMITIVES} "
+                             f"primitives, not {len(v)}")
+        return v
+
+    @field_validator("gradient_max")
+    @classmethod
+    def _finite_max(cls, v: float | None):
+        if v is not None and not (math.isfinite(v) and v < 1e30):
+            raise ValueError(f"gradient axis maximum {v} must be finite")
+        return v
+
+    def evaluate(self, values: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+        """RGBA (float32, shape ``broadcast(values, gradients).shape + (4,)``) at data
+        ``values`` and gradient magnitudes (data units per µm). Alpha is per opacity unit
+        distance."""
+        v = np.asarray(values, dtype=np.float64)
+        g = np.asarray(gradients, dtype=np.float64)
+        shape = np.broadcast_shapes(v.shape, g.shape)
+        transparency = np.ones(shape)
+        weighted = np.zeros((*shape, 3))
+        total = np.zeros(shape)
+        for prim in self.primitives:
+            alpha = prim.opacity * prim.coverage(v, g)
+            transparency *= 1.0 - alpha
+            weighted += alpha[..., None] * np.asarray(prim.color, dtype=np.float64)
+            total += alpha
+        out = np.zeros((*shape, 4), np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[..., :3] = np.where(total[..., None] > 0, weighted / total[..., None], 0.0)
+        out[..., 3] = 1.0 - transparency
+        return out
+
+    def table(self, value_range: tuple[float, float], gradient_range: tuple[float, float],
+              shape: tuple[int, int]) -> np.ndarray:
+        """Rasterise to a lookup table, float32 ``(height, width, 4)`` RGBA, row = gradient.
+
+        Texel (j, i) holds the TF at the texel's centre: value ``v0 + (i + ½)·(v1 − v0)/width``
+        and gradient ``g0 + (j + ½)·(g1 − g0)/height`` (the convention of an OpenGL texture
+        sampled with linear filtering, so a lookup interpolates between these samples)."""
+        values, gradients = table_axes(value_range, gradient_range, shape)
+        h, w = len(gradients), len(values)
+        transparency = np.ones((h, w))
+        weighted = np.zeros((h, w, 3))
+        total = np.zeros((h, w))
+        for prim in self.primitives:
+            # A primitive covers nothing outside its box: evaluate only the texels inside.
+            i0 = np.searchsorted(values, prim.value_range[0], side="left")
+            i1 = np.searchsorted(values, prim.value_range[1], side="right")
+            j0 = np.searchsorted(gradients, prim.gradient_range[0], side="left")
+            j1 = np.searchsorted(gradients, prim.gradient_range[1], side="right")
+            if i0 >= i1 or j0 >= j1:
+                continue
+            box = (slice(j0, j1), slice(i0, i1))
+            alpha = prim.opacity * prim.coverage(values[None, i0:i1], gradients[j0:j1, None])
+            transparency[box] *= 1.0 - alpha
+            weighted[box] += alpha[..., None] * np.asarray(prim.color, dtype=np.float64)
+            total[box] += alpha
+        out = np.zeros((h, w, 4), np.float32)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            out[..., :3] = np.where(total[..., None] > 0, weighted / total[..., None], 0.0)
+        out[..., 3] = 1.0 - transparency
+        return out
+
+
+def table_axes(value_range: tuple[float, float], gradient_range: tuple[float, float],
+               shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Texel-centre coordinates ``(values[width], gradients[height])`` of a lookup table."""
+    height, width = _check_table_shape(shape)
+    v0, v1 = _check_axis(value_range, "value range")
+    g0, g1 = _check_axis(gradient_range, "gradient range")
+    values = v0 + (np.arange(width) + 0.5) * ((v1 - v0) / width)
+    gradients = g0 + (np.arange(height) + 0.5) * ((g1 - g0) / height)
+    return values, gradients
+
+
+def rasterise(evaluate, value_range: tuple[float, float], gradient_range: tuple[float, float],
+              shape: tuple[int, int]) -> np.ndarray:
+    """``evaluate(values, gradients)`` (RGBA) sampled at texel centres, ``(h, w, 4)`` float32."""
+    values, gradients = table_axes(value_range, gradient_range, shape)
+    return np.ascontiguousarray(evaluate(values[None, :], gradients[:, None]), np.float32)
+
+
+def table_from_1d(tf: TransferFunction, value_range: tuple[float, float],
+                  shape: tuple[int, int]) -> np.ndarray:
+    """The 1-D TF ``tf`` as a 2-D table constant along the gradient axis, ``(h, w, 4)``."""
+    height, width = _check_table_shape(shape)
+    values, _ = table_axes(value_range, (0.0, 1.0), shape)
+    row = np.concatenate([tf.color_at(values), tf.opacity_at(values)[:, None]], axis=1)
+    return np.ascontiguousarray(np.broadcast_to(row, (height, width, 4)), np.float32)
+
+
+def _check_table_shape(shape: tuple[int, int]) -> tuple[int, int]:
+    try:
+        height, width = (int(s) for s in shape)
+    except (TypeError, ValueError):
+        raise ValueError(f"table shape {shape!r} must be (height, width)") from None
+    if not (1 <= height <= MAX_TABLE_SIZE and 2 <= width <= MAX_TABLE_SIZE):
+        raise ValueError(f"table shape {shape} must lie within 1…{MAX_TABLE_SIZE} rows and "
+                         f"2…{MAX_TABLE_SIZE} columns")
+    return height, width
+
+
+def _check_axis(axis: tuple[float, float], what: str) -> tuple[float, float]:
+    lo, hi = (float(a) for a in axis)
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"{what} {axis} must be finite and increasing")
+    return lo, hi
