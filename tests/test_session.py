@@ -431,7 +431,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 5)"),
+         "(format version 99; this version reads up to 6)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -797,7 +797,7 @@ def test_migrate_v4_to_v5_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[4](raw)
     assert out == load_fixture("v4_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert out["scene"]["clip_plane"]["enabled"] is False  # v4 had no clipping plane
     assert raw == untouched
 
@@ -808,8 +808,25 @@ def test_v4_file_reads_without_warnings_and_no_clipping_plane() -> None:
     assert session.model.clip_plane == ClipPlane()
 
 
+def test_migrate_v5_to_v6_matches_fixture() -> None:
+    raw = load_fixture("v5_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[5](raw)
+    assert out == load_fixture("v5_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # v5 showed the level the budget chose and the whole image.
+    assert out["scene"]["volume"]["level"] is None and out["scene"]["volume"]["region_um"] is None
+    assert raw == untouched
+
+
+def test_v5_file_reads_without_warnings_and_no_pyramid_region() -> None:
+    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.volume.level is None and session.model.volume.region_um is None
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v5_complete.vtkvol.json")
+    doc = load_fixture("v6_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -839,8 +856,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v5 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -860,8 +877,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 6; this version reads up to 5"):
-        migrate({"format": FORMAT, "version": 6})
+    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
+        migrate({"format": FORMAT, "version": 7})
 
 
 @pytest.mark.parametrize(
