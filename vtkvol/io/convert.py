@@ -281,8 +281,10 @@ def convert_to_ome_zarr(
                                "an existing output is unchanged") from exc
         raise
     report(1.0, "done")
-    levels = [shape] + [(shape[0], math.ceil(shape[1] / f["z"]), math.ceil(shape[2] / f["y"]),
-                         math.ceil(shape[3] / f["x"])) for f in factors]
+    from vtkvol.io.ome_zarr import open_ome_zarr
+
+    # The shapes as written (the writer rounds odd sizes down).
+    levels = [lv.shape_czyx for lv in open_ome_zarr(out).levels]
     return ConvertResult(out, levels, spacing, list(lazy.channel_names),  # type: ignore[arg-type]
                          time.perf_counter() - start, lazy.notes)
 

@@ -245,8 +245,8 @@ def read_pyramid(
     if level is None:
         index, reason = choose_level(shapes, itemsize, budget, max_texture_size)
         if index < 0:
-            what = "the region" if region is not None else "pyramid level"
-            raise VolumeReadError(source, f"no {what} fits: {reason}")
+            what = "no level fits the region" if region is not None else "no pyramid level fits"
+            raise VolumeReadError(source, f"{what}: {reason}")
     else:
         if not 0 <= level < len(levels):
             raise VolumeReadError(source, f"level {level} is out of range: the pyramid has "
