@@ -85,7 +85,7 @@ def lazy_source(path: Path, *, time_index: int = 0,
                 channels: Sequence[int | str] | None = None) -> LazySource:
     """``path`` as a :class:`LazySource` (see the module docstring for how each format is
     wrapped). Raises VolumeReadError for a file vtkvol cannot read."""
-    da = require("dask.array", "vtkvol convert", path)
+    da = require("dask.array", "a volume as a lazy array", path)
     from vtkvol.io.registry import get_reader
 
     path = Path(path)
@@ -238,10 +238,14 @@ def convert_to_ome_zarr(
         raise ConvertError(f"{out} is a file, not an OME-Zarr folder; it is not replaced")
     if src.exists() and out.resolve() == src.resolve():
         raise ConvertError(f"{out} is the input; choose another name for the output")
-    writer = require("ome_zarr.writer", "vtkvol convert (OME-Zarr writing)", src)
-    ome_format = require("ome_zarr.format", "vtkvol convert (OME-Zarr writing)", src)
-    zarr = require("zarr", "vtkvol convert (OME-Zarr writing)", src)
-    import dask
+    try:
+        import dask
+        import ome_zarr.format as ome_format
+        import ome_zarr.writer as writer
+        import zarr
+    except ImportError as exc:
+        raise ConvertError(f"vtkvol convert needs the optional package {exc.name!r}: pip "
+                           "install 'vtkvol[convert]'") from None
 
     lazy = lazy_source(src, time_index=time_index, channels=channels)
     spacing = tuple(float(v) for v in (voxel_size_um or lazy.voxel_size_um))
