@@ -49,6 +49,8 @@ def test_a_refined_view_reopens_exactly(tmp_path, pyramid):
     assert doc["scene"]["volume"]["level"] == 0
     assert doc["scene"]["volume"]["region_um"] == [[2.0, 6.0], [1.0, 9.0], [0.0, 7.0]]
     model, data = load_session_with_data(path)
+    assert model.volume.level == 0 and model.volume.region_um == ((2.0, 6.0), (1.0, 9.0),
+                                                                  (0.0, 7.0))
     assert data.shape_zyx == (8, 17, 9) and data.metadata["level"] == 0
     expected = read_volume(pyramid, level=0).array[:, :, 2:19, 4:13]
     np.testing.assert_array_equal(data.array, expected)
