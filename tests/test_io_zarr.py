@@ -302,3 +302,33 @@ def test_parse_bytes():
     for bad in ("lots", "-1GiB", "0", "1 parsec", "nanGiB", "infGiB"):
         with pytest.raises(ValueError):
             parse_bytes(bad)
+
+
+def test_small_blocks_on_chunk_boundaries_give_the_same_voxels(tmp_path, monkeypatch):
+    """With a tiny block size every read is split into z-slabs and y-strips; the voxels are
+    the same, and no chunk is read twice (the slices start on chunk boundaries)."""
+    import vtkvol.io.pyramid as pyramid_module
+
+    data = _ball(20, 48, 40)
+    group = zarr.open_group(str(tmp_path / "blocks.zarr"), mode="w", zarr_format=3)
+    writer.write_image(data[None], group, axes="czyx", fmt=ome_format.FormatV05(),
+                       scale_factors=(2,), storage_options={"chunks": (1, 4, 8, 16)})
+    monkeypatch.setattr(pyramid_module, "SLAB_BYTES", 1000)
+    reads: list[tuple[int, int, int, int]] = []
+    from vtkvol.io.ome_zarr import ZarrPyramid
+
+    original = ZarrPyramid.read_block
+
+    def counting(self, level, channel, z, y, x):
+        reads.append((z.start, z.stop, y.start, y.stop))
+        return original(self, level, channel, z, y, x)
+
+    monkeypatch.setattr(ZarrPyramid, "read_block", counting)
+    vol = read_ome_zarr(tmp_path / "blocks.zarr", level=0,
+                        region_um=((3.0, 30.0), (5.0, 41.0), (2.0, 17.0)))
+    np.testing.assert_array_equal(vol.array[0], data[2:18, 5:42, 3:31])
+    assert len(reads) > 10
+    inner_z = {e for z0, z1, _, _ in reads for e in (z0, z1)} - {2, 18}
+    inner_y = {e for _, _, y0, y1 in reads for e in (y0, y1)} - {5, 42}
+    assert inner_z and all(e % 4 == 0 for e in inner_z)
+    assert inner_y and all(e % 8 == 0 for e in inner_y)

@@ -70,6 +70,10 @@ class ImarisPyramid(Pyramid):
         chunks = self._datasets[level][0].chunks
         return int(chunks[0]) if chunks else 1
 
+    def chunk_y(self, level: int) -> int:
+        chunks = self._datasets[level][0].chunks
+        return int(chunks[1]) if chunks else 1
+
     def read_block(self, level: int, channel: int, z: slice, y: slice, x: slice) -> np.ndarray:
         return np.asarray(self._datasets[level][channel][z, y, x])
 

@@ -181,6 +181,9 @@ class ZarrPyramid(Pyramid):
         z = self._pos.get("z")
         return 1 if z is None else int(self._arrays[level].chunks[z])
 
+    def chunk_y(self, level: int) -> int:
+        return int(self._arrays[level].chunks[self._pos["y"]])
+
     def read_block(self, level: int, channel: int, z: slice, y: slice, x: slice) -> np.ndarray:
         index = {"t": self._time, "c": self._channels[channel], "z": z, "y": y, "x": x}
         block = np.asarray(self._arrays[level][tuple(index[n] for n in self._names)])

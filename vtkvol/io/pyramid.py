@@ -102,6 +102,10 @@ class Pyramid:
         """The store's chunk size along z at ``level`` (slabs start on chunk boundaries)."""
         return 1
 
+    def chunk_y(self, level: int) -> int:
+        """The store's chunk size along y at ``level`` (strips start on chunk boundaries)."""
+        return 1
+
     def close(self) -> None:
         """Release the file (Imaris keeps an HDF5 handle open)."""
 
@@ -210,6 +214,12 @@ def _region_shape(level: PyramidLevel, sl: tuple[slice, slice, slice]) -> tuple[
     return (level.shape_czyx[0], sz.stop - sz.start, sy.stop - sy.start, sx.stop - sx.start)
 
 
+def _aligned_edges(span: slice, step: int) -> list[int]:
+    """``span.start``, the multiples of ``step`` inside the span, ``span.stop``."""
+    inner = range((span.start // step + 1) * step, span.stop, step)
+    return [span.start, *inner, span.stop]
+
+
 def read_pyramid(
     pyramid: Pyramid,
     *,
@@ -258,16 +268,20 @@ def read_pyramid(
     out = np.empty(shape, dtype=pyramid.dtype)
     message = f"reading level {index} ({lv.name})"
     progress(0.0, message)
-    chunk = max(1, pyramid.chunk_z(index))
-    step = chunk * max(1, SLAB_BYTES // max(1, y_n * x_n * itemsize * chunk))
-    # Slab edges on the store's chunk boundaries: no chunk is decoded twice.
-    edges = [sz.start] + [b for b in range((sz.start // step + 1) * step, sz.stop, step)]
-    edges.append(sz.stop)
+    # Blocks of about SLAB_BYTES whose edges lie on the store's chunk boundaries (no chunk is
+    # decoded twice): whole z-slabs, or, when one row of chunks is larger, y-strips of it.
+    # Memory: the result plus one block and the chunks it decodes.
+    row_bytes = x_n * itemsize
+    chunk_z, chunk_y = max(1, pyramid.chunk_z(index)), max(1, pyramid.chunk_y(index))
+    z_step = chunk_z * max(1, SLAB_BYTES // max(1, y_n * row_bytes * chunk_z))
+    z_edges = _aligned_edges(sz, z_step)
     try:
         for k in range(c_n):
-            for z0, z1 in itertools.pairwise(edges):
-                block = pyramid.read_block(index, k, slice(z0, z1), sy, sx)
-                out[k, z0 - sz.start:z1 - sz.start] = block
+            for z0, z1 in itertools.pairwise(z_edges):
+                y_step = chunk_y * max(1, SLAB_BYTES // max(1, (z1 - z0) * row_bytes * chunk_y))
+                for y0, y1 in itertools.pairwise(_aligned_edges(sy, y_step)):
+                    block = pyramid.read_block(index, k, slice(z0, z1), slice(y0, y1), sx)
+                    out[k, z0 - sz.start:z1 - sz.start, y0 - sy.start:y1 - sy.start] = block
                 progress((k + (z1 - sz.start) / z_n) / c_n, message)
     except (VolumeReadError, ReadCancelled):
         raise
