@@ -115,6 +115,7 @@ def open_like_the_app(path: Path, budget: int) -> dict:
     from vtkvol.io import read_volume
     from vtkvol.model.defaults import scene_for
 
+    rss_start = peak_rss_bytes()
     t0 = time.perf_counter()
     data = read_volume(path, memory_budget_bytes=budget)
     t_read = time.perf_counter() - t0
@@ -138,8 +139,27 @@ def open_like_the_app(path: Path, budget: int) -> dict:
     return {"budget_bytes": budget, "level": data.metadata["level"],
             "shape_czyx": list(data.array.shape), "data_bytes": int(data.array.nbytes),
             "read_s": t_read, "scene_model_s": t_model, "first_frame_s": t_frame,
+            "peak_rss_before_read_bytes": rss_start,
             "peak_rss_after_read_bytes": rss_read, "peak_rss_bytes": peak_rss_bytes(),
             "foreground_fraction": lit, "renderer": renderer_name, "note": data.notes[0]}
+
+
+def read_region(path: Path, budget: int) -> dict:
+    """Child process: "Refine selection" of the central quarter (x and y halves, all z) at the
+    finest level that fits ``budget`` (no rendering)."""
+    from vtkvol.io import read_volume
+    from vtkvol.io.ome_zarr import open_ome_zarr
+
+    (x0, x1), (y0, y1), (z0, z1) = open_ome_zarr(path).levels[0].extent_um()
+    region = ((x0 + (x1 - x0) / 4, x1 - (x1 - x0) / 4), (y0 + (y1 - y0) / 4, y1 - (y1 - y0) / 4),
+              (z0, z1))
+    rss_start = peak_rss_bytes()
+    t0 = time.perf_counter()
+    data = read_volume(path, memory_budget_bytes=budget, region_um=region)
+    return {"budget_bytes": budget, "level": data.metadata["level"],
+            "shape_czyx": list(data.array.shape), "data_bytes": int(data.array.nbytes),
+            "read_s": time.perf_counter() - t0, "peak_rss_before_read_bytes": rss_start,
+            "peak_rss_bytes": peak_rss_bytes(), "region_um": data.metadata["region_um"]}
 
 
 def _gib(n: float) -> str:
@@ -153,6 +173,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="GPU-memory budget(s) to open with (default: 1GiB and 2GiB)")
     parser.add_argument("--keep", action="store_true", help="keep the pyramid afterwards")
     parser.add_argument("--open", metavar="PATH", help=argparse.SUPPRESS)  # child process
+    parser.add_argument("--region", metavar="PATH", help=argparse.SUPPRESS)  # child process
     parser.add_argument("--shape", nargs=3, type=int, default=SHAPE_ZYX, metavar=("Z", "Y", "X"),
                         help="a smaller pyramid to try the script (default 512 2048 2048)")
     args = parser.parse_args(argv)
@@ -161,7 +182,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.open:
         print(json.dumps(open_like_the_app(Path(args.open), parse_bytes(args.budget[0]))))
         return 0
-    budgets = args.budget or ["1GiB", "2GiB"]
+    if args.region:
+        print(json.dumps(read_region(Path(args.region), parse_bytes(args.budget[0]))))
+        return 0
+    budgets = args.budget or ["1GiB", "2GiB", "256MiB"]
     path = Path(args.folder) / f"vtkvol_large_{int(time.time())}.ome.zarr"
     load = Path("/proc/loadavg").read_text().split()[:3] if Path("/proc/loadavg").exists() else "?"
     print(f"machine: {platform.node()}, {platform.machine()}, python "
@@ -183,10 +207,23 @@ def main(argv: list[str] | None = None) -> int:
             _, z, y, x = r["shape_czyx"]
             print(f"budget {budget}: level {r['level']} ({x}×{y}×{z}, {_gib(r['data_bytes'])}); "
                   f"read {r['read_s']:.1f} s, scene {r['scene_model_s']:.1f} s, first frame "
-                  f"{r['first_frame_s']:.1f} s; peak RSS after the read "
+                  f"{r['first_frame_s']:.1f} s; peak RSS before the read "
+                  f"{_gib(r['peak_rss_before_read_bytes'])}, after the read "
                   f"{_gib(r['peak_rss_after_read_bytes'])}, after the first frame "
                   f"{_gib(r['peak_rss_bytes'])}; {r['foreground_fraction']:.0%} of the frame lit;"
                   f" {r['renderer']}", flush=True)
+        for budget in budgets[:1]:
+            out = subprocess.run([sys.executable, __file__, "--region", str(path), "--budget",
+                                  budget], capture_output=True, text=True, check=False)
+            if out.returncode != 0:
+                print(out.stderr, file=sys.stderr)
+                return 1
+            r = json.loads(out.stdout.strip().splitlines()[-1])
+            _, z, y, x = r["shape_czyx"]
+            print(f"refine the central quarter, budget {budget}: level {r['level']} "
+                  f"({x}×{y}×{z}, {_gib(r['data_bytes'])}) read in {r['read_s']:.1f} s; peak "
+                  f"RSS before {_gib(r['peak_rss_before_read_bytes'])}, after "
+                  f"{_gib(r['peak_rss_bytes'])}", flush=True)
     finally:
         if not args.keep:
             shutil.rmtree(path, ignore_errors=True)
