@@ -332,3 +332,18 @@ def test_small_blocks_on_chunk_boundaries_give_the_same_voxels(tmp_path, monkeyp
     inner_y = {e for _, _, y0, y1 in reads for e in (y0, y1)} - {5, 42}
     assert inner_z and all(e % 4 == 0 for e in inner_z)
     assert inner_y and all(e % 8 == 0 for e in inner_y)
+
+
+def test_a_level_as_a_lazy_dask_array(tmp_path):
+    pytest.importorskip("dask")
+    from vtkvol.io.ome_zarr import open_ome_zarr
+
+    data = _cells()
+    path = _write(tmp_path / "lazy.zarr", data, "czyx", labels=["DAPI", "GFP"])
+    pyramid = open_ome_zarr(path, channels=["GFP"])
+    lazy = pyramid.to_dask(1, (1, 4, 8, 8))
+    assert lazy.shape == (1, 16, 16, 20) and lazy.chunks[1] == (4, 4, 4, 4)
+    np.testing.assert_array_equal(lazy.compute(), read_ome_zarr(path, level=1,
+                                                                channels=["GFP"]).array)
+    np.testing.assert_array_equal(pyramid.to_dask(0)[0, 3:9, 5:20, 7].compute(),
+                                  data[1, 3:9, 5:20, 7])

@@ -65,22 +65,6 @@ class ConvertResult:
     notes: list[str]
 
 
-class _PyramidLevelArray:
-    """The finest level of a :class:`~vtkvol.io.pyramid.Pyramid` as an array dask can slice
-    (``[c, z, y, x]``), read block by block."""
-
-    def __init__(self, pyramid: Any) -> None:
-        self._pyramid = pyramid
-        self.shape = pyramid.levels[0].shape_czyx
-        self.dtype = np.dtype(pyramid.dtype)
-        self.ndim = 4
-
-    def __getitem__(self, key: Any) -> np.ndarray:
-        slices = [k if isinstance(k, slice) else slice(k, k + 1) for k in key]
-        c, z, y, x = (slice(*s.indices(n)[:2]) for s, n in zip(slices, self.shape, strict=True))
-        return np.stack([self._pyramid.read_block(0, k, z, y, x) for k in range(c.start, c.stop)])
-
-
 def lazy_source(path: Path, *, time_index: int = 0,
                 channels: Sequence[int | str] | None = None) -> LazySource:
     """``path`` as a :class:`LazySource` (see the module docstring for how each format is
@@ -100,9 +84,7 @@ def lazy_source(path: Path, *, time_index: int = 0,
     if reader.open_pyramid is not None:
         pyramid = reader.open_pyramid(path, time_index=time_index, channels=channels)
         level = pyramid.levels[0]
-        array = da.from_array(_PyramidLevelArray(pyramid),
-                              chunks=(1, max(1, pyramid.chunk_z(0)), CHUNK_XY, CHUNK_XY),
-                              asarray=True, fancy=False)
+        array = pyramid.to_dask(0, (1, max(1, pyramid.chunk_z(0)), CHUNK_XY, CHUNK_XY))
         return LazySource(array, tuple(level.voxel_size_um), list(pyramid.channel_names),
                           list(pyramid.notes))
     data = reader(path, time_index=time_index, channels=channels)

@@ -106,6 +106,20 @@ class Pyramid:
         """The store's chunk size along y at ``level`` (strips start on chunk boundaries)."""
         return 1
 
+    def to_dask(self, level: int = 0, chunks: tuple[int, int, int, int] | None = None) -> Any:
+        """``level`` as a lazy dask array ``[c, z, y, x]`` (dask must be installed): each
+        dask chunk reads its block through :meth:`read_block` when computed. Default chunks:
+        one channel, the store's z chunk, 256 × 256 in y and x. The pyramid must stay open
+        while the array is used."""
+        import dask.array as da
+
+        lv = self.levels[level]
+        if chunks is None:
+            chunks = (1, self.chunk_z(level), 256, 256)
+        return da.from_array(_LevelArray(self, level), asarray=True, fancy=False,
+                             chunks=tuple(min(c, n) for c, n in
+                                          zip(chunks, lv.shape_czyx, strict=True)))
+
     def close(self) -> None:
         """Release the file (Imaris keeps an HDF5 handle open)."""
 
@@ -114,6 +128,25 @@ class Pyramid:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+class _LevelArray:
+    """One level of a :class:`Pyramid` as an array dask can slice (``[c, z, y, x]``)."""
+
+    def __init__(self, pyramid: Pyramid, level: int) -> None:
+        self._pyramid, self._level = pyramid, level
+        self.shape = pyramid.levels[level].shape_czyx
+        self.dtype = np.dtype(pyramid.dtype)
+        self.ndim = 4
+
+    def __getitem__(self, key: Any) -> np.ndarray:
+        parts = key if isinstance(key, tuple) else (key,)
+        parts = parts + (slice(None),) * (4 - len(parts))
+        c, z, y, x = (slice(*(k if isinstance(k, slice) else slice(k, k + 1)).indices(n)[:2])
+                      for k, n in zip(parts, self.shape, strict=True))
+        blocks = [self._pyramid.read_block(self._level, k, z, y, x) for k in range(c.start, c.stop)]
+        return np.stack(blocks) if blocks else np.empty(
+            (0, z.stop - z.start, y.stop - y.start, x.stop - x.start), self.dtype)
 
 
 def parse_bytes(text: str | int | float) -> int:
