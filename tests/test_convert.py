@@ -143,3 +143,13 @@ def test_cli_convert_reports_and_the_output_opens(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["info", str(tmp_path / "c.zarr"), "--gpu-budget", "plenty"])
     assert "is not a size" in capsys.readouterr().err
+
+
+def test_gpu_budget_option_of_open_and_render():
+    from vtkvol.cli import _parser
+
+    args = _parser().parse_args(["open", "brain.ome.zarr", "--gpu-budget", "2GiB"])
+    assert args.gpu_budget == 2 << 30
+    args = _parser().parse_args(["render", "b.zarr", "-o", "b.png", "--gpu-budget", "512MB"])
+    assert args.gpu_budget == 512 * 10 ** 6
+    assert _parser().parse_args(["render", "b.zarr", "-o", "b.png"]).gpu_budget is None
