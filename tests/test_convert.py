@@ -153,3 +153,32 @@ def test_gpu_budget_option_of_open_and_render():
     args = _parser().parse_args(["render", "b.zarr", "-o", "b.png", "--gpu-budget", "512MB"])
     assert args.gpu_budget == 512 * 10 ** 6
     assert _parser().parse_args(["render", "b.zarr", "-o", "b.png"]).gpu_budget is None
+
+
+def test_an_imaris_file_converts_lazily(tmp_path):
+    h5py = pytest.importorskip("h5py")
+
+    def chars(text: str) -> np.ndarray:
+        return np.array([c.encode() for c in text], dtype="S1")
+
+    rng = np.random.default_rng(2)
+    vols = [rng.integers(0, 4000, (6, 20, 24)).astype(np.uint16) for _ in range(2)]
+    path = tmp_path / "cells.ims"
+    with h5py.File(path, "w") as f:
+        image = f.create_group("DataSetInfo/Image")
+        for key, value in (("X", 24), ("Y", 20), ("Z", 6)):
+            image.attrs[key] = chars(str(value))
+        for axis, hi in enumerate((12.0, 10.0, 6.0)):
+            image.attrs[f"ExtMin{axis}"] = chars("0")
+            image.attrs[f"ExtMax{axis}"] = chars(repr(hi))
+        image.attrs["Unit"] = chars("um")
+        for c, name in enumerate(("DAPI", "GFP")):
+            f.create_group(f"DataSetInfo/Channel {c}").attrs["Name"] = chars(name)
+            f.create_dataset(f"DataSet/ResolutionLevel 0/TimePoint 0/Channel {c}/Data",
+                             data=np.pad(vols[c], ((0, 2), (0, 2), (0, 2))),  # padded at the end
+                             chunks=(2, 8, 8))
+    result = convert_to_ome_zarr(path, tmp_path / "cells.zarr")
+    assert result.channel_names == ["DAPI", "GFP"]
+    assert result.voxel_size_um == pytest.approx((0.5, 0.5, 1.0))
+    vol = read_volume(tmp_path / "cells.zarr", level=0)
+    np.testing.assert_array_equal(vol.array, np.stack(vols))
