@@ -540,3 +540,17 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     # a matrix run merged later keeps the study
     kept = report.merge(doc, {"renderer": "x", "mode": "quick"}, [], [])
     assert kept["scattering"] == doc["scattering"]
+
+
+def test_regenerating_keeps_the_hand_written_sections(tmp_path):
+    """Sections after the marker (other benchmark scripts' results) survive a regeneration."""
+    doc = {"runs": [], "records": [], "stability": []}
+    report.regenerate(tmp_path, doc)
+    page = tmp_path / "benchmarks.md"
+    hand = f"{report.KEPT_MARKER}\n\n## Large data\n\nmeasured by hand\n"
+    page.write_text(page.read_text(encoding="utf-8") + "\n" + hand, encoding="utf-8")
+    report.regenerate(tmp_path, doc)
+    report.regenerate(tmp_path, doc)
+    text = page.read_text(encoding="utf-8")
+    assert text.count(report.KEPT_MARKER) == 1 and text.endswith("measured by hand\n")
+    assert text.startswith("# vtkvol benchmarks")

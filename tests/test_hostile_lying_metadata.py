@@ -80,7 +80,7 @@ def test_a_session_nested_absurdly_deep_is_a_session_error(tmp_path, depth):
     from vtkvol.model.session import SessionError, read_session
 
     path = tmp_path / "deep.vtkvol.json"
-    path.write_text('{"format": "vtkvol-session", "version": 5, "scene": '
+    path.write_text('{"format": "vtkvol-session", "version": 6, "scene": '
                     + "[" * depth + "]" * depth + "}")
     with pytest.raises(SessionError, match=r"deep\.vtkvol\.json: is nested (more than 64 "
                                            r"levels deep|too deeply)"):

@@ -88,3 +88,71 @@ def test_bad_imaris_files_name_the_problem(tmp_path):
         read_volume(path)
     with pytest.raises(VolumeReadError, match="time_index 1 is out of range"):
         read_volume(write_ims(tmp_path / "one.ims", volumes()), time_index=1)
+
+
+def add_level(path: Path, level: int, channels: list[np.ndarray], *, sizes: bool = True,
+              pad: int = 3) -> None:
+    """Add ``ResolutionLevel level`` (the given (z, y, x) volumes, padded as Imaris pads to
+    whole chunks) with ``ImageSizeX/Y/Z`` on each channel group, as Imaris writes them."""
+    with h5py.File(path, "a") as f:
+        for c, data in enumerate(channels):
+            nz, ny, nx = data.shape
+            padded = np.zeros((nz + pad, ny + pad, nx + pad), data.dtype)
+            padded[:nz, :ny, :nx] = data
+            group = f.create_group(f"DataSet/ResolutionLevel {level}/TimePoint 0/Channel {c}")
+            group.create_dataset("Data", data=padded, chunks=(2, ny + pad, nx + pad))
+            if sizes:
+                for key, value in (("ImageSizeX", nx), ("ImageSizeY", ny), ("ImageSizeZ", nz)):
+                    group.attrs[key] = chars(str(value))
+
+
+def test_a_coarser_level_is_read_when_the_finest_does_not_fit(tmp_path):
+    from vtkvol.io.imaris import read_imaris
+
+    fine = volumes((8, 12, 16))
+    coarse = [v[::2, ::2, ::2] for v in fine]
+    path = write_ims(tmp_path / "pyr.ims", fine, extent_max=(8.0, 6.0, 16.0))
+    add_level(path, 1, coarse)
+    whole = read_imaris(path)  # the default budget holds level 0
+    assert whole.metadata["level"] == 0 and whole.array.shape == (2, 8, 12, 16)
+    small = read_volume(path, memory_budget_bytes=fine[0].nbytes)  # two channels do not fit
+    assert small.metadata["level"] == 1 and small.array.shape == (2, 4, 6, 8)
+    np.testing.assert_array_equal(small.array[1], coarse[1])
+    # Extent / the level's size: 8 µm / 8 voxels in x, 6 / 6 in y, 16 / 4 in z.
+    assert tuple(small.voxel_size_um) == pytest.approx((1.0, 1.0, 4.0))
+    # Voxel centres at ExtMin + (i + ½)·size: level 1's first sits ½ a level-0 voxel further.
+    assert small.metadata["origin_um"] == pytest.approx([0.25, 0.25, 1.0])
+    assert "pyramid level 1 of 2 ('ResolutionLevel 1'" in small.notes[0]
+
+
+def test_an_imaris_region_equals_direct_slicing(tmp_path):
+    fine = volumes((8, 12, 16))
+    path = write_ims(tmp_path / "reg.ims", fine, extent_max=(8.0, 6.0, 16.0))
+    add_level(path, 1, [v[::2, ::2, ::2] for v in fine])
+    # Level 0 voxel centres at 0.5·i µm (x, y) and 2·i µm (z) in pyramid space.
+    vol = read_volume(path, channels=["GFP"], region_um=((1.0, 3.0), (0.5, 2.0), (2.0, 6.0)))
+    assert vol.metadata["level"] == 0
+    np.testing.assert_array_equal(vol.array[0], fine[1][1:4, 1:5, 2:7])
+    assert vol.metadata["origin_um"] == pytest.approx([1.0, 0.5, 2.0])
+
+
+def test_imaris_levels_that_lie_or_are_missing(tmp_path):
+    fine = volumes((8, 12, 16))
+    path = write_ims(tmp_path / "nosize.ims", fine)
+    add_level(path, 1, [v[::2, ::2, ::2] for v in fine], sizes=False)
+    vol = read_volume(path, memory_budget_bytes=1 << 20)
+    assert vol.metadata["levels"] == [[2, 8, 12, 16]]  # the level without sizes is left out
+    assert any("ResolutionLevel 1 has no ImageSizeX/Y/Z attributes" in n for n in vol.notes)
+
+    lying = write_ims(tmp_path / "lying_level.ims", fine)
+    add_level(lying, 1, [v[::4, ::4, ::4] for v in fine], pad=0)
+    with h5py.File(lying, "a") as f:  # declares more voxels than the level holds
+        f["DataSet/ResolutionLevel 1/TimePoint 0/Channel 0"].attrs["ImageSizeX"] = chars("9")
+    with pytest.raises(VolumeReadError, match=r"ResolutionLevel 1 Channel 0 Data has shape "
+                                              r"\(2, 3, 4\), smaller than"):
+        read_volume(lying)
+
+    missing = write_ims(tmp_path / "missing_level.ims", fine)
+    add_level(missing, 1, [fine[0][::2, ::2, ::2]])  # channel 1 of level 1 is missing
+    with pytest.raises(VolumeReadError, match=r"ResolutionLevel 1 Channel 1 has no Data"):
+        read_volume(missing)

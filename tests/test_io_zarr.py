@@ -205,3 +205,145 @@ def test_bioformats2raw_layout_reads_image_0(tmp_path):
     vol = read_volume(root)
     assert vol.channel_names == ["nuclei"] and vol.array.shape == (1, 4, 8, 8)
     assert "bioformats2raw layout: image 0 read" in vol.notes
+
+
+# -- regions and levels (vtkvol.io.pyramid) --------------------------------------------------
+def _ball(z: int = 16, y: int = 48, x: int = 64) -> np.ndarray:
+    rng = np.random.default_rng(3)
+    return rng.integers(0, 60000, size=(z, y, x), dtype=np.uint16)
+
+
+def test_region_at_the_finest_level_equals_direct_slicing(tmp_path):
+    data = _ball()
+    path = _write(tmp_path / "r.zarr", data[None], "czyx", scale={"c": 1.0, "z": 2.0, "y": 0.5,
+                                                                   "x": 0.25})
+    # x 3.1…9.0 µm at 0.25 µm: voxel centres 13…36; y 1.0…4.2 at 0.5: 2…8; z 4…20 at 2: 2…10.
+    region = ((3.1, 9.0), (1.0, 4.2), (4.0, 20.0))
+    vol = read_volume(path, level=0, region_um=region)
+    np.testing.assert_array_equal(vol.array[0], data[2:11, 2:9, 13:37])
+    assert vol.voxel_size_um == pytest.approx((0.25, 0.5, 2.0))
+    assert vol.metadata["origin_um"] == pytest.approx([13 * 0.25, 2 * 0.5, 2 * 2.0])
+    assert vol.metadata["region_voxels"] == [[13, 37], [2, 9], [2, 11]]
+    assert vol.metadata["region_um"] == [pytest.approx([3.25, 9.0]), pytest.approx([1.0, 4.0]),
+                                         pytest.approx([4.0, 20.0])]
+    assert "region x 3.25…9 × y 1…4 × z 4…20 µm" in vol.notes[0]
+
+
+def test_region_chooses_the_finest_level_where_it_fits(tmp_path):
+    data = _ball()
+    path = _write(tmp_path / "fit.zarr", data[None], "czyx", scale={"c": 1.0, "z": 1.0, "y": 1.0,
+                                                                     "x": 1.0})
+    whole = read_ome_zarr(path, memory_budget_bytes=data.nbytes // 4)
+    assert whole.metadata["level"] == 1  # the whole image fits only from level 1
+    # A quarter of the image fits at level 0 within the same budget, and equals level 0's voxels.
+    region = ((0.0, 31.0), (0.0, 23.0), (0.0, 15.0))
+    part = read_ome_zarr(path, memory_budget_bytes=data.nbytes // 4, region_um=region)
+    assert part.metadata["level"] == 0
+    np.testing.assert_array_equal(part.array[0], data[:, :24, :32])
+    assert part.array.nbytes <= data.nbytes // 4
+    # Refining a region read from level 1 in its own µm (voxel centres of level 1 at
+    # 0.5 + 2·i µm: ome-zarr's writer shifts coarser levels by half a voxel) gives level 0.
+    assert whole.metadata["origin_um"] == pytest.approx([0.5, 0.5, 0.0])
+
+
+def test_region_thinner_than_a_voxel_keeps_the_nearest(tmp_path):
+    data = _ball(4, 8, 8)
+    path = _write(tmp_path / "thin.zarr", data[None], "czyx", levels=1)
+    vol = read_ome_zarr(path, region_um=((2.4, 2.45), (0.0, 7.0), (0.0, 3.0)))
+    np.testing.assert_array_equal(vol.array[0], data[:, :, 2:3])
+
+
+def test_bad_regions_and_levels(tmp_path):
+    path = _write(tmp_path / "bad.zarr", _cells(1), "czyx")
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(path, region_um=((100.0, 200.0), (0.0, 5.0), (0.0, 5.0)))
+    assert "the region x = 100…200 µm lies outside the data (0…39 µm)" in _one_line(
+        exc, "bad.zarr")
+    with pytest.raises(ValueError, match="finite"):
+        read_volume(path, region_um=((float("nan"), 2.0), (0.0, 5.0), (0.0, 5.0)))
+    with pytest.raises(ValueError, match="low end above its high end"):
+        read_volume(path, region_um=((5.0, 2.0), (0.0, 5.0), (0.0, 5.0)))
+    with pytest.raises(ValueError, match=r"needs three finite \(low, high\) pairs"):
+        read_volume(path, region_um=((0.0, 2.0),))
+    with pytest.raises(ValueError, match=r"is not \(\(x0, x1\)"):
+        read_volume(path, region_um="everything")
+    with pytest.raises(VolumeReadError, match=r"level 7 is out of range: the pyramid has 3"):
+        read_volume(path, level=7)
+    with pytest.raises(VolumeReadError, match=r"no level fits the region: even the coarsest"):
+        read_ome_zarr(path, memory_budget_bytes=4, region_um=((0.0, 39.0), (0.0, 31.0),
+                                                              (0.0, 15.0)))
+    npy = tmp_path / "plain.npy"
+    np.save(npy, np.zeros((4, 4, 4), np.uint8))
+    with pytest.raises(VolumeReadError, match=r"^plain\.npy: is not a multiscale image"):
+        read_volume(npy, level=0)
+
+
+def test_truncated_chunk_inside_a_region_is_an_error(tmp_path):
+    path = _write(tmp_path / "cut.zarr", _cells(1), "czyx", levels=2)
+    chunks = [p for p in (path / "s0").rglob("*") if p.is_file() and p.name != "zarr.json"]
+    for chunk in chunks:
+        chunk.write_bytes(chunk.read_bytes()[:7])
+    with pytest.raises(VolumeReadError) as exc:
+        read_volume(path, level=0, region_um=((0.0, 5.0), (0.0, 5.0), (0.0, 3.0)))
+    assert "level 's0' cannot be read: the chunks are truncated or corrupt" in _one_line(
+        exc, "cut.zarr")
+    # The coarser level is intact and still reads.
+    assert read_volume(path, level=1).array.shape == (1, 16, 16, 20)
+
+
+def test_parse_bytes():
+    from vtkvol.io.pyramid import parse_bytes
+
+    assert parse_bytes("1GiB") == 1 << 30
+    assert parse_bytes("512 MiB") == 512 << 20
+    assert parse_bytes("1.5G") == 3 << 29
+    assert parse_bytes("800MB") == 800 * 10 ** 6
+    assert parse_bytes(4096) == 4096
+    for bad in ("lots", "-1GiB", "0", "1 parsec", "nanGiB", "infGiB"):
+        with pytest.raises(ValueError):
+            parse_bytes(bad)
+
+
+def test_small_blocks_on_chunk_boundaries_give_the_same_voxels(tmp_path, monkeypatch):
+    """With a tiny block size every read is split into z-slabs and y-strips; the voxels are
+    the same, and no chunk is read twice (the slices start on chunk boundaries)."""
+    import vtkvol.io.pyramid as pyramid_module
+
+    data = _ball(20, 48, 40)
+    group = zarr.open_group(str(tmp_path / "blocks.zarr"), mode="w", zarr_format=3)
+    writer.write_image(data[None], group, axes="czyx", fmt=ome_format.FormatV05(),
+                       scale_factors=(2,), storage_options={"chunks": (1, 4, 8, 16)})
+    monkeypatch.setattr(pyramid_module, "SLAB_BYTES", 1000)
+    reads: list[tuple[int, int, int, int]] = []
+    from vtkvol.io.ome_zarr import ZarrPyramid
+
+    original = ZarrPyramid.read_block
+
+    def counting(self, level, channel, z, y, x):
+        reads.append((z.start, z.stop, y.start, y.stop))
+        return original(self, level, channel, z, y, x)
+
+    monkeypatch.setattr(ZarrPyramid, "read_block", counting)
+    vol = read_ome_zarr(tmp_path / "blocks.zarr", level=0,
+                        region_um=((3.0, 30.0), (5.0, 41.0), (2.0, 17.0)))
+    np.testing.assert_array_equal(vol.array[0], data[2:18, 5:42, 3:31])
+    assert len(reads) > 10
+    inner_z = {e for z0, z1, _, _ in reads for e in (z0, z1)} - {2, 18}
+    inner_y = {e for _, _, y0, y1 in reads for e in (y0, y1)} - {5, 42}
+    assert inner_z and all(e % 4 == 0 for e in inner_z)
+    assert inner_y and all(e % 8 == 0 for e in inner_y)
+
+
+def test_a_level_as_a_lazy_dask_array(tmp_path):
+    pytest.importorskip("dask")
+    from vtkvol.io.ome_zarr import open_ome_zarr
+
+    data = _cells()
+    path = _write(tmp_path / "lazy.zarr", data, "czyx", labels=["DAPI", "GFP"])
+    pyramid = open_ome_zarr(path, channels=["GFP"])
+    lazy = pyramid.to_dask(1, (1, 4, 8, 8))
+    assert lazy.shape == (1, 16, 16, 20) and lazy.chunks[1] == (4, 4, 4, 4)
+    np.testing.assert_array_equal(lazy.compute(), read_ome_zarr(path, level=1,
+                                                                channels=["GFP"]).array)
+    np.testing.assert_array_equal(pyramid.to_dask(0)[0, 3:9, 5:20, 7].compute(),
+                                  data[1, 3:9, 5:20, 7])

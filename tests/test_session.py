@@ -444,7 +444,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 7)"),
+         "(format version 99; this version reads up to 8)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -844,7 +844,7 @@ def test_migrate_v6_to_v7_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[6](raw)
     assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert [c["tf_mode"] for c in out["scene"]["channels"]] == ["1d", "1d"]  # v6 was 1-D
     assert raw == untouched
 
@@ -856,8 +856,25 @@ def test_v6_file_reads_without_warnings_and_1d_classification() -> None:
                for c in session.model.channels)
 
 
+def test_migrate_v7_to_v8_matches_fixture() -> None:
+    raw = load_fixture("v7_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[7](raw)
+    assert out == load_fixture("v7_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # v7 showed the level the budget chose and the whole image.
+    assert out["scene"]["volume"]["level"] is None and out["scene"]["volume"]["region_um"] is None
+    assert raw == untouched
+
+
+def test_v7_file_reads_without_warnings_and_no_pyramid_region() -> None:
+    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.volume.level is None and session.model.volume.region_um is None
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v7_complete.vtkvol.json")
+    doc = load_fixture("v8_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -887,8 +904,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v7 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
+    """The checked-in v8 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v8_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -908,8 +925,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 8; this version reads up to 7"):
-        migrate({"format": FORMAT, "version": 8})
+    with pytest.raises(ValueError, match="format version 9; this version reads up to 8"):
+        migrate({"format": FORMAT, "version": 9})
 
 
 @pytest.mark.parametrize(

@@ -69,7 +69,8 @@ def test_cancel_keeps_the_scene(opened_window, qtbot, monkeypatch, tmp_path, dia
     data = window.data
     started = []
 
-    def slow_read(path, *, voxel_size_um=None, time_index=0, progress=None, cancel=None):
+    def slow_read(path, *, voxel_size_um=None, time_index=0, progress=None, cancel=None,
+                  **budget):
         for i in range(2000):
             progress(i / 2000, f"slice {i}")
             started.append(i)

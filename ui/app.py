@@ -45,6 +45,7 @@ from PySide6.QtGui import (
 from PySide6.QtWidgets import (
     QApplication,
     QFileDialog,
+    QInputDialog,
     QLabel,
     QMainWindow,
     QMessageBox,
@@ -56,6 +57,7 @@ from PySide6.QtWidgets import (
 
 from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
 from vtkvol.io.atomic import write_atomic
+from vtkvol.io.pyramid import parse_bytes
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
@@ -79,6 +81,19 @@ from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.movie_dialog import MovieDialog
+from vtkvol.ui.pyramid_view import (
+    BUDGET_CHOICES,
+    GPU_BUDGET_KEY,
+    crop_region_um,
+    data_centre,
+    is_pyramid,
+    level_text,
+    offset_between,
+    read_budget,
+    restrict_weights,
+    shifted_view,
+    weight_fractions,
+)
 from vtkvol.ui.time_series import MIB, TimeBar, TimeSeriesPlayer
 from vtkvol.ui.undo import UndoRecorder, apply_state
 from vtkvol.ui.view_actions import ViewActions
@@ -230,6 +245,11 @@ class MainWindow(QMainWindow):
         self._as_read: VolumeData | None = None
         #: Changes the undo history does not hold (a new voxel size) since the last save.
         self._unsaved_data_edit = False
+        #: GPU-memory budget given on the command line (this run only); None: the setting.
+        self.budget_override: int | None = None
+        #: What "Back to overview" returns to while a refined region is shown: the overview's
+        #: level, crop and slice weights; None when the overview (or no pyramid) is shown.
+        self._overview: dict[str, Any] | None = None
         self._confirmed_close = False
         self.setWindowTitle(APP_NAME)
         self.setAcceptDrops(True)
@@ -323,6 +343,8 @@ class MainWindow(QMainWindow):
         self.slice_views_dock.gestureFinished.connect(self._slice_drag_finished)
         self._slice_dragging = False
         self.lights_dock.currentLightChanged.connect(self.viewport.set_gizmo_light)
+        self.ranges_dock.refineRequested.connect(self.refine_selection)
+        self.ranges_dock.overviewRequested.connect(self.back_to_overview)
         self.viewport.set_gizmo_light(self.lights_dock.current_light)
 
     def _slice_drag_started(self) -> None:
@@ -381,6 +403,16 @@ class MainWindow(QMainWindow):
         self.voxel_size_action = self._action(
             "&Voxel size…", self.choose_voxel_size, None,
             "The distance between voxel centres along x, y and z (µm)")
+        self.budget_action = self._action(
+            "GPU memory &budget…", self.choose_gpu_budget, None,
+            "The most voxel data shown at once; pyramids (OME-Zarr, Imaris) open at the finest "
+            "level that fits")
+        self.refine_action = self._action(
+            "Re&fine selection", self.refine_selection, QKeySequence("Ctrl+Shift+R"),
+            "Load the crop region at the finest pyramid level that fits the GPU memory budget")
+        self.overview_action = self._action(
+            "Back to &overview", self.back_to_overview, None,
+            "Show the whole pyramid again at the overview level, with the previous crop")
         self.gizmo_action = QAction("Light &handle", self)
         self.gizmo_action.setCheckable(True)
         self.gizmo_action.setChecked(True)
@@ -444,6 +476,9 @@ class MainWindow(QMainWindow):
         for action in (self.time_bar_action, self.time_play_action, self.time_back_action,
                        self.time_forward_action):
             view.addAction(action)
+        view.addAction(self.refine_action)
+        view.addAction(self.overview_action)
+        view.addAction(self.budget_action)
         view.addSeparator()
         for dock in self.docks:
             view.addAction(dock.toggleViewAction())
@@ -583,10 +618,14 @@ class MainWindow(QMainWindow):
         channels = f", {c} channels" if c > 1 else ""
         if self.time_player.is_series:
             channels += f", time point {self.time_player.shown_index} of {self.time_player.count}"
+        level = level_text(data)
+        where = f" · level {data.metadata['level']} of {len(data.metadata['levels'])}" + (
+            " (refined region)" if data.metadata.get("region_um") else "") if level else ""
         self.data_label.setText(
             f"{name} — {x}×{y}×{z}{channels}, {data.array.dtype}, voxel {sx:.3g}×{sy:.3g}×"
-            f"{sz:.3g} µm, {format_bytes(data.nbytes)}")
-        self.data_label.setToolTip(user_note(data.describe()))
+            f"{sz:.3g} µm, {format_bytes(data.nbytes)}{where}")
+        tip = user_note(data.describe())
+        self.data_label.setToolTip(f"{level[:1].upper()}{level[1:]}\n\n{tip}" if level else tip)
 
     def _data_name(self) -> str:
         if self.data is None:
@@ -610,6 +649,10 @@ class MainWindow(QMainWindow):
         self.screenshot_menu.setEnabled(has_data)
         self.movie_action.setEnabled(has_data)
         self.voxel_size_action.setEnabled(has_data)
+        can_refine = is_pyramid(self.data) and self.model.volume.voxel_size_um is None
+        self.refine_action.setEnabled(can_refine)
+        self.overview_action.setEnabled(self._overview is not None)
+        self.ranges_dock.set_pyramid_actions(can_refine, self._overview is not None)
 
     def _on_reduce_toggled(self, on: bool) -> None:
         self.viewport.reduce_while_moving = on
@@ -664,9 +707,11 @@ class MainWindow(QMainWindow):
         name = Path(text).name or text
         index = 0 if time_index is None else int(time_index)
 
+        budget = self.gpu_budget()
+
         def job(progress, cancel):
             return read_volume(text, voxel_size_um=voxel_size, time_index=index,
-                               progress=progress, cancel=cancel)
+                               progress=progress, cancel=cancel, memory_budget_bytes=budget)
 
         def success(data: VolumeData) -> None:
             self.show_volume(data, voxel_size=voxel_size, time_index=index)
@@ -724,6 +769,8 @@ class MainWindow(QMainWindow):
         self._file_voxel = (None if voxel_size is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
         self._as_read = data
+        self._overview = None
+        fresh.volume.level = data.metadata.get("level") if is_pyramid(data) else None
         with self.model.batch():
             apply_state(self.model, {
                 "volume": fresh.volume.model_dump(),
@@ -734,7 +781,8 @@ class MainWindow(QMainWindow):
                 "cursor": None,  # the slice views start at the new data's centre
             })
             # Before the batch's event: the player must not take time point 0 for a request.
-            self.time_player.data_opened(data, time_index)
+            self.time_player.data_opened(data, time_index,
+                                         memory_budget_bytes=self.gpu_budget())
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self.session_path = None
         self._after_open()
@@ -831,9 +879,15 @@ class MainWindow(QMainWindow):
     def _apply_session(self, path: Path, model: SceneModel, data: VolumeData,
                        window: dict[str, Any], notes: list[str],
                        sample_args: dict[str, Any] | None = None) -> None:
+        # A refined region saved in the session has no overview state to go back to; "Back
+        # to overview" then shows the level the budget chooses, uncropped.
+        self._overview = None if model.volume.region_um is None else {
+            "level": None, "crop": CropBox().model_dump(),
+            "slice_weights": SliceWeights().model_dump()}
         with self.model.batch():
             apply_state(self.model, model.model_dump())
-            self.time_player.data_opened(data, model.volume.time_index)
+            self.time_player.data_opened(data, model.volume.time_index,
+                                         memory_budget_bytes=self.gpu_budget())
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self._file_voxel = (None if model.volume.voxel_size_um is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
@@ -1098,6 +1152,134 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(f"Voxel size {new.x:.4g} × {new.y:.4g} × {new.z:.4g} µm",
                                      6000)
 
+    # -- pyramids: budget, refine selection, back to overview ----------------------------------
+    def gpu_budget(self) -> int:
+        """The GPU-memory budget in bytes: the command line's for this run, else the setting
+        (Edit → GPU memory budget…), else :data:`~vtkvol.io.pyramid.DEFAULT_GPU_BUDGET_BYTES`."""
+        return self.budget_override if self.budget_override is not None else read_budget(
+            self.settings)
+
+    def set_gpu_budget(self, nbytes: int) -> None:
+        """Store the budget (QSettings, kept across runs); it applies from the next open or
+        refine. A command-line budget of this run gives way to it."""
+        self.budget_override = None
+        self.settings.setValue(GPU_BUDGET_KEY, int(nbytes))
+        self.statusBar().showMessage(
+            f"GPU memory budget {format_bytes(int(nbytes))}: pyramids open at the finest level "
+            "that fits (from the next open or refine)", 8000)
+
+    def choose_gpu_budget(self) -> None:
+        """View → GPU memory budget…: pick or type a size (e.g. 1.5 GiB)."""
+        current = format_bytes(self.gpu_budget())
+        choices = list(BUDGET_CHOICES)
+        if current not in choices:
+            choices.insert(0, current)
+        text, ok = QInputDialog.getItem(
+            self, "GPU memory budget",
+            "The most voxel data shown at once (all channels). Pyramids (OME-Zarr, Imaris)\n"
+            "open at the finest level that fits, and Refine selection loads the crop\n"
+            "region at the finest level where it fits.", choices, choices.index(current), True)
+        if not ok:
+            return
+        try:
+            nbytes = parse_bytes(text)
+        except ValueError as exc:
+            errors.show_message(self, "Not a size", f"{exc}. Enter a size such as 512 MiB or "
+                                                    "2 GiB.")
+            return
+        self.set_gpu_budget(nbytes)
+
+    def refine_selection(self) -> None:
+        """Load the crop region at the finest pyramid level that fits the budget.
+
+        The region is the crop box (µm) widened by half a shown voxel on each side. The new
+        data is shown with its first voxel at the world origin and the camera, point lights
+        and clipping plane shifted by the region's offset, so the object stays where it was;
+        TFs, lights, method and camera are kept, the crop becomes the whole (new) extent."""
+        data = self.data
+        if not is_pyramid(data) or self._task is not None:
+            return
+        assert data is not None
+        if self.model.volume.voxel_size_um is not None:
+            self.statusBar().showMessage("Refine selection reads the file's own voxel sizes: "
+                                         "use Edit → Voxel size → Use the file's value first",
+                                         8000)
+            return
+        region = crop_region_um(data, self.model.crop)
+        budget = self.gpu_budget()
+        source = str(data.source)
+        time_index = self.model.volume.time_index
+        current = int(data.metadata["level"])
+
+        def job(progress, cancel):
+            return read_volume(source, time_index=time_index, region_um=region,
+                               memory_budget_bytes=budget, progress=progress, cancel=cancel)
+
+        def success(new: VolumeData) -> None:
+            if int(new.metadata["level"]) >= current:
+                self.statusBar().showMessage(
+                    f"Refine selection: level {current} is already the finest level at which "
+                    f"this region fits {format_bytes(budget)}; crop a smaller region or raise "
+                    "the GPU memory budget", 10000)
+                return
+            if self._overview is None:
+                self._overview = {"level": current, "crop": self.model.crop.model_dump(),
+                                  "slice_weights": self.model.slice_weights.model_dump()}
+            fractions = weight_fractions(data, new.metadata["region_um"])
+            weights = {axis: restrict_weights(getattr(self.model.slice_weights, axis), lo, hi)
+                       for axis, (lo, hi) in zip("xyz", fractions, strict=True)}
+            self._show_pyramid_data(new, crop=CropBox().model_dump(), slice_weights=weights)
+
+        self._run("Refining the selection…", job, success,
+                  lambda exc: self._open_failed(exc, "Could not refine the selection"))
+
+    def back_to_overview(self) -> None:
+        """Show the overview level again, whole, with the crop and slice weights it had."""
+        data, overview = self.data, self._overview
+        if data is None or overview is None or self._task is not None:
+            return
+        budget = self.gpu_budget()
+        source = str(data.source)
+        time_index = self.model.volume.time_index
+
+        def job(progress, cancel):
+            return read_volume(source, time_index=time_index, level=overview["level"],
+                               memory_budget_bytes=budget, progress=progress, cancel=cancel)
+
+        def success(new: VolumeData) -> None:
+            self._overview = None
+            self._show_pyramid_data(new, crop=overview["crop"],
+                                    slice_weights=overview["slice_weights"])
+
+        self._run("Reading the overview…", job, success,
+                  lambda exc: self._open_failed(exc, "Could not show the overview"))
+
+    def _show_pyramid_data(self, new: VolumeData, *, crop: dict[str, Any],
+                           slice_weights: dict[str, Any]) -> None:
+        """Show another level or region of the same pyramid, keeping what is on screen in
+        place (see :mod:`vtkvol.ui.pyramid_view`); a fresh undo history, like a new voxel
+        size (the old steps hold crop ranges in the other level's µm)."""
+        old = self.data
+        assert old is not None
+        shift = shifted_view(self.model, offset_between(old, new), data_centre(old))
+        with self.model.batch():
+            self.model.update(shift)
+            self.model.volume.update({"level": int(new.metadata["level"]),
+                                      "region_um": new.metadata.get("region_um")})
+            self.model.crop.update(crop)
+            self.model.slice_weights.update(slice_weights)
+            self._set_data(new, reset_channels=False)
+            self.time_player.data_opened(new, self.model.volume.time_index,
+                                         memory_budget_bytes=self.gpu_budget())
+        self._as_read = new
+        self._file_voxel = (new.voxel_size_um, new.voxel_size_from_metadata)
+        self.recorder.reset()
+        self._unsaved_data_edit = True
+        self._show_data_info()
+        self._update_file_actions()
+        self.statusBar().showMessage(f"Showing {level_text(new)}", 15000)
+        self.dataShown.emit()
+
     # -- closing --------------------------------------------------------------------------------
     def has_unsaved_changes(self) -> bool:
         """Whether the view changed since it was opened or saved (camera moves aside)."""
@@ -1191,18 +1373,20 @@ def write_png(image: np.ndarray, path: Path) -> None:
 
 
 def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None,
-            time_index: int | None = None) -> int:
+            time_index: int | None = None, gpu_budget: int | None = None) -> int:
     """Start the desktop app (``vtkvol open``); returns the exit status.
 
     ``file`` may be a volume, a folder of slices or a session (``*.vtkvol.json``); without
     one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm;
     ``time_index`` (0-based) opens that time point of a time series.
+    ``gpu_budget`` (bytes) the GPU-memory budget setting, for this run only.
     """
     app = QApplication.instance() or QApplication(sys.argv)
     configure_gl_platform(app)
     app.setOrganizationName(APP_NAME)
     app.setApplicationName(APP_NAME)
     window = MainWindow()
+    window.budget_override = gpu_budget
     hook = errors.ExceptionDialogHook(window)
     hook.install()
     window.show()

@@ -131,6 +131,7 @@ class TimeSeriesPlayer(QObject):
         self._shape: tuple[int, ...] | None = None
         self._itemsize = 1
         self._fit = "auto"
+        self._read_options: dict[str, Any] = {}
         self._generation = 0
         self._read: _Read | None = None
         self._finishing: list[_Read] = []  # cancelled reads whose threads still run
@@ -157,10 +158,14 @@ class TimeSeriesPlayer(QObject):
         model.changed.connect(self._on_model_changed)
 
     # -- the data -------------------------------------------------------------------------------
-    def data_opened(self, data: VolumeData, time_index: int) -> None:
-        """New data is on screen (a file or session opened): forget the previous file's reads
-        and cache, and learn this file's time axis. Call before the model's change event of
-        the open goes out (inside its batch)."""
+    def data_opened(self, data: VolumeData, time_index: int, *,
+                    memory_budget_bytes: int | None = None) -> None:
+        """New data is on screen (a file or session opened, or another pyramid level or
+        region shown): forget the previous reads and cache, and learn this file's time axis.
+        Other time points are read the way ``data`` was: with ``memory_budget_bytes`` (the
+        budget the open used) and, for a pyramid, the same level and region, so that every
+        time point has the shape on screen. Call before the model's change event of the open
+        goes out (inside its batch)."""
         self.pause()
         self._cancel_read()
         self._generation += 1
@@ -174,6 +179,10 @@ class TimeSeriesPlayer(QObject):
         self._shape = tuple(data.array.shape)
         self._itemsize = data.array.dtype.itemsize
         self._fit = self.model.volume.fit
+        self._read_options = {"memory_budget_bytes": memory_budget_bytes}
+        if "level" in data.metadata and "levels" in data.metadata:  # a pyramid's level/region
+            self._read_options.update(level=data.metadata["level"],
+                                      region_um=data.metadata.get("region_um"))
         if self.count > 1:
             self.cache.put(self.shown_index, data)
         self.stateChanged.emit()
@@ -267,12 +276,12 @@ class TimeSeriesPlayer(QObject):
 
     # -- reading --------------------------------------------------------------------------------
     def _start_read(self, index: int, *, prefetch: bool) -> None:
-        path, fit = self.path, self._fit
+        path, fit, options = self.path, self._fit, dict(self._read_options)
         assert path is not None
 
         def job(progress, cancel):
             return read_volume(path, time_index=index, fit=fit, progress=progress,
-                               cancel=cancel)
+                               cancel=cancel, **options)
 
         thread = QThread(self)
         worker = Worker(job)

@@ -1,5 +1,6 @@
 """The ``vtkvol`` command: ``open`` (the app), ``render`` (headless PNG or turntable movie),
-``info``, ``bench``, ``batch`` (many renders on a Dask cluster)."""
+``info``, ``bench``, ``batch`` (many renders on a Dask cluster), ``convert`` (an OME-Zarr
+pyramid from a large volume)."""
 
 from __future__ import annotations
 
@@ -30,6 +31,20 @@ def _add_view_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
 
 
+def _budget(text: str) -> int:
+    """``--gpu-budget`` as bytes (``1GiB``, ``512MiB``…); argparse shows the problem."""
+    from vtkvol.io.pyramid import parse_bytes
+
+    try:
+        return parse_bytes(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+_BUDGET_HELP = ("GPU-memory budget of the volume shown (e.g. 512MiB, 2GiB; default 1GiB): "
+                "the finest pyramid level of an OME-Zarr or Imaris file that fits is read")
+
+
 def _parse_params(items: Sequence[str]) -> dict[str, Any] | str:
     """``--param NAME=VALUE`` items as a dict, or the one-line problem."""
     params: dict[str, Any] = {}
@@ -55,6 +70,8 @@ def _parser() -> argparse.ArgumentParser:
                         help="override the voxel size in µm")
     p_open.add_argument("--time", type=int, default=None, metavar="T",
                         help="time point to show first (0-based; a session's otherwise)")
+    p_open.add_argument("--gpu-budget", type=_budget, default=None, metavar="SIZE",
+                        help=_BUDGET_HELP + " (default: the app's setting)")
 
     p_render = sub.add_parser("render", help="render a volume or session to PNG, headless")
     p_render.add_argument("file", help="volume file/folder, session file, or 'sample'")
@@ -65,6 +82,8 @@ def _parser() -> argparse.ArgumentParser:
     _add_view_options(p_render)
     p_render.add_argument("--time", type=int, default=None, metavar="T",
                           help="time point to render (0-based; a session's own otherwise)")
+    p_render.add_argument("--gpu-budget", type=_budget, default=None, metavar="SIZE",
+                          help=_BUDGET_HELP)
     p_render.add_argument("--overwrite", action="store_true",
                           help="replace the output file if it exists")
     p_render.add_argument("--turntable", type=float, default=None, metavar="DEG",
@@ -91,6 +110,25 @@ def _parser() -> argparse.ArgumentParser:
     p_info = sub.add_parser("info", help="describe a volume file")
     p_info.add_argument("file")
     p_info.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
+    p_info.add_argument("--gpu-budget", type=_budget, default=None, metavar="SIZE",
+                        help=_BUDGET_HELP)
+
+    p_convert = sub.add_parser(
+        "convert", help="write an OME-Zarr pyramid from a large TIFF (or any readable volume)",
+        description="Write INPUT as an OME-Zarr pyramid (NGFF 0.5, or 0.4 with --ngff 0.4) "
+                    "without holding it in memory: voxel size and channel names in the "
+                    "metadata, progress on stderr, written to a temporary folder and renamed.")
+    p_convert.add_argument("input", help="volume file or folder (TIFF, OME-Zarr, Imaris, …)")
+    p_convert.add_argument("output", help="the .zarr folder to write")
+    p_convert.add_argument("--overwrite", action="store_true",
+                           help="replace OUTPUT if it exists (only once the new one is complete)")
+    p_convert.add_argument("--time", type=int, default=0, help="time point to convert")
+    p_convert.add_argument("--channels", nargs="+", metavar="C",
+                           help="channel indices or names to convert (default all)")
+    p_convert.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"),
+                           help="voxel size in µm instead of the file's")
+    p_convert.add_argument("--ngff", choices=("0.4", "0.5"), default="0.5",
+                           help="NGFF version: 0.5 (Zarr v3, default) or 0.4 (Zarr v2)")
 
     p_bench = sub.add_parser("bench", help="speed against accuracy benchmark")
     p_bench.add_argument("-o", "--output", required=True, metavar="DIR",
@@ -150,12 +188,13 @@ def _parse_value(text: str):
         return text
 
 
-def _load(path: str, voxel_size, time_index: int = 0):
+def _load(path: str, voxel_size, time_index: int = 0, budget: int | None = None):
     from vtkvol.io import confocal_phantom, read_volume
 
     if path == "sample":
         return confocal_phantom()
-    return read_volume(path, voxel_size_um=voxel_size, time_index=time_index)
+    return read_volume(path, voxel_size_um=voxel_size, time_index=time_index,
+                       memory_budget_bytes=budget)
 
 
 #: Largest image side `vtkvol render` makes (pixels): an 8192² window is ~0.5 GiB of colour and
@@ -243,7 +282,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 
         model, data = load_session_with_data(args.file, time_index=args.time)
     else:
-        data = _load(args.file, args.voxel_size, args.time or 0)
+        data = _load(args.file, args.voxel_size, args.time or 0, args.gpu_budget)
     inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
@@ -455,8 +494,38 @@ def _write_png(image, path: Path, *, replace: bool = True) -> None:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    data = _load(args.file, args.voxel_size)
+    data = _load(args.file, args.voxel_size, budget=args.gpu_budget)
     print(data.describe())
+    return 0
+
+
+def cmd_convert(args: argparse.Namespace) -> int:
+    from vtkvol.io.convert import ConvertError, convert_to_ome_zarr
+
+    if args.time < 0:
+        print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
+        return 2
+    channels = None if args.channels is None else [
+        int(c) if c.isdigit() else c for c in args.channels]
+    end = "\r" if sys.stderr.isatty() else "\n"
+
+    def progress(fraction: float, message: str) -> None:
+        print(f"{message}: {fraction:4.0%}" if message.startswith("writing the") else message,
+              end=end if 0 < fraction < 1 else "\n", file=sys.stderr, flush=True)
+
+    try:
+        result = convert_to_ome_zarr(
+            args.input, args.output, overwrite=args.overwrite, time_index=args.time,
+            channels=channels, voxel_size_um=args.voxel_size, version=args.ngff,
+            progress=progress)
+    except ConvertError as exc:
+        print(f"vtkvol: {exc}", file=sys.stderr)
+        return 2 if "exists" in str(exc) or "is the input" in str(exc) else 1
+    c, z, y, x = result.levels[0]
+    sx, sy, sz = result.voxel_size_um
+    print(f"wrote {result.path}: {len(result.levels)} levels from {x}×{y}×{z} (x×y×z, "
+          f"{c} channel{'s' if c != 1 else ''}: {', '.join(result.channel_names)}), voxel "
+          f"{sx:.4g}×{sy:.4g}×{sz:.4g} µm, in {result.seconds:.1f} s")
     return 0
 
 
@@ -474,7 +543,7 @@ def cmd_open(args: argparse.Namespace) -> int:
         print(f"vtkvol: the desktop app needs the [app] extras ({exc})", file=sys.stderr)
         return 2
     return run_app(args.file, sample=args.sample or args.file is None,
-                   voxel_size=args.voxel_size, time_index=args.time)
+                   voxel_size=args.voxel_size, time_index=args.time, gpu_budget=args.gpu_budget)
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
@@ -585,7 +654,7 @@ def cmd_batch(args: argparse.Namespace) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     handlers = {"render": cmd_render, "info": cmd_info, "open": cmd_open, "bench": cmd_bench,
-                "batch": cmd_batch}
+                "batch": cmd_batch, "convert": cmd_convert}
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:

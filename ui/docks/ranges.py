@@ -8,9 +8,10 @@ what is cropped away neither shows nor casts shadow. An axis at its full extent 
 
 from __future__ import annotations
 
-from PySide6.QtCore import Qt
+from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QGridLayout,
+    QHBoxLayout,
     QLabel,
     QPushButton,
     QSizePolicy,
@@ -32,6 +33,10 @@ class RangesDock(ModelDock):
 
     TITLE = "Ranges"
     OBJECT_NAME = "dock_ranges"
+    #: "Refine selection" was pressed: the window loads the crop region at a finer level.
+    refineRequested = Signal()
+    #: "Back to overview" was pressed: the window shows the overview level again.
+    overviewRequested = Signal()
 
     def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
         super().__init__(model, parent)
@@ -86,6 +91,24 @@ class RangesDock(ModelDock):
         self.reset_button.setToolTip("Show the whole volume again")
         self.bindings.connect_qt(self.reset_button.clicked, self.reset)
         layout.addWidget(self.reset_button, 0, Qt.AlignmentFlag.AlignRight)
+        # Pyramids (OME-Zarr, Imaris): load the crop box at a finer level, and back. The
+        # window does the reading; the dock only asks (it edits the model and nothing else).
+        self.refine_button = QPushButton("Refine selection")
+        self.refine_button.setObjectName("crop_refine")
+        self.refine_button.setToolTip("Load the crop region at the finest pyramid level that "
+                                      "fits the GPU memory budget")
+        self.overview_button = QPushButton("Back to overview")
+        self.overview_button.setObjectName("crop_overview")
+        self.overview_button.setToolTip("Show the whole pyramid again at the overview level, "
+                                        "with the previous crop")
+        self.bindings.connect_qt(self.refine_button.clicked, self.refineRequested.emit)
+        self.bindings.connect_qt(self.overview_button.clicked, self.overviewRequested.emit)
+        pyramid_row = QHBoxLayout()
+        pyramid_row.addStretch(1)
+        pyramid_row.addWidget(self.refine_button)
+        pyramid_row.addWidget(self.overview_button)
+        layout.addLayout(pyramid_row)
+        self.set_pyramid_actions(False, False)
         layout.addWidget(hint_label(
             "Cropped-away parts are not drawn and cast no shadow: shadows and ambient "
             "occlusion are computed from the cropped volume."))
@@ -148,6 +171,13 @@ class RangesDock(ModelDock):
             setattr(self.model.crop, axis, value)
         except ValueError:
             self.refresh()
+
+    def set_pyramid_actions(self, can_refine: bool, can_go_back: bool) -> None:
+        """Show the pyramid buttons only for multiscale data; enable what applies."""
+        for button, enabled in ((self.refine_button, can_refine),
+                                (self.overview_button, can_go_back)):
+            button.setVisible(can_refine or can_go_back)
+            button.setEnabled(enabled)
 
     def reset(self) -> None:
         """Uncrop all three axes (one undo step)."""

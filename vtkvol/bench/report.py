@@ -599,6 +599,22 @@ def write_scattering(out_dir: Path, run: Mapping[str, Any],
     return regenerate(out_dir, doc)
 
 
+#: In ``benchmarks.md``, everything from this line on is written by hand (measurements of other
+#: scripts, e.g. ``benchmarks/large_zarr_open.py``) and kept when the page is regenerated.
+KEPT_MARKER = ("<!-- Sections below are written by hand (other benchmark scripts); "
+               "`vtkvol bench` keeps them when it regenerates this page. -->")
+
+
+def _kept_sections(path: Path) -> str:
+    """The hand-written tail of an existing ``benchmarks.md`` (from :data:`KEPT_MARKER`)."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError:
+        return ""
+    at = text.find(KEPT_MARKER)
+    return "" if at < 0 else "\n" + text[at:].rstrip("\n") + "\n"
+
+
 def regenerate(out_dir: Path, doc: Mapping[str, Any] | None = None) -> dict[str, Path]:
     """Rewrite ``benchmarks.csv``, ``benchmarks.md`` and the charts from ``benchmarks.json``
     (or ``doc``) without measuring anything (``python -m vtkvol.bench.report DIR``)."""
@@ -629,7 +645,7 @@ def regenerate(out_dir: Path, doc: Mapping[str, Any] | None = None) -> dict[str,
             path = out_dir / scattering_chart_path(r)
             scattering_chart(path, recs)
             paths["scattering"] = path
-    _atomic_write(paths["md"], markdown(doc))
+    _atomic_write(paths["md"], markdown(doc) + _kept_sections(paths["md"]))
     return paths
 
 

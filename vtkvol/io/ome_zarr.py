@@ -13,10 +13,11 @@ what vtkvol needs is one level sliced lazily, which a zarr array does by itself.
 * a ``bioformats2raw.layout`` root holds its first image in the group ``0``.
 
 **Pyramid level**: the finest level whose chosen channels, at one time point, fit both the
-memory budget (:data:`DEFAULT_LEVEL_BUDGET_BYTES`, or ``memory_budget_bytes`` of
-:func:`read_ome_zarr`) and the texture size per axis. Only that level is read, z-slab by z-slab,
-as zarr reads only the chunks a slice touches: a level larger than the budget is never loaded.
-The level read and why is in the notes and in ``metadata["level"]``.
+budget (:data:`vtkvol.io.pyramid.DEFAULT_GPU_BUDGET_BYTES`, or ``memory_budget_bytes`` of
+:func:`read_ome_zarr`) and the texture size per axis. Only that level (or a region of it) is
+read, z-slab by z-slab, as zarr reads only the chunks a slice touches: a level larger than the
+budget is never loaded (:mod:`vtkvol.io.pyramid`). The level read and why is in the notes and in
+``metadata["level"]``; ``translation`` transformations give each level's offset.
 """
 
 from __future__ import annotations
@@ -28,29 +29,35 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.io.errors import ReadCancelled, VolumeReadError
-from vtkvol.io.limits import check_declared_bytes, physical_memory_bytes
+from vtkvol.io.errors import VolumeReadError
 from vtkvol.io.optional import require
 from vtkvol.io.progress import Progress
+from vtkvol.io.pyramid import (
+    DEFAULT_GPU_BUDGET_BYTES,
+    DEFAULT_MAX_TEXTURE,
+    Pyramid,
+    PyramidLevel,
+    Region,
+    choose_level,
+    read_pyramid,
+)
 from vtkvol.io.registry import ReaderSpec
 from vtkvol.io.time_series import time_unit_seconds
 from vtkvol.io.units import unit_scale_um
 from vtkvol.io.volume_data import (
     VolumeData,
     default_channel_names,
-    format_bytes,
     resolve_channels,
     spacing_or_default,
 )
 
-__all__ = ["DEFAULT_LEVEL_BUDGET_BYTES", "OME_ZARR_READER", "choose_level", "read_ome_zarr"]
+__all__ = [
+    "DEFAULT_LEVEL_BUDGET_BYTES", "DEFAULT_MAX_TEXTURE", "OME_ZARR_READER", "ZarrPyramid",
+    "choose_level", "open_ome_zarr", "read_ome_zarr",
+]
 
-#: Voxel data of one time point read by default (all chosen channels): 2 GiB, what a 12 GB
-#: GPU holds next to its illumination volumes; at most a quarter of this machine's memory.
-DEFAULT_LEVEL_BUDGET_BYTES = min(2 << 30, physical_memory_bytes() // 4)
-#: Largest number of voxels per axis of the level chosen (the default GPU 3-D texture limit of
-#: :func:`vtkvol.io.read_volume`).
-DEFAULT_MAX_TEXTURE = 2048
+#: The default budget of the level read (kept under its former name).
+DEFAULT_LEVEL_BUDGET_BYTES = DEFAULT_GPU_BUDGET_BYTES
 
 _AXIS_TYPES = {"time": "t", "channel": "c", "space": None}
 
@@ -139,65 +146,62 @@ def _color(value: Any) -> tuple[float, float, float] | None:
     return None
 
 
-def _z_slabs(arr: Any, z_axis: int | None, n: int, bytes_per_z: int) -> list[slice]:
-    """z-slabs of about 32 MiB that start and end on the array's chunk boundaries in z, so that
-    no chunk is decoded twice."""
-    if z_axis is None:
-        return [slice(0, 1)]
-    chunk = max(1, int(arr.chunks[z_axis]))
-    step = chunk * max(1, (32 << 20) // max(1, bytes_per_z * chunk))
-    return [slice(start, min(n, start + step)) for start in range(0, n, step)]
+def _translation(transforms: Any, ndim: int, path: Path, where: str) -> list[float]:
+    """The sum of the ``translation`` transformations in ``transforms`` (zeros if none)."""
+    shift = [0.0] * ndim
+    if not isinstance(transforms, list):
+        return shift
+    for t in transforms:
+        if isinstance(t, dict) and t.get("type") == "translation":
+            values = t.get("translation")
+            if not isinstance(values, list) or len(values) != ndim:
+                raise VolumeReadError(path, f"{where} translation {values!r} does not have "
+                                            f"{ndim} values")
+            try:
+                shift = [s + float(v) for s, v in zip(shift, values, strict=True)]
+            except (TypeError, ValueError):
+                raise VolumeReadError(path, f"{where} translation {values!r} is not "
+                                            "numeric") from None
+    return shift
 
 
-def choose_level(
-    shapes: Sequence[Sequence[int]],
-    voxel_bytes: int,
-    budget_bytes: int,
-    max_texture: int | None,
-) -> tuple[int, str]:
-    """Index of the finest level whose ``(c, z, y, x)`` shape fits, and why it was chosen.
+class ZarrPyramid(Pyramid):
+    """An OME-Zarr image's levels as zarr arrays (sliced lazily: zarr reads only the chunks a
+    slice touches)."""
 
-    ``shapes`` are per level, finest first, for the data that will be read (chosen channels,
-    one time point); ``voxel_bytes`` is the item size. Returns ``(-1, reason)`` when none fits.
-    """
-    for i, shape in enumerate(shapes):
-        nbytes = math.prod(shape) * voxel_bytes
-        too_wide = max_texture is not None and max(shape[1:]) > max_texture
-        if nbytes <= budget_bytes and not too_wide:
-            if i == 0:
-                return 0, "the finest level fits the memory budget"
-            finer = shapes[i - 1]
-            reason = (f"{format_bytes(math.prod(finer) * voxel_bytes)} > budget "
-                      f"{format_bytes(budget_bytes)}"
-                      if math.prod(finer) * voxel_bytes > budget_bytes
-                      else f"an axis of {max(finer[1:])} voxels > texture size {max_texture}")
-            return i, f"level {i - 1} does not fit ({reason})"
-    return -1, (f"even the coarsest level ({format_bytes(math.prod(shapes[-1]) * voxel_bytes)}, "
-                f"shape {tuple(shapes[-1])}) exceeds the budget {format_bytes(budget_bytes)}"
-                + (f" or texture size {max_texture}" if max_texture else ""))
+    def __init__(self, arrays: list[Any], positions: dict[str, int], axis_names: list[str],
+                 time_index: int, channel_indices: list[int], **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self._arrays = arrays
+        self._pos = positions
+        self._names = axis_names
+        self._time = time_index
+        self._channels = channel_indices
+
+    def chunk_z(self, level: int) -> int:
+        z = self._pos.get("z")
+        return 1 if z is None else int(self._arrays[level].chunks[z])
+
+    def chunk_y(self, level: int) -> int:
+        return int(self._arrays[level].chunks[self._pos["y"]])
+
+    def read_block(self, level: int, channel: int, z: slice, y: slice, x: slice) -> np.ndarray:
+        index = {"t": self._time, "c": self._channels[channel], "z": z, "y": y, "x": x}
+        block = np.asarray(self._arrays[level][tuple(index[n] for n in self._names)])
+        return block.reshape(z.stop - z.start, y.stop - y.start, x.stop - x.start)
 
 
-def read_ome_zarr(
+def open_ome_zarr(
     path: Path,
     *,
     time_index: int = 0,
     channels: Sequence[int | str] | None = None,
-    progress: Progress | None = None,
-    memory_budget_bytes: int | None = None,
-    max_texture_size: int | None = DEFAULT_MAX_TEXTURE,
-    level: int | None = None,
-) -> VolumeData:
-    """Read one time point of an OME-Zarr image as ``[c, z, y, x]`` from one pyramid level.
-
-    ``level`` forces a level (0 = finest); by default the finest one that fits
-    ``memory_budget_bytes`` (default :data:`DEFAULT_LEVEL_BUDGET_BYTES`) and
-    ``max_texture_size`` voxels per axis is read. The voxel size is that level's, in µm.
-    """
-    progress = progress or Progress()
+) -> ZarrPyramid:
+    """Open an OME-Zarr image as a :class:`~vtkvol.io.pyramid.Pyramid` (metadata only; no
+    voxel is read). Raises VolumeReadError for anything that is not a readable image."""
     path = Path(path)
     zarr = require("zarr", "OME-Zarr images", path)
     root = _zarr_root(path)
-    budget = DEFAULT_LEVEL_BUDGET_BYTES if memory_budget_bytes is None else int(memory_budget_bytes)
     try:
         group = zarr.open_group(str(root), mode="r")
         attrs = dict(group.attrs)
@@ -247,14 +251,23 @@ def read_ome_zarr(
     if any(a.ndim != ndim for a in arrays):
         raise VolumeReadError(path, f"pyramid levels differ in dimensions: "
                                     f"{[a.shape for a in arrays]}")
+    if any(a.dtype != arrays[0].dtype for a in arrays):
+        raise VolumeReadError(path, f"pyramid levels differ in data type: "
+                                    f"{[str(a.dtype) for a in arrays]}")
     axes = _axes(ms, ndim, path)
     names_axes = [a for a, _ in axes]
-    global_scale = _scale(ms.get("coordinateTransformations"), ndim, path, "multiscales")
-    scales = [
-        [g * s for g, s in zip(global_scale, _scale(d.get("coordinateTransformations"), ndim,
-                                                    path, f"level {d['path']!r}"), strict=True)]
-        for d in datasets
-    ]
+    global_transforms = ms.get("coordinateTransformations")
+    global_scale = _scale(global_transforms, ndim, path, "multiscales")
+    global_shift = _translation(global_transforms, ndim, path, "multiscales")
+    scales, shifts = [], []
+    for d in datasets:
+        where = f"level {d['path']!r}"
+        transforms = d.get("coordinateTransformations")
+        level_scale = _scale(transforms, ndim, path, where)
+        level_shift = _translation(transforms, ndim, path, where)
+        scales.append([g * s for g, s in zip(global_scale, level_scale, strict=True)])
+        shifts.append([g * t + gt for g, t, gt in zip(global_scale, level_shift, global_shift,
+                                                       strict=True)])
     pos = {name: i for i, name in enumerate(names_axes)}
     shape0 = arrays[0].shape
     n_time = shape0[pos["t"]] if "t" in pos else 1
@@ -279,79 +292,68 @@ def read_ome_zarr(
                      f"{n_channels}: channel names ignored")
     chosen = resolve_channels(channels, names, str(path))
 
-    def read_shape(arr: Any) -> tuple[int, int, int, int]:
-        s = arr.shape
-        return (len(chosen), s[pos["z"]] if "z" in pos else 1, s[pos["y"]], s[pos["x"]])
-
-    itemsize = np.dtype(arrays[0].dtype).itemsize
-    shapes = [read_shape(a) for a in arrays]
-    if level is None:
-        index, reason = choose_level(shapes, itemsize, budget, max_texture_size)
-        if index < 0:
-            raise VolumeReadError(path, f"no pyramid level fits: {reason}")
-    else:
-        if not 0 <= level < len(arrays):
-            raise VolumeReadError(path, f"level {level} is out of range: the pyramid has "
-                                        f"{len(arrays)} level(s)")
-        index, reason = level, "level chosen by the caller"
-    arr = arrays[index]
-    c_n, z_n, y_n, x_n = shapes[index]
-    check_declared_bytes(path, c_n * z_n * y_n * x_n * itemsize, f"level {index} {shapes[index]}")
-    out = np.empty((c_n, z_n, y_n, x_n), dtype=arr.dtype)
-    progress(0.0, f"reading OME-Zarr level {index}")
-    try:
-        for k, c in enumerate(chosen):
-            for sl in _z_slabs(arr, pos.get("z"), z_n, y_n * x_n * itemsize):
-                index_tuple: list[Any] = []
-                for name in names_axes:
-                    index_tuple.append({"t": time_index, "c": c, "z": sl}.get(name, slice(None)))
-                block = np.asarray(arr[tuple(index_tuple)])
-                out[k, sl] = block.reshape(sl.stop - sl.start, y_n, x_n) if "z" in pos else block
-                progress((k + sl.stop / z_n) / len(chosen), f"reading OME-Zarr level {index}")
-    except (VolumeReadError, ReadCancelled):
-        raise
-    except Exception as exc:  # codec errors on truncated chunks, missing stores…
-        raise VolumeReadError(path, f"level {datasets[index]['path']!r} cannot be read: the "
-                                    f"chunks are truncated or corrupt ({type(exc).__name__}: "
-                                    f"{exc})") from exc
-    level_scale = scales[index]
-    spacing_values: list[float] = []
+    factors: dict[str, float] = {}
     for name in ("x", "y", "z"):
         if name not in pos:
-            spacing_values.append(spacing_values[0])  # a 2-D image: one slice, z as x
             continue
         unit = axes[pos[name]][1]
         factor = unit_scale_um(unit) if unit else 1.0
         if factor is None:
             notes.append(f"unknown unit {unit!r} on axis {name}: read as µm")
             factor = 1.0
-        spacing_values.append(level_scale[pos[name]] * factor)
+        factors[name] = factor
     if not any(axes[pos[n]][1] for n in ("x", "y", "z") if n in pos):
         notes.append("the axes declare no unit: scale read as µm")
-    spacing, from_metadata = spacing_or_default(
-        spacing_values, f"OME-Zarr scale {spacing_values} is not positive: using 1 × 1 × 1 µm",
-        notes)
-    interval = _time_interval_s(axes, pos, level_scale, n_time, notes)
-    level_text = (f"pyramid level {index} of {len(arrays)} ({datasets[index]['path']!r}, "
-                  f"{x_n}×{y_n}×{z_n} x×y×z) read: {reason}")
-    notes.insert(0, level_text)
-    return VolumeData(
-        out,
-        spacing,
-        [names[c] for c in chosen],
-        source=str(path),
+    interval = _time_interval_s(axes, pos, scales[0], n_time, notes)
+
+    levels: list[PyramidLevel] = []
+    from_metadata = True
+    for d, arr, level_scale, level_shift in zip(datasets, arrays, scales, shifts, strict=True):
+        s = arr.shape
+        spacing_values: list[float] = []
+        offsets: list[float] = []
+        for name in ("x", "y", "z"):
+            if name not in pos:  # a 2-D image: one slice, z as x
+                spacing_values.append(spacing_values[0])
+                offsets.append(0.0)
+                continue
+            spacing_values.append(level_scale[pos[name]] * factors[name])
+            offsets.append(level_shift[pos[name]] * factors[name])
+        level_notes: list[str] = []
+        spacing, ok = spacing_or_default(
+            spacing_values, f"OME-Zarr scale {spacing_values} is not positive: using 1 × 1 × 1 "
+                            "µm", level_notes)
+        if not ok:
+            from_metadata = False
+            notes.extend(n for n in level_notes if n not in notes)
+        if not all(math.isfinite(o) for o in offsets):
+            offsets = [0.0, 0.0, 0.0]
+        levels.append(PyramidLevel(
+            name=d["path"],
+            shape_czyx=(len(chosen), s[pos["z"]] if "z" in pos else 1, s[pos["y"]], s[pos["x"]]),
+            voxel_size_um=spacing,
+            offset_um=tuple(offsets),  # type: ignore[arg-type]
+        ))
+    base = levels[0].offset_um
+    levels = [PyramidLevel(lv.name, lv.shape_czyx, lv.voxel_size_um,
+                           tuple(o - b for o, b in zip(lv.offset_um, base, strict=True)))  # type: ignore[arg-type]
+              for lv in levels]
+    return ZarrPyramid(
+        arrays, pos, names_axes, time_index, chosen,
+        source=path,
+        levels=levels,
+        dtype=np.dtype(arrays[0].dtype),
+        channel_names=[names[c] for c in chosen],
         voxel_size_from_metadata=from_metadata,
         metadata={
             "format": f"ome-zarr {version}",
             "axes": "".join(names_axes).upper(),
             "time_points": n_time,
             "time_index": time_index,
-            "level": index,
-            "levels": [list(s) for s in (a.shape for a in arrays)],
-            "level_budget_bytes": budget,
             "channel_colors": [colors[c] for c in chosen],
             "voxel_size_source": "OME-Zarr scale" if from_metadata else "default 1 µm",
             **({"time_interval_s": interval} if interval is not None else {}),
+            "pyramid_offset_um": list(base),
         },
         notes=notes,
     )
@@ -372,6 +374,29 @@ def _time_interval_s(axes: list[tuple[str, str | None]], pos: dict[str, int],
         return None
     value = scale[pos["t"]] * factor
     return value if math.isfinite(value) and value > 0 else None
+def read_ome_zarr(
+    path: Path,
+    *,
+    time_index: int = 0,
+    channels: Sequence[int | str] | None = None,
+    progress: Progress | None = None,
+    memory_budget_bytes: int | None = None,
+    max_texture_size: int | None = DEFAULT_MAX_TEXTURE,
+    level: int | None = None,
+    region_um: Region | None = None,
+) -> VolumeData:
+    """Read one time point of an OME-Zarr image as ``[c, z, y, x]`` from one pyramid level.
+
+    ``level`` forces a level (0 = finest); by default the finest one that fits
+    ``memory_budget_bytes`` (default :data:`~vtkvol.io.pyramid.DEFAULT_GPU_BUDGET_BYTES`) and
+    ``max_texture_size`` voxels per axis is read. ``region_um`` ((x0, x1), (y0, y1),
+    (z0, z1)) µm in pyramid space (see :mod:`vtkvol.io.pyramid`) reads only that box. The voxel
+    size is that level's, in µm.
+    """
+    pyramid = open_ome_zarr(Path(path), time_index=time_index, channels=channels)
+    return read_pyramid(pyramid, budget_bytes=memory_budget_bytes,
+                        max_texture_size=max_texture_size, level=level, region_um=region_um,
+                        progress=progress)
 
 
 OME_ZARR_READER = ReaderSpec(
@@ -381,4 +406,5 @@ OME_ZARR_READER = ReaderSpec(
     filename_patterns=("*.zarr", "zarr.json", ".zattrs", ".zgroup"),
     accepts_directories=True,
     read=read_ome_zarr,
+    open_pyramid=open_ome_zarr,
 )

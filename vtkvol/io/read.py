@@ -10,6 +10,7 @@ from vtkvol.io.errors import VolumeReadError
 from vtkvol.io.fit import FIT_STRATEGIES, FitStrategy, fit_volume
 from vtkvol.io.limits import check_path, detach_from_file, file_backed
 from vtkvol.io.progress import CancelCallback, Progress, ProgressCallback
+from vtkvol.io.pyramid import Region
 from vtkvol.io.registry import VoxelSizeArg, available_readers, get_reader
 from vtkvol.io.volume_data import VolumeData
 
@@ -30,6 +31,8 @@ def read_volume(
     memory_budget_bytes: int | None = None,
     progress: ProgressCallback | None = None,
     cancel: CancelCallback | None = None,
+    level: int | None = None,
+    region_um: Region | None = None,
 ) -> VolumeData:
     """Read a volume file or folder into a checked, GPU-sized :class:`VolumeData`.
 
@@ -53,13 +56,21 @@ def read_volume(
     max_texture_size
         Largest number of voxels per axis (the GPU's 3-D texture limit); None: no limit.
     memory_budget_bytes
-        Largest size of the voxel data, all channels together; None: no limit.
+        Largest size of the voxel data, all channels together; None: no limit. For a
+        multiscale image (OME-Zarr, Imaris) it also chooses the pyramid level read: the finest
+        that fits (None: :data:`vtkvol.io.pyramid.DEFAULT_GPU_BUDGET_BYTES`).
     progress
         ``progress(fraction, message)``, called per page/slice/chunk with the fraction of
         the whole read (0…1).
     cancel
         ``cancel() -> bool``, polled as often as ``progress``; returning True stops the read
         with :class:`~vtkvol.io.ReadCancelled`.
+    level
+        Multiscale images only: read this pyramid level (0 = finest) instead of choosing.
+    region_um
+        Multiscale images only: read only this box, ((x0, x1), (y0, y1), (z0, z1)) µm in
+        pyramid space (the finest level's first voxel centre at 0; see
+        :mod:`vtkvol.io.pyramid`), at the finest level where it fits the budget.
 
     Returns
     -------
@@ -104,6 +115,8 @@ def read_volume(
             time_index=time_index,
             channels=channels,
             progress=prog.sub(0.0, 0.9),
+            pyramid={"budget_bytes": memory_budget_bytes, "max_texture_size": max_texture_size,
+                     "level": level, "region_um": region_um},
         )
         data = fit_volume(
             data,

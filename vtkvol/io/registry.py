@@ -20,12 +20,13 @@ import importlib
 import importlib.metadata
 import math
 import warnings
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from os import PathLike
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
+from vtkvol.io.errors import VolumeReadError
 from vtkvol.io.progress import CancelCallback, Progress, ProgressCallback
 from vtkvol.io.volume_data import Spacing, VolumeData, as_spacing, normalize_volume
 
@@ -113,6 +114,9 @@ class ReaderSpec:
     filename_patterns: tuple[str, ...]
     accepts_directories: bool
     read: ReadFunction
+    #: ``open_pyramid(path, *, time_index, channels) -> Pyramid`` for formats with resolution
+    #: levels (OME-Zarr, Imaris); None for single-resolution formats.
+    open_pyramid: Callable[..., Any] | None = None
 
     def matches(self, path: str | PathLike[str]) -> bool:
         """Whether this reader handles ``path`` (a file by name, a folder by its contents)."""
@@ -141,19 +145,37 @@ class ReaderSpec:
         channels: Sequence[int | str] | int | str | None = None,
         progress: ProgressCallback | Progress | None = None,
         cancel: CancelCallback | None = None,
+        pyramid: Mapping[str, Any] | None = None,
     ) -> VolumeData:
         """Read ``path`` into a checked :class:`VolumeData`.
 
-        Parameters are those of :func:`vtkvol.io.read_volume` (without the fitting ones).
+        Parameters are those of :func:`vtkvol.io.read_volume` (without the fitting ones);
+        ``pyramid`` holds the keyword arguments of :func:`vtkvol.io.pyramid.read_pyramid`
+        (``budget_bytes``, ``max_texture_size``, ``level``, ``region_um``) for a reader with
+        resolution levels; given to another reader, a ``level`` or ``region_um`` is an error.
         """
         override = _voxel_override(voxel_size_um)
         prog = Progress.wrap(progress, cancel)
         prog.check_cancelled()
         if isinstance(channels, (int, str)):
             channels = [channels]
-        data = self.read(
-            Path(path), time_index=int(time_index), channels=channels, progress=prog.sub(0.0, 0.8)
-        )
+        options = dict(pyramid or {})
+        if self.open_pyramid is not None:
+            from vtkvol.io.pyramid import read_pyramid
+
+            opened = self.open_pyramid(Path(path), time_index=int(time_index), channels=channels)
+            try:
+                data = read_pyramid(opened, progress=prog.sub(0.0, 0.8), **options)
+            finally:
+                opened.close()
+        else:
+            if options.get("level") is not None or options.get("region_um") is not None:
+                raise VolumeReadError(Path(path), f"is not a multiscale image ({self.label}): "
+                                                  "it has no pyramid level or region to read")
+            data = self.read(
+                Path(path), time_index=int(time_index), channels=channels,
+                progress=prog.sub(0.0, 0.8),
+            )
         data.metadata.setdefault("reader", self.name)
         data.metadata.setdefault("time_points", 1)
         data.metadata.setdefault("time_index", 0)

@@ -52,12 +52,30 @@ class VolumeSource(EventedModel):
     sha256_head: str | None = None  #: checksum of the first MiB, recorded on save
     shape_zyx: tuple[int, int, int] | None = None  #: shape after reading, recorded on save
     channels: int | None = None
+    #: Multiscale files: the pyramid level shown (0 = finest); ``None`` = the finest level that
+    #: fits the GPU-memory budget, chosen when the file is opened.
+    level: int | None = Field(None, ge=0)
+    #: Multiscale files: the region shown ("Refine selection"), ((x0, x1), (y0, y1), (z0, z1))
+    #: in µm of pyramid space (the finest level's first voxel centre at 0); ``None`` = all.
+    region_um: tuple[tuple[float, float], tuple[float, float], tuple[float, float]] | None = None
 
     @field_validator("voxel_size_um")
     @classmethod
     def _positive(cls, v: Vec3 | None):
         if v is not None and not all(c > 0 for c in _finite3(v, "voxel size")):
             raise ValueError(f"voxel size {v} µm must be positive")
+        return v
+
+    @field_validator("region_um")
+    @classmethod
+    def _region(cls, v):
+        if v is None:
+            return v
+        for axis, (lo, hi) in zip("xyz", v, strict=True):
+            if not (math.isfinite(lo) and math.isfinite(hi)):
+                raise ValueError(f"region {axis} = ({lo}, {hi}) µm must be finite")
+            if not lo <= hi:
+                raise ValueError(f"region {axis} = ({lo}, {hi}) µm must be increasing")
         return v
 
 

@@ -872,6 +872,8 @@ def load_session_with_data(
         fit=vol.fit,
         progress=progress,
         cancel=cancel,
+        level=vol.level,
+        region_um=vol.region_um,
     )
     expected = {"shape_zyx": vol.shape_zyx, "channels": vol.channels}
     found = {"shape_zyx": tuple(int(n) for n in data.shape_zyx), "channels": int(data.n_channels)}
