@@ -45,7 +45,7 @@ def saved_region(tmp_path: Path, pyramid: Path) -> Path:
 def test_a_refined_view_reopens_exactly(tmp_path, pyramid):
     path = saved_region(tmp_path, pyramid)
     doc = json.loads(path.read_text())
-    assert doc["version"] == 6
+    assert doc["version"] == VERSION
     assert doc["scene"]["volume"]["level"] == 0
     assert doc["scene"]["volume"]["region_um"] == [[2.0, 6.0], [1.0, 9.0], [0.0, 7.0]]
     model, data = load_session_with_data(path)
