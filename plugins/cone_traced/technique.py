@@ -8,7 +8,7 @@ shaders (:mod:`.gpu`) or numpy (:mod:`.cpu`) build it.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
@@ -44,6 +44,9 @@ BAKE_PARAMETERS = frozenset(
 )
 #: Parameters of the filtered pyramid itself.
 FILTER_PARAMETERS = frozenset({"sigma", "span"})
+#: Seconds of GPU work per bake slab when the host precomputes in chunks
+#: (Illuminator.precompute): the longest the application's event loop waits between two.
+CHUNK_S = 0.08
 
 class ConeTraced(Technique):
     """Cone-traced soft shadows and ambient occlusion through a filtered-opacity mip chain."""
@@ -118,30 +121,42 @@ class ConeTraced(Technique):
         }
 
     # -- precomputation -------------------------------------------------------------------------
-    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
-        rebuilt = False
-        if (
-            changes.first
-            or changes.opacity
-            or self.filtered is None
-            or changes.parameters & FILTER_PARAMETERS
-        ):
-            self.recompute(values)
-            rebuilt = True
-        if values["ao_mode"] == "baked_hemisphere":
-            if rebuilt or self.ao is None or changes.parameters & BAKE_PARAMETERS:
-                self.bake(values)
-        elif self.ao is not None:
+    def prepare_steps(self, changes: Changes, values: Mapping[str, Any]) -> Iterator[float]:
+        """Rebuild the pyramid (opacity, reduction, one chunk per blur pass of the larger
+        levels) and bake the AO (slabs of grid slices) when needed, yielding the fraction
+        done. Chunks wait for the GPU only when the host runs them one by one
+        (``host.precomputing``); a frame's ``prepare`` issues them in a row."""
+        baked = values["ao_mode"] == "baked_hemisphere"
+        rebuild = (changes.first or changes.opacity or self.filtered is None
+                   or bool(changes.parameters & FILTER_PARAMETERS))
+        bake = baked and (rebuild or self.ao is None
+                          or bool(changes.parameters & BAKE_PARAMETERS))
+        # Share of the progress bar: the bake costs most (cones × steps per grid point).
+        share = 0.3 if bake else 1.0
+        if rebuild:
+            with self.timed("recompute"):
+                for fraction in self._recompute_steps(values):
+                    yield share * fraction
+            self._recomputes += 1
+        if bake:
+            with self.timed("bake"):
+                for fraction in self._bake_steps(values):
+                    yield share + (1.0 - share) * fraction
+            self._bakes += 1
+        elif not baked and self.ao is not None:
             self._release_ao()
 
     def recompute(self, values: Mapping[str, Any]) -> None:
         """Rebuild the filtered pyramid from ``host.opacity_volume()`` (context current)."""
         with self.timed("recompute"):
-            self._recompute(values)
+            for _ in self._recompute_steps(values):
+                pass
         self._recomputes += 1
 
-    def _recompute(self, values: Mapping[str, Any]) -> None:
+    def _recompute_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
+        chunked = self.host.precomputing
         opacity = self.host.opacity_volume()
+        yield 0.1
         self._ensure_textures(opacity.shape)
         assert self.source is not None and self.filtered is not None
         self.source.upload(opacity, 0)
@@ -150,27 +165,32 @@ class ConeTraced(Technique):
         self._cpu_pyramids = None
         if gpu is not None:
             assert self._scratch is not None
-            gpu.run(self.source, self.filtered, self._scratch, weights)
+            for fraction in gpu.run_steps(self.source, self.filtered, self._scratch, weights,
+                                          chunked=chunked):
+                yield 0.1 + 0.9 * fraction
             self._backend = "gpu"
         else:
             levels = self.filtered.mip_levels
             src = source_pyramid(opacity, levels)
             for lev in range(1, levels):  # keep the source chain complete for the gate fetch
                 self.source.upload(src[lev].astype(np.float32), lev)
+            yield 0.3
             filtered = filtered_pyramid_cpu(opacity, levels=levels, sigma=values["sigma"],
                                             span=values["span"], alpha_levels=src)
             for lev, d in enumerate(filtered):
                 self.filtered.upload(d, lev)
             self._cpu_pyramids = (src, filtered)  # reused by a CPU bake
             self._backend = "cpu"
+            yield 1.0
 
     def bake(self, values: Mapping[str, Any]) -> None:
         """Bake the hemisphere AO on the AO grid from the current pyramids (context current)."""
         with self.timed("bake"):
-            self._bake(values)
+            for _ in self._bake_steps(values):
+                pass
         self._bakes += 1
 
-    def _bake(self, values: Mapping[str, Any]) -> None:
+    def _bake_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
         assert self.filtered is not None and self.source is not None
         data_dims = self.host.dims
         grid = ao_grid_dims(data_dims, values["ao_resolution"])
@@ -178,11 +198,13 @@ class ConeTraced(Technique):
         assert self.ao is not None
         baker = self._gpu_baker()
         if baker is not None:
+            chunk_s = CHUNK_S if self.host.precomputing else None
             self._source_mips(True)
             try:
-                baker.run(self.filtered, self.source, self.ao, data_dims=data_dims,
-                          spacing=self.host.spacing, unit_distance=self.host.unit_distance,
-                          values=values)
+                yield from baker.run_steps(
+                    self.filtered, self.source, self.ao, data_dims=data_dims,
+                    spacing=self.host.spacing, unit_distance=self.host.unit_distance,
+                    values=values, chunk_s=chunk_s)
             finally:
                 self._source_mips(False)
             self._bake_backend = "gpu"
@@ -198,6 +220,7 @@ class ConeTraced(Technique):
                 pyramid=filtered, source=src,
             ))
             self._bake_backend = "cpu"
+            yield 1.0
 
     def _gpu_baker(self) -> GpuAoBaker | None:
         if self._gpu_filter() is None:
@@ -244,7 +267,8 @@ class ConeTraced(Technique):
 
     def _source_mips(self, on: bool) -> None:
         """Sample the source pyramid with (bake) or without (rendering) its mip levels."""
-        assert self.source is not None
+        if self.source is None:  # released while a chunked bake was suspended (cancel)
+            return
         self.source.tex.SetMinificationFilter(
             vtkTextureObject.LinearMipmapNearest if on else vtkTextureObject.Linear
         )

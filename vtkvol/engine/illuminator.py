@@ -85,6 +85,19 @@ class Changes:
     view: bool = False  #: camera or viewport changed (told to view-dependent techniques only)
     first: bool = False  #: first frame after attach
 
+    def merge(self, later: Changes) -> Changes:
+        """These changes followed by ``later`` (what a technique must catch up on when it
+        skipped a prepare: the host deferred it)."""
+        return Changes(
+            opacity=self.opacity or later.opacity,
+            lights=self.lights or later.lights,
+            light_colors=self.light_colors or later.light_colors,
+            parameters=self.parameters | later.parameters,
+            invalidates=self.invalidates | later.invalidates,
+            view=self.view or later.view,
+            first=self.first or later.first,
+        )
+
     def any_parameter(self, params: Iterable[Any], flag: Invalidates) -> bool:
         return any(p.name in self.parameters and p.invalidates & flag for p in params)
 
@@ -131,6 +144,15 @@ class Illuminator:
     profiling
         When True, techniques time their precomputation on the GPU (timer queries) and report
         it in ``technique.stats()``; off by default so that nothing waits for the GPU.
+    defer_precompute
+        While True, frames keep the technique's previous precomputed light (no ``prepare``)
+        and the changes wait, merged, for the first frame or :meth:`precompute` after it is
+        set back to False. Applications set it while the user drags an edit (a TF curve, a
+        light), so the frames of the drag cost what a frame costs; a change of the shader
+        (a new method, a ``SHADER``-invalidating parameter) is never deferred.
+    cancelled_method
+        The method whose :meth:`precompute` was cancelled last (local shading is shown
+        since); None after a precomputation that ran to its end.
     """
 
     def __init__(
@@ -200,6 +222,10 @@ class Illuminator:
         self.failed_method: str | None = None
         self.on_error: Callable[[str], None] | None = None
         self.on_progress: Callable[[int, bool], None] | None = None
+        self.defer_precompute = False
+        self.cancelled_method: str | None = None
+        #: True while :meth:`precompute` runs its chunks (frames then touch no technique state).
+        self._stepping = False
         self.set_parameters(**(parameters or {}))
         # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
         # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
@@ -407,6 +433,120 @@ class Illuminator:
     def closed(self) -> bool:
         """True once :meth:`release` has run (the volume has VTK's own shading again)."""
         return self._closed
+
+    # -- precomputation outside a frame -----------------------------------------------------------
+    @property
+    def precomputing(self) -> bool:
+        """True while :meth:`precompute` runs (between its chunks, too)."""
+        return self._stepping
+
+    def precompute(self, progress: Callable[[float], bool] | None = None) -> bool:
+        """Bring the technique's precomputed light up to date now, outside a frame, in the
+        chunks its :meth:`~vtkvol.engine.technique.Technique.prepare_steps` yields.
+
+        After every chunk ``progress(fraction)`` is called (fraction done, 0…1); it may run an
+        event loop (the context is made current again before the next chunk) and returns
+        False to cancel. A cancelled precomputation leaves a consistent state: the technique
+        is released, local shading is shown, :attr:`cancelled_method` names the method and
+        False is returned. Returns True otherwise, also when there was nothing to do: no
+        frame yet (the first frame precomputes), :attr:`defer_precompute` set, a progressive
+        technique (it refines over frames) or nothing changed. The next frame then only
+        installs the shader and uploads uniforms. Frames rendered between two chunks (an
+        application's repaint) leave the technique alone and show the previous light.
+
+        Scripts need not call this: every frame brings the light up to date by itself.
+        """
+        if (self._closed or self._stepping or self._unsupported is not None
+                or self.render_window is None or self.spec.has("progressive")):
+            return True
+        if self.defer_precompute and self._technique is not None and not self._detach_requested:
+            return True
+        window = self.render_window
+        with _no_collection():
+            window.MakeCurrent()
+            if self._follow_renderer:
+                self._lights = self._renderer_lights()
+            self._frame_specs = self._compute_light_specs()
+            try:
+                if self._detach_requested and self._technique is not None:
+                    self._release_technique()
+                self._detach_requested = False
+                self._detect_changes()
+                if self._technique is None:
+                    self._technique = self._technique_cls(self)
+                    self._changes.first = True
+                if not self._needs_prepare(self._changes):
+                    return True
+                self._upload_weights()
+                changes, self._changes = self._changes, Changes()
+                steps = self._technique.prepare_steps(changes, self.parameters)
+            finally:
+                self._frame_specs = None
+        return self._run_steps(steps, progress)
+
+    @property
+    def has_pending_changes(self) -> bool:
+        """Whether changes wait for a prepare (deferred ones included) that may recompute."""
+        return self._needs_prepare(self._changes) or (
+            self._signature is not None and self._opacity_signature() != self._signature)
+
+    def _needs_prepare(self, changes: Changes) -> bool:
+        """Whether ``changes`` may make a (non-progressive) technique recompute."""
+        return bool(changes.first or changes.opacity or changes.lights or changes.parameters
+                    or changes.view or changes.invalidates)
+
+    def _run_steps(self, steps: Iterator[float], progress: Callable[[float], bool] | None) -> bool:
+        window = self.render_window
+        assert window is not None
+        t0 = time.perf_counter()
+        self._stepping = True
+        try:
+            while True:
+                with _no_collection():
+                    window.MakeCurrent()
+                    self._frame_specs = self._compute_light_specs()
+                    try:
+                        fraction = next(steps)
+                    except StopIteration:
+                        break
+                    finally:
+                        self._frame_specs = None
+                    if self._technique is not None:
+                        self._on_draw_end()  # units go back between chunks
+                if progress is not None and not progress(min(max(float(fraction), 0.0), 1.0)):
+                    steps.close()
+                    self._cancel_precompute()
+                    return False
+                if self._closed:  # released while the progress callback ran an event loop
+                    steps.close()
+                    return False
+        except Exception as exc:  # a technique's GL or numpy failure must not kill the view
+            logger.exception("illumination %s failed to precompute", self.method)
+            with _no_collection():
+                window.MakeCurrent()
+                self._fail(f"failed ({type(exc).__name__}: {exc})")
+                self._release_technique()
+                self._detach_requested = False
+        finally:
+            self._stepping = False
+            self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+        self.cancelled_method = None
+        return True
+
+    def _cancel_precompute(self) -> None:
+        """Local shading, with nothing of the cancelled technique left bound."""
+        if self._closed:
+            return
+        cancelled = self.method
+        window = self.render_window
+        with _no_collection():
+            if window is not None:
+                window.MakeCurrent()
+            self._release_technique()
+            self._detach_requested = False
+            self.set_method("local")
+        self.cancelled_method = cancelled
+        logger.info("illumination %s: precomputation cancelled; local shading", cancelled)
 
     # -- progressive techniques -----------------------------------------------------------------
     @property
@@ -695,6 +835,11 @@ class Illuminator:
         self._frame_specs = self._compute_light_specs()
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
+        if self._stepping:
+            # A repaint between two chunks of precompute(): the technique is half-way, so the
+            # frame keeps what was installed and bound before (changes wait for later).
+            self._on_draw_end()
+            return
         if self._detach_requested and self._technique is not None:
             self._release_technique()
         self._detach_requested = False
@@ -704,6 +849,15 @@ class Illuminator:
             self._changes.first = True
         self._upload_weights()
         changes, self._changes = self._changes, Changes()
+        if self._deferring(changes):
+            # Keep the previous light: no prepare, the changes wait (merged) for later;
+            # per-frame uniforms (colours, strengths) still follow.
+            self._changes = changes.merge(self._changes)
+            values = self.parameters
+            self._install_shader(values)
+            self._upload_uniforms(values)
+            self._on_draw_end()
+            return
         try:
             self._prepare_and_install(changes)
         except Exception as exc:  # a technique's GL or numpy failure must not kill the view
@@ -715,6 +869,12 @@ class Illuminator:
             self._prepare_and_install(Changes(first=True, opacity=True, lights=True))
         self._on_draw_end()  # preparing activated them; they get units again to draw
         self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+
+    def _deferring(self, changes: Changes) -> bool:
+        """Whether this frame keeps the previous light (:attr:`defer_precompute`)."""
+        if not self.defer_precompute or changes.first or self._technique is None:
+            return False
+        return not changes.invalidates & Invalidates.SHADER
 
     def _on_draw_start(self, *_args: Any) -> None:
         """Just before the volume draws: our textures take units, the samplers name them."""
