@@ -6,7 +6,7 @@ stall measurements are in benchmarks/app_responsiveness.py and docs/app.md)."""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 import pytest
@@ -80,7 +80,7 @@ class FrameLog:
 class CancellingProgress(ChunkProgress):
     """Shows its dialog at once and presses its Cancel button at call ``cancel_at``."""
 
-    instances: list[CancellingProgress] = []
+    instances: ClassVar[list[CancellingProgress]] = []
 
     def __init__(self, parent, label: str, cancel_at: int | None) -> None:
         super().__init__(parent, label, show_after_s=0.0)

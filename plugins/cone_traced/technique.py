@@ -15,6 +15,7 @@ import numpy as np
 from vtk import vtkTextureObject
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
+from vtkvol.engine.illuminator import scale_steps
 from vtkvol.engine.technique import Technique
 from vtkvol.plugins.cone_traced import AO_MODES, TECHNIQUE
 from vtkvol.plugins.cone_traced.cpu import (
@@ -155,8 +156,7 @@ class ConeTraced(Technique):
 
     def _recompute_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
         chunked = self.host.precomputing
-        opacity = self.host.opacity_volume()
-        yield 0.1
+        opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0, 0.1)
         self._ensure_textures(opacity.shape)
         assert self.source is not None and self.filtered is not None
         self.source.upload(opacity, 0)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D, compute_supported
+from vtkvol.engine.illuminator import scale_steps
 from vtkvol.engine.technique import Technique, finish_gl
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import TECHNIQUE
@@ -222,8 +223,8 @@ class ShadowVolume(Technique):
                 if self._sigma_tex is not None:
                     self._sigma_tex.release()
                 self._sigma_tex = Texture3D(rw, grid.shape_zyx)
-            opacity = self.host.opacity_volume()
-            yield 0.5 * prefilter / total
+            opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0,
+                                             0.5 * prefilter / total)
             gpu.prefilter(opacity, self._sigma_tex, grid)
             self._sigma_valid["gpu"] = True
             if chunk_s is not None:
@@ -247,7 +248,9 @@ class ShadowVolume(Technique):
     ) -> Iterator[float]:
         total = len(specs) + 1
         if not self._sigma_valid["cpu"] or self._sigma_cpu is None:
-            self._sigma_cpu = prefilter_cpu(self.host.opacity_volume(), grid)
+            opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0,
+                                             0.5 / total)
+            self._sigma_cpu = prefilter_cpu(opacity, grid)
             self._sigma_valid["cpu"] = True
         yield 1 / total
         assert self.light_texture is not None

@@ -22,7 +22,7 @@ import logging
 import math
 import re
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -40,6 +40,8 @@ from vtkvol.model.techniques import TechniqueSpec
 logger = logging.getLogger(__name__)
 
 MAX_LIGHTS = 4
+#: Voxels per chunk of :meth:`Illuminator.opacity_volume_steps` (about 0.1 s of numpy).
+OPACITY_SLAB_VOXELS = 1 << 21
 #: Floats per light in the ``vv_lights`` uniform array (layout in host_prelude.glsl).
 LIGHT_STRIDE = 12
 #: GLSL hooks a technique may define; the host supplies defaults for the others
@@ -226,6 +228,7 @@ class Illuminator:
         self.cancelled_method: str | None = None
         #: True while :meth:`precompute` runs its chunks (frames then touch no technique state).
         self._stepping = False
+        self._precomputed_ms = 0.0  # precompute()'s work since the last frame
         self.set_parameters(**(parameters or {}))
         # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
         # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
@@ -498,12 +501,13 @@ class Illuminator:
     def _run_steps(self, steps: Iterator[float], progress: Callable[[float], bool] | None) -> bool:
         window = self.render_window
         assert window is not None
-        t0 = time.perf_counter()
+        work_s = 0.0  # the chunks' time, without the event loop's in between
         self._stepping = True
         try:
             while True:
                 with _no_collection():
                     window.MakeCurrent()
+                    t0 = time.perf_counter()
                     self._frame_specs = self._compute_light_specs()
                     try:
                         fraction = next(steps)
@@ -511,6 +515,7 @@ class Illuminator:
                         break
                     finally:
                         self._frame_specs = None
+                        work_s += time.perf_counter() - t0
                     if self._technique is not None:
                         self._on_draw_end()  # units go back between chunks
                 if progress is not None and not progress(min(max(float(fraction), 0.0), 1.0)):
@@ -529,7 +534,7 @@ class Illuminator:
                 self._detach_requested = False
         finally:
             self._stepping = False
-            self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+            self._precomputed_ms += work_s * 1e3  # reported with the next frame
         self.cancelled_method = None
         return True
 
@@ -654,6 +659,13 @@ class Illuminator:
         the cropping box and multiplied by the slice weights, so what is cropped away casts no
         shadow. Gradient opacity is not included. Cached until an input changes.
         """
+        return run_steps(self.opacity_volume_steps())
+
+    def opacity_volume_steps(self) -> Generator[float, None, np.ndarray]:
+        """:meth:`opacity_volume` in slabs of z slices (for ``prepare_steps``): yields the
+        fraction done after each slab of about :data:`OPACITY_SLAB_VOXELS` voxels and returns
+        the volume (``opacity = yield from host.opacity_volume_steps()``). A cached volume
+        returns at once."""
         key = self._opacity_signature()
         if self._opacity_cache is not None and self._opacity_cache[0] == key:
             return self._opacity_cache[1]
@@ -667,29 +679,39 @@ class Illuminator:
         ncomp = values.shape[-1]
         independent = ncomp == 1 or bool(prop.GetIndependentComponents())
         u0 = prop.GetScalarOpacityUnitDistance(0)
-        transparency = np.ones((nz, ny, nx), np.float32)
         comps = range(ncomp) if independent else [ncomp - 1]
-        for c in comps:
-            fc = c if independent else 0
-            weight = prop.GetComponentWeight(fc) if independent and ncomp > 1 else 1.0
-            if weight <= 0:
-                continue
-            alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[..., c]) * weight
-            uc = prop.GetScalarOpacityUnitDistance(fc)
-            if uc != u0:  # express every component per the same unit distance
-                alpha = 1.0 - np.power(1.0 - np.clip(alpha, 0, 1), u0 / uc)
-            transparency *= 1.0 - np.clip(alpha, 0.0, 1.0)
-        opacity = 1.0 - transparency
-        self._apply_crop(opacity)
-        if self._weights is not None:
-            opacity *= _axis_weights(self._weights, (nz, ny, nx))
-        opacity = np.ascontiguousarray(opacity, dtype=np.float32)
+        weights = _axis_weight_vectors(self._weights, (nz, ny, nx)) if (
+            self._weights is not None) else None
+        opacity = np.empty((nz, ny, nx), np.float32)
+        slab = max(1, OPACITY_SLAB_VOXELS // max(1, nx * ny))
+        for z0 in range(0, nz, slab):
+            z1 = min(nz, z0 + slab)
+            transparency = np.ones((z1 - z0, ny, nx), np.float32)
+            for c in comps:
+                fc = c if independent else 0
+                weight = prop.GetComponentWeight(fc) if independent and ncomp > 1 else 1.0
+                if weight <= 0:
+                    continue
+                alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[z0:z1, ..., c])
+                alpha *= weight
+                uc = prop.GetScalarOpacityUnitDistance(fc)
+                if uc != u0:  # express every component per the same unit distance
+                    alpha = 1.0 - np.power(1.0 - np.clip(alpha, 0, 1), u0 / uc)
+                transparency *= 1.0 - np.clip(alpha, 0.0, 1.0)
+            part = opacity[z0:z1]
+            np.subtract(1.0, transparency, out=part)
+            self._apply_crop(part, z0)
+            if weights is not None:
+                wx, wy, wz = weights
+                part *= wz[z0:z1, None, None] * wy[None, :, None] * wx[None, None, :]
+            yield z1 / nz
         self._opacity_cache = (key, opacity)
         return opacity
 
-    def _apply_crop(self, opacity: np.ndarray) -> None:
+    def _apply_crop(self, opacity: np.ndarray, z0: int = 0) -> None:
         """Zero what the mapper does not show: its cropping regions (any of VTK's 27-region
-        flags, not only the sub-volume) and its clipping planes."""
+        flags, not only the sub-volume) and its clipping planes. ``opacity`` holds the z
+        slices from ``z0`` on."""
         mapper = self.volume.GetMapper()
         img = self.image
         origin, spacing = img.GetOrigin(), img.GetSpacing()
@@ -700,7 +722,8 @@ class Illuminator:
             # Region of each voxel per axis: 0 below the first plane, 1 between, 2 above.
             region = []
             for axis, n in enumerate((nx, ny, nz)):
-                coord = origin[axis] + spacing[axis] * np.arange(n)
+                first = z0 if axis == 2 else 0
+                coord = origin[axis] + spacing[axis] * np.arange(first, first + n)
                 lo, hi = planes[2 * axis], planes[2 * axis + 1]
                 tol = 1e-6 * spacing[axis]
                 region.append((coord >= lo - tol).astype(np.int64)
@@ -716,7 +739,7 @@ class Illuminator:
             m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
             x = origin[0] + spacing[0] * np.arange(nx)
             y = origin[1] + spacing[1] * np.arange(ny)
-            z = origin[2] + spacing[2] * np.arange(nz)
+            z = origin[2] + spacing[2] * np.arange(z0, z0 + nz)
             world = [m[i, 0] * x[None, None, :] + m[i, 1] * y[None, :, None]
                      + m[i, 2] * z[:, None, None] + m[i, 3] for i in range(3)]
             for k in range(clipping.GetNumberOfItems()):
@@ -868,13 +891,20 @@ class Illuminator:
             self._technique = self._technique_cls(self)
             self._prepare_and_install(Changes(first=True, opacity=True, lights=True))
         self._on_draw_end()  # preparing activated them; they get units again to draw
-        self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+        self.last_prepare_ms = (time.perf_counter() - t0) * 1e3 + self._precomputed_ms
+        self._precomputed_ms = 0.0
 
     def _deferring(self, changes: Changes) -> bool:
         """Whether this frame keeps the previous light (:attr:`defer_precompute`)."""
         if not self.defer_precompute or changes.first or self._technique is None:
             return False
-        return not changes.invalidates & Invalidates.SHADER
+        if changes.invalidates & Invalidates.SHADER:
+            return False
+        # What a drag changes (opacity, light geometry, parameters) waits; camera-only
+        # changes of view-dependent techniques do not (they follow the view as before).
+        # Progressive refinement pauses too.
+        return bool(changes.opacity or changes.lights or changes.parameters
+                    or changes.invalidates or not self._technique.converged)
 
     def _on_draw_start(self, *_args: Any) -> None:
         """Just before the volume draws: our textures take units, the samplers name them."""
@@ -1224,14 +1254,34 @@ def _node(function: vtk.vtkPiecewiseFunction, i: int) -> list[float]:
     return node
 
 
-def _axis_weights(weights: np.ndarray, shape_zyx: tuple[int, int, int]) -> np.ndarray:
-    """Outer product wZ(z)·wY(y)·wX(x) sampled at voxel centres; shape ``shape_zyx``."""
+def _axis_weight_vectors(weights: np.ndarray, shape_zyx: tuple[int, int, int]
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """wX(x), wY(y), wZ(z) sampled at voxel centres."""
     nz, ny, nx = shape_zyx
-    width = weights.shape[1]
-    grid = np.linspace(0.0, 1.0, width)
+    grid = np.linspace(0.0, 1.0, weights.shape[1])
 
     def sample(row: np.ndarray, n: int) -> np.ndarray:
         return np.interp(np.linspace(0.0, 1.0, n), grid, row).astype(np.float32)
 
-    wx, wy, wz = (sample(weights[i], n) for i, n in enumerate((nx, ny, nz)))
-    return wz[:, None, None] * wy[None, :, None] * wx[None, None, :]
+    return sample(weights[0], nx), sample(weights[1], ny), sample(weights[2], nz)
+
+
+def run_steps(steps: Generator[Any, None, Any]) -> Any:
+    """Run a chunked computation (a generator) to its end; returns its return value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
+
+
+def scale_steps(steps: Generator[float, None, Any], lo: float, hi: float
+                ) -> Generator[float, None, Any]:
+    """``steps``' fractions mapped onto ``lo…hi`` (a part of a larger progress); returns
+    its return value (``x = yield from scale_steps(...)``)."""
+    while True:
+        try:
+            fraction = next(steps)
+        except StopIteration as stop:
+            return stop.value
+        yield lo + (hi - lo) * fraction
