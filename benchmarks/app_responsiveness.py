@@ -125,7 +125,7 @@ def main() -> None:
         vp = window.viewport
         timers = [getattr(vp, name, None) for name in ("_render_timer", "_settle_timer")]
         return any(t is not None and t.isActive() for t in timers) or bool(
-            getattr(vp, "busy", False))
+            getattr(vp, "busy", False) or getattr(vp.plotter, "needs_render", False))
 
     def wait_quiet(timeout_s: float) -> bool:
         """Run the loop until nothing is pending and no frame has been rendered for

@@ -16,7 +16,7 @@ from vtk import vtkTextureObject
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
 from vtkvol.engine.illuminator import scale_steps
-from vtkvol.engine.technique import Technique
+from vtkvol.engine.technique import Technique, finish_gl
 from vtkvol.plugins.cone_traced import AO_MODES, TECHNIQUE
 from vtkvol.plugins.cone_traced.cpu import (
     _FAR,
@@ -48,6 +48,8 @@ FILTER_PARAMETERS = frozenset({"sigma", "span"})
 #: Seconds of GPU work per bake slab when the host precomputes in chunks
 #: (Illuminator.precompute): the longest the application's event loop waits between two.
 CHUNK_S = 0.08
+#: Voxels per part of a chunked upload of the opacity.
+UPLOAD_SLAB_VOXELS = 1 << 22
 
 class ConeTraced(Technique):
     """Cone-traced soft shadows and ambient occlusion through a filtered-opacity mip chain."""
@@ -72,6 +74,8 @@ class ConeTraced(Technique):
         self._bake_backend = ""
         self._baker: GpuAoBaker | None = None
         self._cpu_pyramids: tuple[list[np.ndarray], list[np.ndarray]] | None = None
+        #: Textures made by a chunked rebuild that has not finished (released on cancel).
+        self._pending_textures: list[Texture3D] = []
 
     # -- shader ---------------------------------------------------------------------------------
     def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
@@ -157,9 +161,16 @@ class ConeTraced(Technique):
     def _recompute_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
         chunked = self.host.precomputing
         opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0, 0.1)
-        self._ensure_textures(opacity.shape)
+        yield from scale_steps(self._ensure_textures_steps(opacity.shape), 0.1, 0.1)
         assert self.source is not None and self.filtered is not None
-        self.source.upload(opacity, 0)
+        if chunked:  # the upload in parts, each waited for
+            slab = max(1, UPLOAD_SLAB_VOXELS // max(1, opacity.shape[1] * opacity.shape[2]))
+            for z0 in range(0, opacity.shape[0], slab):
+                self.source.upload_slab(opacity[z0:z0 + slab], z0)
+                finish_gl(self.host.render_window)
+                yield 0.1
+        else:
+            self.source.upload(opacity, 0)
         weights = gaussian_weights(values["sigma"], values["span"])
         gpu = self._gpu_filter()
         self._cpu_pyramids = None
@@ -194,7 +205,9 @@ class ConeTraced(Technique):
         assert self.filtered is not None and self.source is not None
         data_dims = self.host.dims
         grid = ao_grid_dims(data_dims, values["ao_resolution"])
-        self._ensure_ao(grid)
+        if self.ao is None or self.ao.shape != tuple(int(n) for n in grid[::-1]):
+            self._ensure_ao(grid)
+            yield 0.0  # a new (large) texture
         assert self.ao is not None
         baker = self._gpu_baker()
         if baker is not None:
@@ -274,7 +287,9 @@ class ConeTraced(Technique):
         )
         self.source.activate()  # sends the filter
 
-    def _ensure_textures(self, shape_zyx: tuple[int, ...]) -> None:
+    def _ensure_textures_steps(self, shape_zyx: tuple[int, ...]) -> Iterator[float]:
+        """Make the pyramids' textures for ``shape_zyx`` (one chunk per texture: on a
+        software GL allocating a large one takes about a second)."""
         shape = tuple(int(s) for s in shape_zyx)
         if self.source is not None and self.source.shape == shape:
             return
@@ -282,12 +297,16 @@ class ConeTraced(Technique):
         rw = self.host.render_window
         levels = mip_level_count(shape)
         textures = []
-        for _ in range(3):
+        for k in range(3):
             # Border 0: cones leaving the volume see empty space, also at coarse levels.
             tex = Texture3D(rw, shape, mip_levels=levels, border=0.0)
             for lev, lshape in enumerate(level_shapes(shape, levels)[1:], start=1):
                 tex.upload(np.zeros(lshape, np.float32), lev)  # allocate: complete mip chain
             textures.append(tex)
+            if k < 2:
+                self._pending_textures = textures  # released with us if cancelled here
+                yield (k + 1) / 3
+        self._pending_textures = []
         self.source, self.filtered, self._scratch = textures
         # Levels are chosen by an integer LOD: one level per fetch is enough (half the texels
         # of LinearMipmapLinear on llvmpipe); the filter is sent at the next Activate().
@@ -299,11 +318,13 @@ class ConeTraced(Technique):
         self.source.tex.SetMinificationFilter(vtkTextureObject.Linear)
         self.host.bind_texture("vv_cone_traced_filtered", self.filtered)
         self.host.bind_texture("vv_cone_traced_opacity", self.source)
+        yield 1.0
 
     def _release_textures(self) -> None:
         # Rebinding a new texture to the same uniform replaces the old binding, and release()
         # leaves the bindings to the host: nothing to unbind here.
-        for tex in (self.source, self.filtered, self._scratch):
+        pending, self._pending_textures = self._pending_textures, []
+        for tex in (self.source, self.filtered, self._scratch, *pending):
             if tex is not None:
                 tex.release()
         self.source = self.filtered = self._scratch = None

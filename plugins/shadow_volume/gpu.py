@@ -26,6 +26,8 @@ GROUP = (8, 8)
 #: Cells along u per invocation for directional lights (they share taps; see the kernel).
 BLOCK = 4
 COMPUTE_SOURCE = "propagate.comp.glsl"
+#: Voxels per part of a chunked upload (``prefilter_steps``).
+UPLOAD_SLAB_VOXELS = 1 << 22
 
 
 def ensure_work_textures(window: vtk.vtkRenderWindow, work: dict[int, Texture3D],
@@ -105,12 +107,26 @@ class GpuPropagator:
         memory). Coarser grids: a temporary data-resolution texture, converted in place, then
         reduced by box averaging into ``sigma``.
         """
+        for _ in self.prefilter_steps(alpha, sigma, grid, chunked=False):
+            pass
+
+    def prefilter_steps(self, alpha: np.ndarray, sigma: Texture3D, grid: LightGrid, *,
+                        chunked: bool) -> Iterator[float]:
+        """:meth:`prefilter` yielding the fraction done; ``chunked``: the upload goes in
+        slabs of about :data:`UPLOAD_SLAB_VOXELS` and every part is waited for."""
         GL = gl(self.render_window)
         full = grid.dims == grid.data_dims
         data = sigma if full else Texture3D(self.render_window, alpha.shape)
         try:
-            data.upload(alpha)
-            data.tex.Deactivate()  # upload() bound it to a unit; image units are separate
+            nz = alpha.shape[0]
+            slab = nz if not chunked else max(
+                1, UPLOAD_SLAB_VOXELS // max(1, alpha.shape[1] * alpha.shape[2]))
+            for z0 in range(0, nz, slab):
+                data.upload_slab(alpha[z0:z0 + slab], z0)
+                if chunked:
+                    GL.glFinish()
+                    yield 0.6 * min(z0 + slab, nz) / nz
+            data.tex.Deactivate()  # upload bound it to a unit; image units are separate
             prog = self.program(("convert",))
             prog.use()
             self._set(prog, "vv_volume", 0)
@@ -132,6 +148,9 @@ class GpuPropagator:
                 prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
             self._unbind_images(GL, 2)
             prog.done()
+            if chunked:
+                GL.glFinish()
+            yield 1.0
         finally:
             if not full:
                 data.release()

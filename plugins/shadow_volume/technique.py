@@ -16,7 +16,7 @@ import numpy as np
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D, compute_supported
 from vtkvol.engine.illuminator import scale_steps
-from vtkvol.engine.technique import Technique, finish_gl
+from vtkvol.engine.technique import Technique
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import TECHNIQUE
 from vtkvol.plugins.shadow_volume.cpu import (
@@ -77,7 +77,7 @@ class ShadowVolume(Technique):
         grid = LightGrid.for_data(self.host.dims, self.host.spacing, values["resolution"])
         if changes.first or changes.opacity or grid != self.grid:
             self._sigma_valid = {"gpu": False, "cpu": False}
-        gpu = self._gpu_path(values)
+        gpu = self._gpu_path(values)  # compiles its first program on first use
         needed = (
             changes.first
             or not self._sigma_valid["gpu" if gpu is not None else "cpu"]  # opacity, grid
@@ -98,7 +98,8 @@ class ShadowVolume(Technique):
                          gpu: GpuPropagator | None, values: Mapping[str, Any]) -> Iterator[float]:
         self.grid = grid
         channels = 1 if len(specs) <= 1 else (2 if len(specs) == 2 else 4)
-        self._ensure_light_texture(grid, channels)
+        if self._ensure_light_texture(grid, channels):
+            yield 0.0  # a new texture (large: allocated and filled with 1)
         chunk_s = CHUNK_S if self.host.precomputing else None
         if gpu is not None:
             try:
@@ -200,13 +201,16 @@ class ShadowVolume(Technique):
             self._gpu.release()
             self._gpu = None
 
-    def _ensure_light_texture(self, grid: LightGrid, channels: int) -> None:
+    def _ensure_light_texture(self, grid: LightGrid, channels: int) -> bool:
+        """Whether a new light texture was made."""
         shape = grid.shape_zyx
         tex = self.light_texture
         if tex is None or tex.shape != shape or tex.channels != channels:
             if tex is not None:
                 tex.release()
             self.light_texture = LightTexture(self.host.render_window, shape, channels)
+            return True
+        return False
 
     def _recompute_gpu(
         self, gpu: GpuPropagator, grid: LightGrid, specs: Sequence[LightSpec],
@@ -223,13 +227,13 @@ class ShadowVolume(Technique):
                 if self._sigma_tex is not None:
                     self._sigma_tex.release()
                 self._sigma_tex = Texture3D(rw, grid.shape_zyx)
+                yield 0.0
             opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0,
                                              0.5 * prefilter / total)
-            gpu.prefilter(opacity, self._sigma_tex, grid)
+            yield from scale_steps(
+                gpu.prefilter_steps(opacity, self._sigma_tex, grid, chunked=chunk_s is not None),
+                0.5 * prefilter / total, prefilter / total)
             self._sigma_valid["gpu"] = True
-            if chunk_s is not None:
-                finish_gl(rw)
-                yield prefilter / total
         ensure_work_textures(rw, self._work_tex, grid)
         assert self._sigma_tex is not None and self.light_texture is not None
         done = prefilter
