@@ -303,3 +303,38 @@ def test_cancelled_tiled_screenshot_writes_nothing(window, qtbot, tmp_path):
     assert any(r.dialog_seen for r in runs)
     assert volume.GetVisibility()  # the view shows the volume again
     settle(window, qtbot)
+
+
+def test_closing_the_window_during_a_precompute_stops_it_cleanly(qapp, qtbot, tmp_path,
+                                                                  small_volume):
+    from PySide6.QtCore import QSettings
+
+    from vtkvol.ui.app import MainWindow
+
+    other = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
+    other.resize(600, 500)
+    other.viewport.setMaximumSize(128, 128)
+    other.show()
+    other.show_volume(small_volume)
+    scene = other.viewport.scene
+    illuminator = scene.illuminator
+    qtbot.waitUntil(lambda: illuminator.render_window is not None, timeout=30_000)  # a frame
+    calls: list[float] = []
+
+    def close_at_first_chunk(label: str) -> ChunkProgress:
+        class Closing(ChunkProgress):
+            def __call__(self, fraction: float, text: str | None = None) -> bool:
+                calls.append(fraction)
+                if len(calls) == 1:
+                    other.close()  # what the window's close button does meanwhile
+                return super().__call__(fraction, text)
+
+        return Closing(other, label)
+
+    other.viewport.progress_factory = close_at_first_chunk
+    other.model.illumination.method = "shadow_volume"
+    qtbot.waitUntil(lambda: other.viewport.closed, timeout=30_000)
+    qtbot.wait(50)
+    assert len(calls) == 1  # no chunk ran after the close
+    assert illuminator.closed and not illuminator.precomputing
+    assert not other.viewport.busy

@@ -512,6 +512,8 @@ class Viewport(QWidget):
             raise RuntimeError("the view is closed")
         if scale not in (1, 2, 3, 4):
             raise ValueError(f"screenshot scale must be 1, 2, 3 or 4, not {scale}")
+        if self._busy:
+            raise RuntimeError("the view is still computing; try again when it is done")
         gizmo = self._gizmo.visible
         self._gizmo.set_visible(False)
         self._settle_timer.stop()
