@@ -338,3 +338,38 @@ def test_closing_the_window_during_a_precompute_stops_it_cleanly(qapp, qtbot, tm
     assert len(calls) == 1  # no chunk ran after the close
     assert illuminator.closed and not illuminator.precomputing
     assert not other.viewport.busy
+
+
+def test_crop_slider_drag_renders_interactive_frames_then_one_full_quality_frame(window, qtbot):
+    model: SceneModel = window.model
+    model.illumination.method = "local"
+    window.ranges_dock.raise_()
+    settle(window, qtbot)
+    viewport = window.viewport
+    spacing = min(window.data.voxel_size_um)
+    interactive = model.render.interactive_sample_distance * spacing
+    full = model.render.sample_distance * spacing
+    slider = window.ranges_dock.sliders["x"]
+    left, none = Qt.MouseButton.LeftButton, Qt.MouseButton.NoButton
+    y = slider.height() // 2
+    log = FrameLog(viewport)
+    try:
+        # The lower handle sits at the left end: drag it to the right.
+        mouse(slider, QMouseEvent.Type.MouseButtonPress, QPoint(3, y), left, left)
+        assert viewport.editing
+        for x in (slider.width() // 5, slider.width() // 3):
+            mouse(slider, QMouseEvent.Type.MouseMove, QPoint(x, y), none, left)
+            qtbot.wait(60)
+        qtbot.waitUntil(lambda: len(log.frames) >= 1, timeout=30_000)
+        assert model.crop.x is not None and model.crop.x[0] > 0  # the drag cropped
+        assert all(d == pytest.approx(interactive) for d, _ in log.frames), log.frames
+        mouse(slider, QMouseEvent.Type.MouseButtonRelease, QPoint(slider.width() // 3, y),
+              left, none)
+        assert not viewport.editing
+        qtbot.waitUntil(lambda: log.frames[-1][1] == 1.0, timeout=30_000)
+        settle(window, qtbot)
+        *reduced, last = log.frames
+        assert all(d == pytest.approx(interactive) for d, _ in reduced), log.frames
+        assert last == (pytest.approx(full), 1.0), log.frames
+    finally:
+        log.close()
