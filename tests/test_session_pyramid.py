@@ -15,6 +15,7 @@ ome_format = pytest.importorskip("ome_zarr.format")
 
 from vtkvol.io import VolumeReadError, read_volume  # noqa: E402
 from vtkvol.model.defaults import scene_for  # noqa: E402
+from vtkvol.model.migrations import VERSION  # noqa: E402
 from vtkvol.model.session import (  # noqa: E402
     SessionError,
     load_session_with_data,

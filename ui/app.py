@@ -25,6 +25,7 @@ import numpy as np
 from PySide6.QtCore import (
     QBuffer,
     QByteArray,
+    QEvent,
     QIODevice,
     QObject,
     QSettings,
@@ -97,7 +98,7 @@ from vtkvol.ui.pyramid_view import (
 from vtkvol.ui.time_series import MIB, TimeBar, TimeSeriesPlayer
 from vtkvol.ui.undo import UndoRecorder, apply_state
 from vtkvol.ui.view_actions import ViewActions
-from vtkvol.ui.viewport import Viewport
+from vtkvol.ui.viewport import ScreenshotCancelled, Viewport
 from vtkvol.ui.voxel_size import ask_voxel_size, is_assumed_size_note, user_note
 
 APP_NAME = "vtkvol"
@@ -214,6 +215,52 @@ class BackgroundTask(QObject):
         self._on_failure(exc)
 
 
+class DockEditWatcher(QObject):
+    """Tells the 3-D view when the user drags something in a dock.
+
+    A mouse press inside a dock (a curve in an editor, a range slider, a parameter slider, a
+    spin box's held arrow) starts an edit, the release ends it
+    (:meth:`Viewport.begin_edit` / :meth:`Viewport.end_edit`); a wheel step over a dock is a
+    short edit of its own. The view renders at the interactive quality meanwhile and at full
+    quality once the edit settles, as for camera moves. An application-wide event filter: it
+    sees widgets the docks create later (the technique parameters) and releases that land
+    elsewhere (a popup, outside the window)."""
+
+    def __init__(self, docks: list[ModelDock], viewport: Viewport,
+                 parent: QObject | None = None) -> None:
+        super().__init__(parent)
+        self._docks = docks
+        self._viewport = viewport
+        self._pressed = False
+
+    def _in_dock(self, obj: QObject) -> bool:
+        widget = obj if isinstance(obj, QWidget) else None
+        while widget is not None:
+            if widget in self._docks:
+                return True
+            widget = widget.parentWidget()
+        return False
+
+    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
+        kind = event.type()
+        if kind == QEvent.Type.MouseButtonPress and not self._pressed:
+            if self._in_dock(watched):
+                self._pressed = True
+                self._viewport.begin_edit()
+        elif kind == QEvent.Type.MouseButtonRelease and self._pressed:
+            self._pressed = False
+            self._viewport.end_edit()
+        elif kind == QEvent.Type.Wheel and not self._pressed and self._in_dock(watched):
+            self._viewport.begin_edit()
+            self._viewport.end_edit()
+        return False
+
+    def release(self) -> None:
+        if self._pressed:
+            self._pressed = False
+            self._viewport.end_edit()
+
+
 class MainWindow(QMainWindow):
     """The app window: the 3-D view, the five docks, menus and the status bar.
 
@@ -269,6 +316,10 @@ class MainWindow(QMainWindow):
         self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
+        self.edit_watcher = DockEditWatcher(self.docks, self.viewport, self)
+        app = QApplication.instance()
+        if app is not None:
+            app.installEventFilter(self.edit_watcher)
         self.resize(1280, 820)
         self._refresh_recent()
 
@@ -519,6 +570,8 @@ class MainWindow(QMainWindow):
         queued = Qt.ConnectionType.QueuedConnection
         self.viewport.illuminationFailed.connect(self._on_illumination_failed, queued)
         self.viewport.illuminationProgress.connect(self._on_illumination_progress, queued)
+        self.viewport.illuminationCancelled.connect(
+            lambda message: self.statusBar().showMessage(message, 15000))
 
     def _make_time_bar(self) -> None:
         """The time series' tool bar (below the docks) and its View-menu actions."""
@@ -988,8 +1041,11 @@ class MainWindow(QMainWindow):
         target = Path(path)
         QApplication.setOverrideCursor(Qt.CursorShape.WaitCursor)
         try:
-            image = self.viewport.screenshot(scale)
+            image = self.viewport.screenshot(scale, progress=True)
             write_png(image, target)
+        except ScreenshotCancelled:
+            self.statusBar().showMessage("Screenshot cancelled; nothing was written.", 8000)
+            return None
         except (OSError, RuntimeError, ValueError) as exc:
             errors.show_error(self, exc, action="Could not save the screenshot")
             return None
@@ -1320,6 +1376,10 @@ class MainWindow(QMainWindow):
         self._closing = True
         self.time_player.close()
         self.time_bar.release()
+        app = QApplication.instance()
+        if app is not None:
+            app.removeEventFilter(self.edit_watcher)
+        self.edit_watcher.release()
         self.view_actions.release()
         for dock in self.docks:
             dock.release()

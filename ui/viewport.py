@@ -8,9 +8,21 @@ This is the only module of the app that talks to VTK (style-anchors §4 items 11
   into one repaint. pyvistaqt's widget renders inside every ``paintGL``, so renders asked for
   by VTK itself (the camera style, the light gizmo) are redirected into a repaint too:
   one frame per request instead of two (see :meth:`Viewport._install_render_redirect`).
-* **Reduced quality while moving.** Camera and gizmo interaction switch the scene to its
-  interactive sampling (seed 002's "Reduce"); a short settle timer after the last
-  interaction syncs the camera into the model and renders one full-quality frame.
+* **Only what changed renders.** The widget renders in its paint only when a frame was
+  asked for (a render request, VTK's own render call, a resize); any other repaint (a menu
+  or dialog closing over the view, the window re-exposed) shows the last frame again
+  (:class:`ViewWidget`).
+* **Reduced quality while moving.** Camera and gizmo interaction, and every drag in a dock
+  (:meth:`Viewport.begin_edit` / :meth:`Viewport.end_edit`), switch the scene to its
+  interactive sampling (seed 002's "Reduce") and defer the illumination's precomputation
+  (the previous light volume stays); a short settle timer after the last interaction syncs
+  the camera into the model and renders one full-quality frame with the light brought up
+  to date.
+* **Long precomputation keeps the window alive.** Before a frame, the illumination's
+  precomputation runs outside the render, in the technique's chunks, with the event loop
+  running between them and a progress dialog with Cancel once it takes longer than half a
+  second (:meth:`Viewport._precompute`). Cancel shows local shading (the model says so) and
+  a status message. Tiled screenshots show the same dialog; Cancel writes nothing.
 * **Nothing renders after close.** :meth:`Viewport.close` stops the timers, removes the
   gizmo and releases the scene's GL resources while the context is current, then closes
   the interactor.
@@ -21,6 +33,7 @@ This is the only module of the app that talks to VTK (style-anchors §4 items 11
 
 from __future__ import annotations
 
+import contextlib
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -31,7 +44,7 @@ os.environ.setdefault("QT_API", "pyside6")  # pyvistaqt (through qtpy) must pick
 
 import numpy as np
 import vtk
-from PySide6.QtCore import QEvent, QObject, Qt, QTimer, Signal
+from PySide6.QtCore import QEvent, QObject, QRect, Qt, QTimer, Signal
 from PySide6.QtWidgets import QVBoxLayout, QWidget
 from pyvistaqt import QtInteractor
 
@@ -39,6 +52,8 @@ from vtkvol.engine.probe import ProbeResult, probe
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import ClipPlane, SceneModel
+from vtkvol.model.techniques import get_spec
+from vtkvol.ui.progress import ChunkProgress
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -50,6 +65,68 @@ SETTLE_MS = 180
 PROBE_DELAY_MS = 80
 #: Distance of a directional light's handle from the volume's centre, in bounding-sphere radii.
 GIZMO_RADIUS = 1.05
+
+
+class ScreenshotCancelled(Exception):
+    """The user cancelled a tiled screenshot (nothing was written)."""
+
+
+class ViewWidget(QtInteractor):
+    """pyvistaqt's widget, rendering in its paint only when a frame is due.
+
+    pyvistaqt renders in every ``paintGL``, and Qt repaints the widget for reasons that change
+    nothing in the scene: a menu or dialog closing over it, the window re-exposed. Then the
+    last frame, still in VTK's display framebuffer, is shown again (a blit) instead of
+    rendering anew; :attr:`needs_render` (set by the viewport for every render request and
+    VTK render call, and by a resize) makes the next paint render. While :attr:`hold` is set
+    (precomputation or a tiled screenshot in progress) paints only show the last frame. Relies
+    on pyvistaqt's ``_blit`` and ``_RenderWindow``; without them every paint renders, which is
+    correct, only slower.
+    """
+
+    def __init__(self, parent: QWidget | None = None, **kwargs: Any) -> None:
+        super().__init__(parent, **kwargs)
+        self.needs_render = True
+        self.hold = False
+        #: Set while a tiled screenshot is rendered: VTK's buffers hold a tile, so a paint
+        #: then draws nothing (the view is rendered again afterwards).
+        self.hold_blank = False
+        self.can_reuse_frame = all(hasattr(self, name)
+                                   for name in ("_blit", "_RenderWindow", "_in_paint"))
+
+    def initializeGL(self) -> None:
+        super().initializeGL()
+        self.needs_render = True
+
+    def resizeGL(self, w: int, h: int) -> None:
+        super().resizeGL(w, h)
+        self.needs_render = True
+
+    def paintGL(self) -> None:
+        rw = getattr(self, "_RenderWindow", None)
+        reusable = (self.can_reuse_frame and rw is not None and rw.GetReadyForRendering()
+                    and not self._in_paint)
+        if reusable and self.hold_blank:
+            self.needs_render = True
+            return
+        if reusable and (self.hold or not self.needs_render):
+            self._show_last_frame(rw)
+            return
+        self.needs_render = False
+        super().paintGL()
+
+    def _show_last_frame(self, rw: vtk.vtkRenderWindow) -> None:
+        state = rw.GetState()
+        state.Reset()  # Qt touched GL since VTK's last call: resync VTK's cache
+        state.Push()
+        try:
+            self.makeCurrent()
+            ratio = self.devicePixelRatioF()
+            rect = QRect(0, 0, max(1, round(self.width() * ratio)),
+                         max(1, round(self.height() * ratio)))
+            self._blit(self.defaultFramebufferObject(), rect)
+        finally:
+            state.Pop()
 
 
 class LightGizmo:
@@ -196,12 +273,15 @@ class Viewport(QWidget):
     probed(text)
         The intensity probe: the position, voxel and channel values of the first visible
         material under the resting mouse pointer ("" when there is none).
+    illuminationCancelled(message)
+        The user cancelled a precomputation: local shading is shown (the model says so).
     """
 
     frameRendered = Signal(float, float)
     illuminationFailed = Signal(str)
     illuminationProgress = Signal(int, bool)
     probed = Signal(str)
+    illuminationCancelled = Signal(str)
 
     def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -213,11 +293,24 @@ class Viewport(QWidget):
         self._closed = False
         self._frame_start = 0.0
         self.last_frame_ms = 0.0
+        #: Frames rendered so far (tests and the responsiveness benchmark count them).
+        self.frame_count = 0
+        #: Nesting of precomputation / tiled screenshot in progress (no frame starts then).
+        self._busy = 0
+        self._render_after_busy = False
+        self._precompute_cancelled = False
+        #: Whether a reduced-quality frame was drawn since the last full-quality one.
+        self._reduced_shown = False
+        self._edits = 0  # drags in progress in the docks (begin_edit/end_edit)
+        self._camera_moved = False  # the camera style moved the camera since the last settle
+        #: Makes the progress callback of precomputation (tests replace it).
+        self.progress_factory: Callable[[str], ChunkProgress] = (
+            lambda label: ChunkProgress(self.window(), label))
 
         layout = QVBoxLayout(self)
         layout.setContentsMargins(0, 0, 0, 0)
         # auto_update=False: no 5 Hz timer; this widget renders only when asked (§4 item 12).
-        self.plotter = QtInteractor(self, auto_update=False)
+        self.plotter = ViewWidget(self, auto_update=False)
         self.plotter.setAcceptDrops(False)  # dropped files go to the main window, not pyvista
         layout.addWidget(self.plotter)
         self.setMinimumSize(160, 120)
@@ -295,6 +388,7 @@ class Viewport(QWidget):
         if self.plotter._in_paint:
             self.render_window.Render()
         else:
+            self.plotter.needs_render = True
             self.plotter.update()
 
     # -- data -----------------------------------------------------------------------------------
@@ -337,36 +431,128 @@ class Viewport(QWidget):
     def _render_now(self) -> None:
         if self._closed or self.scene is None:
             return
+        if self._busy:
+            self._render_after_busy = True  # asked again once the work is over
+            return
+        if not self._precompute():
+            return
+        self.plotter.needs_render = True
         self.plotter.update()  # the paint renders (see _install_render_redirect)
 
     def render_now(self) -> None:
         """Render synchronously (tests, screenshots); normal code calls request_render."""
-        if self._closed or self.scene is None:
+        if self._closed or self.scene is None or self._busy:
             return
         self._render_timer.stop()
+        if not self._precompute():
+            return
+        self.plotter.needs_render = True
         self.plotter.repaint()
+
+    @property
+    def busy(self) -> bool:
+        """True while a precomputation or a tiled screenshot runs (with the event loop
+        running between its chunks)."""
+        return self._busy > 0
+
+    def _begin_busy(self) -> None:
+        self._busy += 1
+        self.plotter.hold = True
+
+    def _end_busy(self) -> None:
+        self._busy -= 1
+        if self._busy == 0:
+            self.plotter.hold = False
+            if self._render_after_busy and not self._closed:
+                self._render_after_busy = False
+                self.request_render()
+
+    def _precompute(self) -> bool:
+        """Bring precomputed illumination up to date before a frame, in chunks, the event
+        loop running between them; a progress dialog with Cancel appears after half a second
+        (:class:`~vtkvol.ui.progress.ChunkProgress`). Returns False when the view closed
+        meanwhile (nothing to render)."""
+        self._precompute_cancelled = False
+        scene = self.scene
+        illuminator = scene.illuminator if scene is not None else None
+        if scene is None or illuminator is None or illuminator.render_window is None:
+            return not self._closed
+        self._begin_busy()
+        progress = self.progress_factory(f"Computing the lighting: {illuminator.spec.label}…")
+        try:
+            done = scene.precompute(progress)
+        finally:
+            progress.close()
+            self._end_busy()
+        self._precompute_cancelled = not done
+        if self._closed:
+            return False
+        if not done:
+            label = illuminator.cancelled_method or "The illumination"
+            with contextlib.suppress(ValueError):
+                label = get_spec(label).label
+            self.illuminationCancelled.emit(
+                f"{label} cancelled: showing local shading. Choose it again under "
+                "Illumination to compute it.")
+        return True
 
     def _on_frame_start(self, *_: Any) -> None:
         self._frame_start = time.perf_counter()
 
     def _on_frame_end(self, *_: Any) -> None:
         self.last_frame_ms = (time.perf_counter() - self._frame_start) * 1e3
+        self.frame_count += 1
+        if self.scene is not None and self.scene.interactive:
+            self._reduced_shown = True
         illum = self.scene.illuminator if self.scene is not None else None
         self.frameRendered.emit(self.last_frame_ms, illum.last_prepare_ms if illum else 0.0)
 
-    def screenshot(self, scale: int = 1) -> np.ndarray:
+    def screenshot(self, scale: int = 1, *, progress: bool = False) -> np.ndarray:
         """The view at full quality as an ``(h, w, 3)`` uint8 array, ``scale`` times the
         widget's size (offscreen magnification: the image is rendered in tiles). The light
-        gizmo is left out."""
+        gizmo is left out.
+
+        With ``progress``, the illumination's precomputation and the tiles (scale > 1) run
+        with the event loop going between them and a progress dialog with Cancel after half
+        a second; Cancel raises :class:`ScreenshotCancelled` (the view is left as it was;
+        a cancelled precomputation shows local shading, as it does before a frame)."""
         if self._closed or self.scene is None:
             raise RuntimeError("the view is closed")
         if scale not in (1, 2, 3, 4):
             raise ValueError(f"screenshot scale must be 1, 2, 3 or 4, not {scale}")
+        if self._busy:
+            raise RuntimeError("the view is still computing; try again when it is done")
         gizmo = self._gizmo.visible
         self._gizmo.set_visible(False)
         self._settle_timer.stop()
         self.scene.set_interactive(False)
+        illuminator = self.scene.illuminator
+        if illuminator is not None:
+            illuminator.defer_precompute = False
+        tiles = scale * scale
+        rendered = 0
+        cancelled = False
+        chunks = self.progress_factory(f"Rendering the {scale}× screenshot…") if (
+            progress and scale > 1) else None
+
+        def tile_done(*_: Any) -> None:
+            nonlocal rendered, cancelled
+            rendered += 1
+            if chunks is None or cancelled:
+                return
+            if not chunks(min(rendered / tiles, 1.0), f"tile {min(rendered, tiles)} of {tiles}"):
+                cancelled = True
+                self.scene.volume.VisibilityOff()  # the remaining tiles cost nothing
+
+        tag = None
+        volume_visible = self.scene.volume.GetVisibility()
         try:
+            if progress:
+                if not self._precompute():
+                    raise RuntimeError("the view is closed")
+                if self._precompute_cancelled:
+                    # No picture with lighting other than the one asked for.
+                    raise ScreenshotCancelled("the illumination was cancelled")
             # A fresh full-quality frame first, synchronously: at scale 1 the image is read
             # back from VTK's last frame, which may be a reduced one drawn while the camera
             # moved, or none yet if the widget was resized since (its buffers are new).
@@ -374,9 +560,24 @@ class Viewport(QWidget):
             self.plotter.render()
             # Tiles keep the overlays' layout of that frame (VTK scales it to the image).
             self.scene.overlays.magnify(scale)
-            image = self.plotter.screenshot(None, return_img=True, scale=scale)
+            if chunks is not None:
+                self._begin_busy()
+                self.plotter.hold_blank = True  # tiles are in VTK's buffers meanwhile
+                tag = self.render_window.AddObserver(vtk.vtkCommand.EndEvent, tile_done)
+            try:
+                image = self.plotter.screenshot(None, return_img=True, scale=scale)
+            finally:
+                if tag is not None:
+                    self.render_window.RemoveObserver(tag)
+                    self.plotter.hold_blank = False
+                    self._end_busy()
+            if cancelled:
+                raise ScreenshotCancelled(f"the {scale}× screenshot was cancelled")
         finally:
+            if chunks is not None:
+                chunks.close()
             if self.scene is not None:
+                self.scene.volume.SetVisibility(volume_visible)
                 self.scene.overlays.magnify(1)
             self._gizmo.set_visible(gizmo)
             self.request_render()
@@ -391,6 +592,7 @@ class Viewport(QWidget):
             self.request_render()
 
     def _on_style_start(self, *_: Any) -> None:
+        self._camera_moved = True
         self._interaction_started()
 
     def _on_style_end(self, *_: Any) -> None:
@@ -410,18 +612,54 @@ class Viewport(QWidget):
         self._settle_timer.stop()
         if self.scene is not None and self.reduce_while_moving:
             self.scene.set_interactive(True)
+            if self.scene.illuminator is not None:
+                # Keep the previous light volume while the user drags (see _settle).
+                self.scene.illuminator.defer_precompute = True
 
     def _interaction_ended(self) -> None:
         self._settle_timer.start()
 
+    def begin_edit(self) -> None:
+        """A drag in a dock began (a curve, a range slider, a parameter slider): frames
+        render at the interactive quality, precomputed illumination keeps its previous light,
+        until :meth:`end_edit` and the settle time after it. Calls nest."""
+        self._edits += 1
+        self._interaction_started()
+
+    def end_edit(self) -> None:
+        """The drag :meth:`begin_edit` announced ended: full quality once it settles."""
+        if self._edits == 0:
+            return
+        self._edits -= 1
+        if self._edits == 0:
+            self._interaction_ended()
+
+    @property
+    def editing(self) -> bool:
+        """True between :meth:`begin_edit` and the matching :meth:`end_edit`."""
+        return self._edits > 0
+
     def _settle(self) -> None:
-        """The camera stopped: store it in the model, and render once at full quality."""
+        """The camera or the edit stopped: store the camera in the model, and render once at
+        full quality with the illumination brought up to date, if a reduced frame was shown
+        or the illumination waited. Nothing renders after a press that changed nothing."""
         if self._closed or self.scene is None:
             return
-        self.scene.sync_camera_to_model()
+        if self._edits or self._gizmo.dragging:
+            return  # still held (a press whose release has not come): settle after it
+        if self._camera_moved:
+            self._camera_moved = False
+            self.scene.sync_camera_to_model()
         self.scene.set_interactive(False)
-        self._update_gizmo()
-        self.request_render()
+        illuminator = self.scene.illuminator
+        waited = False
+        if illuminator is not None and illuminator.defer_precompute:
+            illuminator.defer_precompute = False
+            waited = illuminator.has_pending_changes
+        if self._reduced_shown or waited:
+            self._reduced_shown = False
+            self._update_gizmo()  # placed anew once its drag is over; requests the frame
+            self.request_render()
 
     # -- light gizmo ----------------------------------------------------------------------------
     def set_gizmo_light(self, index: int | None) -> None:

@@ -6,7 +6,8 @@ docs/cone-tracing.md. Expects VTK's context to be current.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+import time
+from collections.abc import Iterator, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -56,6 +57,16 @@ class GpuFilter:
         self, source: Texture3D, filtered: Texture3D, scratch: Texture3D, weights: np.ndarray
     ) -> None:
         """Fill ``source`` levels 1… from level 0, then ``filtered`` with D_L of every level."""
+        for _ in self.run_steps(source, filtered, scratch, weights, chunked=False):
+            pass
+
+    def run_steps(
+        self, source: Texture3D, filtered: Texture3D, scratch: Texture3D, weights: np.ndarray,
+        *, chunked: bool,
+    ) -> Iterator[float]:
+        """:meth:`run` as a generator yielding the fraction done; ``chunked``: wait for the
+        GPU (``glFinish``) and yield after the reduction and after every blur pass, binding
+        everything again after each yield (the caller may run other GL work in between)."""
         shapes = level_shapes(source.shape, source.mip_levels)
         if all(n & (n - 1) == 0 for n in source.shape):
             # Power-of-two sizes: every reduction is an exact 2×2×2 (or 2×2×1, …) box, which
@@ -72,23 +83,38 @@ class GpuFilter:
                 source.bind_image(1, "write", lev)
                 self.down.dispatch(((nx + 15) // 16, ny, 1))
             self.down.done()
+        # Work of each blur pass ∝ its level's voxels (level 0 is ~7/8 of the whole).
+        sizes = [float(np.prod(shape)) for shape in shapes]
+        total = 3.0 * sum(sizes) * (1.0 + 1.0 / 6.0)  # the reduction: about a sixth more
+        done = 3.0 * sum(sizes) / 6.0
+        if chunked:
+            self._gl.glFinish()
+            yield done / total
         radius = (len(weights) - 1) // 2
         blur = self.blur(radius)
-        prog = blur.use()
-        prog.SetUniform1fv("vv_weights", len(weights), [float(w) for w in weights])
         # x: source → filtered, y: filtered → scratch, z: scratch → filtered (+ −ln(1 − F)).
         passes = ((source, filtered, 0), (filtered, scratch, 1), (scratch, filtered, 2))
         for lev, shape in enumerate(shapes):
             nz, ny, nx = shape
-            prog.SetUniform1iv("vv_size", 3, [nx, ny, nz])
             for src, dst, axis in passes:
+                prog = blur.use()
+                prog.SetUniform1fv("vv_weights", len(weights), [float(w) for w in weights])
+                prog.SetUniform1iv("vv_size", 3, [nx, ny, nz])
                 prog.SetUniformi("vv_axis", axis)
                 prog.SetUniformi("vv_convert", 1 if axis == 2 else 0)
                 src.bind_image(0, "read", lev)
                 dst.bind_image(1, "write", lev)
                 lanes, rows = {0: (ny, nz), 1: (nx, nz), 2: (nx, ny)}[axis]
                 blur.dispatch(((lanes + 15) // 16, rows, 1))
+                done += sizes[lev]
+                if chunked and sizes[lev] * 64 >= sizes[0]:  # coarse levels: no own chunk
+                    blur.done()
+                    self._gl.glFinish()
+                    yield done / total
         blur.done()
+        if chunked:
+            self._gl.glFinish()
+        yield 1.0
 
     def release(self) -> None:
         self.down.release()
@@ -136,9 +162,42 @@ class GpuAoBaker:
         values: Mapping[str, Any],
     ) -> None:
         """Fill ``ao`` (grid ``ao.shape``) from the filtered and source pyramids."""
+        for _ in self.run_steps(filtered, source, ao, data_dims=data_dims, spacing=spacing,
+                                unit_distance=unit_distance, values=values, chunk_s=None):
+            pass
+
+    def run_steps(
+        self, filtered: Texture3D, source: Texture3D, ao: Texture3D, *,
+        data_dims: Sequence[int], spacing: Sequence[float], unit_distance: float,
+        values: Mapping[str, Any], chunk_s: float | None,
+    ) -> Iterator[float]:
+        """:meth:`run` in slabs of AO grid slices, yielding the fraction done. With
+        ``chunk_s`` (seconds) each slab is waited for (``glFinish``) and sized to take about
+        that long; everything is bound again for every slab. ``None``: one dispatch."""
         grid = ao.shape[::-1]
         gate_level, gate_offset = ao_gate(values["ao_resolution"])
         program = self.program(int(values["ao_cones"]), 1 if gate_offset == 0 else 8)
+        depth = int(grid[2])
+        first, slab = 0, depth if chunk_s is None else 1
+        while first < depth:
+            count = min(slab, depth - first)
+            t0 = time.perf_counter()
+            self._bind(program, filtered, source, ao, grid, data_dims, spacing, unit_distance,
+                       values, gate_level, gate_offset, first)
+            program.dispatch(((grid[0] + 15) // 16, grid[1], count))
+            program.done()
+            first += count
+            if chunk_s is not None:
+                gl(self.render_window).glFinish()
+                per_slice = max(time.perf_counter() - t0, 1e-4) / count
+                slab = max(1, min(4 * slab, int(chunk_s / per_slice)))
+            yield first / depth
+
+    @staticmethod
+    def _bind(program: ComputeProgram, filtered: Texture3D, source: Texture3D, ao: Texture3D,
+              grid: Sequence[int], data_dims: Sequence[int], spacing: Sequence[float],
+              unit_distance: float, values: Mapping[str, Any], gate_level: int,
+              gate_offset: float, z_offset: int) -> None:
         prog = program.use()
         prog.SetUniformi("vv_filtered", filtered.activate())
         prog.SetUniformi("vv_opacity", source.activate())
@@ -154,9 +213,8 @@ class GpuAoBaker:
         prog.SetUniformf("vv_h", float(values["h"]))
         prog.SetUniformf("vv_h0", float(values["h0"]))
         prog.SetUniformf("vv_maxDistUm", float(values["max_distance"]) * min(spacing))
+        prog.SetUniformi("vv_zOffset", int(z_offset))
         ao.bind_image(0, "write", 0)
-        program.dispatch(((grid[0] + 15) // 16, grid[1], grid[2]))
-        program.done()
 
     def release(self) -> None:
         for prog in self._programs.values():

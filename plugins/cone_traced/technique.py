@@ -8,14 +8,15 @@ shaders (:mod:`.gpu`) or numpy (:mod:`.cpu`) build it.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from vtk import vtkTextureObject
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
-from vtkvol.engine.technique import Technique
+from vtkvol.engine.illuminator import scale_steps
+from vtkvol.engine.technique import Technique, finish_gl
 from vtkvol.plugins.cone_traced import AO_MODES, TECHNIQUE
 from vtkvol.plugins.cone_traced.cpu import (
     _FAR,
@@ -44,6 +45,11 @@ BAKE_PARAMETERS = frozenset(
 )
 #: Parameters of the filtered pyramid itself.
 FILTER_PARAMETERS = frozenset({"sigma", "span"})
+#: Seconds of GPU work per bake slab when the host precomputes in chunks
+#: (Illuminator.precompute): the longest the application's event loop waits between two.
+CHUNK_S = 0.08
+#: Voxels per part of a chunked upload of the opacity.
+UPLOAD_SLAB_VOXELS = 1 << 22
 
 class ConeTraced(Technique):
     """Cone-traced soft shadows and ambient occlusion through a filtered-opacity mip chain."""
@@ -68,6 +74,8 @@ class ConeTraced(Technique):
         self._bake_backend = ""
         self._baker: GpuAoBaker | None = None
         self._cpu_pyramids: tuple[list[np.ndarray], list[np.ndarray]] | None = None
+        #: Textures made by a chunked rebuild that has not finished (released on cancel).
+        self._pending_textures: list[Texture3D] = []
 
     # -- shader ---------------------------------------------------------------------------------
     def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
@@ -118,71 +126,98 @@ class ConeTraced(Technique):
         }
 
     # -- precomputation -------------------------------------------------------------------------
-    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
-        rebuilt = False
-        if (
-            changes.first
-            or changes.opacity
-            or self.filtered is None
-            or changes.parameters & FILTER_PARAMETERS
-        ):
-            self.recompute(values)
-            rebuilt = True
-        if values["ao_mode"] == "baked_hemisphere":
-            if rebuilt or self.ao is None or changes.parameters & BAKE_PARAMETERS:
-                self.bake(values)
-        elif self.ao is not None:
+    def prepare_steps(self, changes: Changes, values: Mapping[str, Any]) -> Iterator[float]:
+        """Rebuild the pyramid (opacity, reduction, one chunk per blur pass of the larger
+        levels) and bake the AO (slabs of grid slices) when needed, yielding the fraction
+        done. Chunks wait for the GPU only when the host runs them one by one
+        (``host.precomputing``); a frame's ``prepare`` issues them in a row."""
+        baked = values["ao_mode"] == "baked_hemisphere"
+        rebuild = (changes.first or changes.opacity or self.filtered is None
+                   or bool(changes.parameters & FILTER_PARAMETERS))
+        bake = baked and (rebuild or self.ao is None
+                          or bool(changes.parameters & BAKE_PARAMETERS))
+        # Share of the progress bar: the bake costs most (cones × steps per grid point).
+        share = 0.3 if bake else 1.0
+        if rebuild:
+            with self.timed("recompute"):
+                for fraction in self._recompute_steps(values):
+                    yield share * fraction
+            self._recomputes += 1
+        if bake:
+            with self.timed("bake"):
+                for fraction in self._bake_steps(values):
+                    yield share + (1.0 - share) * fraction
+            self._bakes += 1
+        elif not baked and self.ao is not None:
             self._release_ao()
 
     def recompute(self, values: Mapping[str, Any]) -> None:
         """Rebuild the filtered pyramid from ``host.opacity_volume()`` (context current)."""
         with self.timed("recompute"):
-            self._recompute(values)
+            for _ in self._recompute_steps(values):
+                pass
         self._recomputes += 1
 
-    def _recompute(self, values: Mapping[str, Any]) -> None:
-        opacity = self.host.opacity_volume()
-        self._ensure_textures(opacity.shape)
+    def _recompute_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
+        chunked = self.host.precomputing
+        opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0, 0.1)
+        yield from scale_steps(self._ensure_textures_steps(opacity.shape), 0.1, 0.1)
         assert self.source is not None and self.filtered is not None
-        self.source.upload(opacity, 0)
+        if chunked:  # the upload in parts, each waited for
+            slab = max(1, UPLOAD_SLAB_VOXELS // max(1, opacity.shape[1] * opacity.shape[2]))
+            for z0 in range(0, opacity.shape[0], slab):
+                self.source.upload_slab(opacity[z0:z0 + slab], z0)
+                finish_gl(self.host.render_window)
+                yield 0.1
+        else:
+            self.source.upload(opacity, 0)
         weights = gaussian_weights(values["sigma"], values["span"])
         gpu = self._gpu_filter()
         self._cpu_pyramids = None
         if gpu is not None:
             assert self._scratch is not None
-            gpu.run(self.source, self.filtered, self._scratch, weights)
+            for fraction in gpu.run_steps(self.source, self.filtered, self._scratch, weights,
+                                          chunked=chunked):
+                yield 0.1 + 0.9 * fraction
             self._backend = "gpu"
         else:
             levels = self.filtered.mip_levels
             src = source_pyramid(opacity, levels)
             for lev in range(1, levels):  # keep the source chain complete for the gate fetch
                 self.source.upload(src[lev].astype(np.float32), lev)
+            yield 0.3
             filtered = filtered_pyramid_cpu(opacity, levels=levels, sigma=values["sigma"],
                                             span=values["span"], alpha_levels=src)
             for lev, d in enumerate(filtered):
                 self.filtered.upload(d, lev)
             self._cpu_pyramids = (src, filtered)  # reused by a CPU bake
             self._backend = "cpu"
+            yield 1.0
 
     def bake(self, values: Mapping[str, Any]) -> None:
         """Bake the hemisphere AO on the AO grid from the current pyramids (context current)."""
         with self.timed("bake"):
-            self._bake(values)
+            for _ in self._bake_steps(values):
+                pass
         self._bakes += 1
 
-    def _bake(self, values: Mapping[str, Any]) -> None:
+    def _bake_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
         assert self.filtered is not None and self.source is not None
         data_dims = self.host.dims
         grid = ao_grid_dims(data_dims, values["ao_resolution"])
-        self._ensure_ao(grid)
+        if self.ao is None or self.ao.shape != tuple(int(n) for n in grid[::-1]):
+            self._ensure_ao(grid)
+            yield 0.0  # a new (large) texture
         assert self.ao is not None
         baker = self._gpu_baker()
         if baker is not None:
+            chunk_s = CHUNK_S if self.host.precomputing else None
             self._source_mips(True)
             try:
-                baker.run(self.filtered, self.source, self.ao, data_dims=data_dims,
-                          spacing=self.host.spacing, unit_distance=self.host.unit_distance,
-                          values=values)
+                yield from baker.run_steps(
+                    self.filtered, self.source, self.ao, data_dims=data_dims,
+                    spacing=self.host.spacing, unit_distance=self.host.unit_distance,
+                    values=values, chunk_s=chunk_s)
             finally:
                 self._source_mips(False)
             self._bake_backend = "gpu"
@@ -198,6 +233,7 @@ class ConeTraced(Technique):
                 pyramid=filtered, source=src,
             ))
             self._bake_backend = "cpu"
+            yield 1.0
 
     def _gpu_baker(self) -> GpuAoBaker | None:
         if self._gpu_filter() is None:
@@ -244,13 +280,16 @@ class ConeTraced(Technique):
 
     def _source_mips(self, on: bool) -> None:
         """Sample the source pyramid with (bake) or without (rendering) its mip levels."""
-        assert self.source is not None
+        if self.source is None:  # released while a chunked bake was suspended (cancel)
+            return
         self.source.tex.SetMinificationFilter(
             vtkTextureObject.LinearMipmapNearest if on else vtkTextureObject.Linear
         )
         self.source.activate()  # sends the filter
 
-    def _ensure_textures(self, shape_zyx: tuple[int, ...]) -> None:
+    def _ensure_textures_steps(self, shape_zyx: tuple[int, ...]) -> Iterator[float]:
+        """Make the pyramids' textures for ``shape_zyx`` (one chunk per texture: on a
+        software GL allocating a large one takes about a second)."""
         shape = tuple(int(s) for s in shape_zyx)
         if self.source is not None and self.source.shape == shape:
             return
@@ -258,12 +297,16 @@ class ConeTraced(Technique):
         rw = self.host.render_window
         levels = mip_level_count(shape)
         textures = []
-        for _ in range(3):
+        for k in range(3):
             # Border 0: cones leaving the volume see empty space, also at coarse levels.
             tex = Texture3D(rw, shape, mip_levels=levels, border=0.0)
             for lev, lshape in enumerate(level_shapes(shape, levels)[1:], start=1):
                 tex.upload(np.zeros(lshape, np.float32), lev)  # allocate: complete mip chain
             textures.append(tex)
+            if k < 2:
+                self._pending_textures = textures  # released with us if cancelled here
+                yield (k + 1) / 3
+        self._pending_textures = []
         self.source, self.filtered, self._scratch = textures
         # Levels are chosen by an integer LOD: one level per fetch is enough (half the texels
         # of LinearMipmapLinear on llvmpipe); the filter is sent at the next Activate().
@@ -275,11 +318,13 @@ class ConeTraced(Technique):
         self.source.tex.SetMinificationFilter(vtkTextureObject.Linear)
         self.host.bind_texture("vv_cone_traced_filtered", self.filtered)
         self.host.bind_texture("vv_cone_traced_opacity", self.source)
+        yield 1.0
 
     def _release_textures(self) -> None:
         # Rebinding a new texture to the same uniform replaces the old binding, and release()
         # leaves the bindings to the host: nothing to unbind here.
-        for tex in (self.source, self.filtered, self._scratch):
+        pending, self._pending_textures = self._pending_textures, []
+        for tex in (self.source, self.filtered, self._scratch, *pending):
             if tex is not None:
                 tex.release()
         self.source = self.filtered = self._scratch = None

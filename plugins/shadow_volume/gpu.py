@@ -4,7 +4,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import time
+from collections.abc import Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -25,6 +26,8 @@ GROUP = (8, 8)
 #: Cells along u per invocation for directional lights (they share taps; see the kernel).
 BLOCK = 4
 COMPUTE_SOURCE = "propagate.comp.glsl"
+#: Voxels per part of a chunked upload (``prefilter_steps``).
+UPLOAD_SLAB_VOXELS = 1 << 22
 
 
 def ensure_work_textures(window: vtk.vtkRenderWindow, work: dict[int, Texture3D],
@@ -104,12 +107,26 @@ class GpuPropagator:
         memory). Coarser grids: a temporary data-resolution texture, converted in place, then
         reduced by box averaging into ``sigma``.
         """
+        for _ in self.prefilter_steps(alpha, sigma, grid, chunked=False):
+            pass
+
+    def prefilter_steps(self, alpha: np.ndarray, sigma: Texture3D, grid: LightGrid, *,
+                        chunked: bool) -> Iterator[float]:
+        """:meth:`prefilter` yielding the fraction done; ``chunked``: the upload goes in
+        slabs of about :data:`UPLOAD_SLAB_VOXELS` and every part is waited for."""
         GL = gl(self.render_window)
         full = grid.dims == grid.data_dims
         data = sigma if full else Texture3D(self.render_window, alpha.shape)
         try:
-            data.upload(alpha)
-            data.tex.Deactivate()  # upload() bound it to a unit; image units are separate
+            nz = alpha.shape[0]
+            slab = nz if not chunked else max(
+                1, UPLOAD_SLAB_VOXELS // max(1, alpha.shape[1] * alpha.shape[2]))
+            for z0 in range(0, nz, slab):
+                data.upload_slab(alpha[z0:z0 + slab], z0)
+                if chunked:
+                    GL.glFinish()
+                    yield 0.6 * min(z0 + slab, nz) / nz
+            data.tex.Deactivate()  # upload bound it to a unit; image units are separate
             prog = self.program(("convert",))
             prog.use()
             self._set(prog, "vv_volume", 0)
@@ -131,6 +148,9 @@ class GpuPropagator:
                 prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
             self._unbind_images(GL, 2)
             prog.done()
+            if chunked:
+                GL.glFinish()
+            yield 1.0
         finally:
             if not full:
                 data.release()
@@ -142,45 +162,85 @@ class GpuPropagator:
     ) -> None:
         """All passes of one light into channel ``channel`` of ``out``; ``work`` holds one
         2-layer slice texture per propagation axis."""
+        for _done in self.propagate_steps(sigma, work, out, grid, kind, vec, model=model,
+                                          softness=softness, unit_distance=unit_distance,
+                                          channel=channel, chunk_s=None):
+            pass
+
+    def propagate_steps(
+        self, sigma: Texture3D, work: Mapping[int, Texture3D], out: LightTexture,
+        grid: LightGrid, kind: str, vec: np.ndarray, *, model: str, softness: float,
+        unit_distance: float, channel: int, chunk_s: float | None,
+    ) -> Iterator[int]:
+        """:meth:`propagate` in chunks of slices: with ``chunk_s`` (seconds), the slices
+        dispatched since the last yield are waited for (``glFinish``) once they may take about
+        that long, and the number of slices done so far is yielded; the chunk length adapts to
+        the measured time. Everything is bound again after each yield (the caller may run
+        other GL work in between). ``chunk_s=None``: one chunk, no wait (a frame's prepare)."""
         GL = gl(self.render_window)
         seed = model == "seed000"
         radius, g = (SEED000_RADIUS, np.ones(1)) if seed else gauss_taps(softness)
         block = 1 if kind == "point" else BLOCK
         prog = self.program(("propagate", seed, out.channels, radius, block))
-        program = prog.use()
-        self._set(prog, "vv_sigma", 0)
-        self._set(prog, "vv_work", 1)
-        self._set(prog, "vv_out", 2)
-        self._set(prog, "vv_dims", *grid.dims)
-        self._set(prog, "vv_point", int(kind == "point"))
-        self._set(prog, "vv_light", *(float(c) for c in vec), integer=False)
-        self._set(prog, "vv_cellUm", *grid.cell_um, integer=False)
-        self._set(prog, "vv_invUnit", 1.0 / unit_distance, integer=False)
-        self._set(prog, "vv_radius", radius)
-        self._set(prog, "vv_channel", channel)
-        program.SetUniform1fv("vv_gauss", radius + 1, [float(x) for x in g])
-        sigma.bind_image(0, "read")
-        out.bind_image(2, "write" if out.channels == 1 else "readwrite")
         barrier = GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
-        slice_loc = self._location(prog, "vv_slice")
-        first_loc = self._location(prog, "vv_first")
+
+        def bind(axis: int, p_sweep: int, restrict: bool) -> tuple[int, int]:
+            program = prog.use()
+            self._set(prog, "vv_sigma", 0)
+            self._set(prog, "vv_work", 1)
+            self._set(prog, "vv_out", 2)
+            self._set(prog, "vv_dims", *grid.dims)
+            self._set(prog, "vv_point", int(kind == "point"))
+            self._set(prog, "vv_light", *(float(c) for c in vec), integer=False)
+            self._set(prog, "vv_cellUm", *grid.cell_um, integer=False)
+            self._set(prog, "vv_invUnit", 1.0 / unit_distance, integer=False)
+            self._set(prog, "vv_radius", radius)
+            self._set(prog, "vv_channel", channel)
+            program.SetUniform1fv("vv_gauss", radius + 1, [float(x) for x in g])
+            sigma.bind_image(0, "read")
+            out.bind_image(2, "write" if out.channels == 1 else "readwrite")
+            work[axis].bind_image(1, "readwrite")
+            self._set(prog, "vv_axis", axis)
+            self._set(prog, "vv_sweep", p_sweep)
+            self._set(prog, "vv_restrict", int(restrict))
+            return self._location(prog, "vv_slice"), self._location(prog, "vv_first")
+
+        done = 0
+        per_chunk = 4  # slices per chunk; adapted to chunk_s after each measured chunk
         for p in plan_passes(grid.dims, kind, vec):
             a = p.axis
             ua, va = in_plane_axes(a)
             columns = -(-grid.dims[ua] // block)
             groups = (-(-columns // GROUP[0]), -(-grid.dims[va] // GROUP[1]), 1)
-            work[a].bind_image(1, "readwrite")
-            self._set(prog, "vv_axis", a)
-            self._set(prog, "vv_sweep", p.sweep)
-            self._set(prog, "vv_restrict", int(p.restrict))
+            slice_loc, first_loc = bind(a, p.sweep, p.restrict)
+            issued, t0 = 0, time.perf_counter()
             for index, k in enumerate(p.slices):
                 GL.glUniform1i(slice_loc, k)
                 GL.glUniform1i(first_loc, int(index == 0))
                 GL.glDispatchCompute(*groups)
                 GL.glMemoryBarrier(barrier)
+                done += 1
+                issued += 1
+                if chunk_s is not None and issued >= per_chunk and index + 1 < len(p.slices):
+                    GL.glFinish()
+                    elapsed = max(time.perf_counter() - t0, 1e-4)
+                    per_chunk = max(1, min(4 * per_chunk, round(per_chunk * chunk_s / elapsed)))
+                    self._unbind_images(GL, 3)
+                    prog.done()
+                    yield done
+                    slice_loc, first_loc = bind(a, p.sweep, p.restrict)
+                    issued, t0 = 0, time.perf_counter()
         GL.glMemoryBarrier(GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT)
         self._unbind_images(GL, 3)
         prog.done()
+        if chunk_s is not None:
+            GL.glFinish()
+        yield done
+
+    @staticmethod
+    def slice_count(grid: LightGrid, kind: str, vec: np.ndarray) -> int:
+        """Slices :meth:`propagate_steps` dispatches for one light (its progress total)."""
+        return sum(len(p.slices) for p in plan_passes(grid.dims, kind, vec))
 
     def _location(self, prog: ComputeProgram, name: str) -> int:
         self._set(prog, name, 0)  # caches the location

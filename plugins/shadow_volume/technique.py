@@ -9,12 +9,13 @@ parameter changes, never on camera moves. The propagation runs in a compute shad
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D, compute_supported
+from vtkvol.engine.illuminator import scale_steps
 from vtkvol.engine.technique import Technique
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import TECHNIQUE
@@ -37,6 +38,9 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 TEXTURE_UNIFORM = "vv_shadow_volume_tex"
+#: Seconds of GPU work per chunk when the host precomputes in chunks (Illuminator.precompute):
+#: the longest the application's event loop waits between two chunks.
+CHUNK_S = 0.08
 
 _ILLUM = Invalidates.ILLUMINATION
 
@@ -62,14 +66,18 @@ class ShadowVolume(Technique):
         self._light_key: tuple | None = None
 
     # -- hooks --------------------------------------------------------------------------------
-    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+    def prepare_steps(self, changes: Changes, values: Mapping[str, Any]) -> Iterator[float]:
+        """Recompute the light volume when needed, in chunks: the opacity (numpy), the
+        extinction grid, then slabs of slices per light (GPU) or one light per chunk (numpy).
+        The new light is bound when every light is done; a cancelled recomputation leaves
+        the light texture half-written, and the host releases the technique."""
         specs = self.host.light_specs()
         # Colour changes need no recompute; a size changes the penumbra.
         light_key = tuple((s.kind, s.vector, s.size) for s in specs)
         grid = LightGrid.for_data(self.host.dims, self.host.spacing, values["resolution"])
         if changes.first or changes.opacity or grid != self.grid:
             self._sigma_valid = {"gpu": False, "cpu": False}
-        gpu = self._gpu_path(values)
+        gpu = self._gpu_path(values)  # compiles its first program on first use
         needed = (
             changes.first
             or not self._sigma_valid["gpu" if gpu is not None else "cpu"]  # opacity, grid
@@ -79,25 +87,29 @@ class ShadowVolume(Technique):
         )
         if not needed:
             return
+        # The light key is set only at the end: a cancelled recomputation must not look done.
+        self._light_key = None
         with self.timed("recompute"):
-            self._recompute(grid, light_key, specs, gpu, values)
+            yield from self._recompute_steps(grid, specs, gpu, values)
+        self._light_key = light_key
         self._recomputes += 1
 
-    def _recompute(self, grid: LightGrid, light_key: tuple, specs: Sequence[LightSpec],
-                   gpu: GpuPropagator | None, values: Mapping[str, Any]) -> None:
+    def _recompute_steps(self, grid: LightGrid, specs: Sequence[LightSpec],
+                         gpu: GpuPropagator | None, values: Mapping[str, Any]) -> Iterator[float]:
         self.grid = grid
-        self._light_key = light_key
         channels = 1 if len(specs) <= 1 else (2 if len(specs) == 2 else 4)
-        self._ensure_light_texture(grid, channels)
+        if self._ensure_light_texture(grid, channels):
+            yield 0.0  # a new texture (large: allocated and filled with 1)
+        chunk_s = CHUNK_S if self.host.precomputing else None
         if gpu is not None:
             try:
-                self._recompute_gpu(gpu, grid, specs, values)
+                yield from self._recompute_gpu(gpu, grid, specs, values, chunk_s)
                 self._backend = "gpu"
             except GLUnavailableError as exc:
                 self._disable_gpu(exc)
                 gpu = None
         if gpu is None:
-            self._recompute_cpu(grid, specs, values)
+            yield from self._recompute_cpu(grid, specs, values)
             self._backend = "cpu"
         assert self.light_texture is not None
         self.host.bind_texture(TEXTURE_UNIFORM, self.light_texture)
@@ -189,43 +201,62 @@ class ShadowVolume(Technique):
             self._gpu.release()
             self._gpu = None
 
-    def _ensure_light_texture(self, grid: LightGrid, channels: int) -> None:
+    def _ensure_light_texture(self, grid: LightGrid, channels: int) -> bool:
+        """Whether a new light texture was made."""
         shape = grid.shape_zyx
         tex = self.light_texture
         if tex is None or tex.shape != shape or tex.channels != channels:
             if tex is not None:
                 tex.release()
             self.light_texture = LightTexture(self.host.render_window, shape, channels)
+            return True
+        return False
 
     def _recompute_gpu(
         self, gpu: GpuPropagator, grid: LightGrid, specs: Sequence[LightSpec],
-        values: Mapping[str, Any],
-    ) -> None:
+        values: Mapping[str, Any], chunk_s: float | None,
+    ) -> Iterator[float]:
         rw = self.host.render_window
+        lights = [grid.light(spec, self._origin(), self._direction()) for spec in specs]
+        # Progress: the opacity and extinction grid count as much as one light's slices.
+        per_light = [GpuPropagator.slice_count(grid, kind, vec) for kind, vec in lights]
+        prefilter = max(per_light, default=1) if not self._sigma_valid["gpu"] else 0
+        total = max(1, prefilter + sum(per_light))
         if not self._sigma_valid["gpu"]:
             if self._sigma_tex is None or self._sigma_tex.shape != grid.shape_zyx:
                 if self._sigma_tex is not None:
                     self._sigma_tex.release()
                 self._sigma_tex = Texture3D(rw, grid.shape_zyx)
-            gpu.prefilter(self.host.opacity_volume(), self._sigma_tex, grid)
+                yield 0.0
+            opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0,
+                                             0.5 * prefilter / total)
+            yield from scale_steps(
+                gpu.prefilter_steps(opacity, self._sigma_tex, grid, chunked=chunk_s is not None),
+                0.5 * prefilter / total, prefilter / total)
             self._sigma_valid["gpu"] = True
         ensure_work_textures(rw, self._work_tex, grid)
         assert self._sigma_tex is not None and self.light_texture is not None
-        for channel, spec in enumerate(specs):
-            kind, vec = grid.light(spec, self._origin(), self._direction())
-            gpu.propagate(
+        done = prefilter
+        for channel, (spec, (kind, vec)) in enumerate(zip(specs, lights, strict=True)):
+            for slices in gpu.propagate_steps(
                 self._sigma_tex, self._work_tex, self.light_texture, grid, kind, vec,
                 model=values["model"],
                 softness=light_softness(spec, grid, values, self._origin(), self._direction()),
-                unit_distance=self.host.unit_distance, channel=channel,
-            )
+                unit_distance=self.host.unit_distance, channel=channel, chunk_s=chunk_s,
+            ):
+                yield (done + slices) / total
+            done += per_light[channel]
 
     def _recompute_cpu(
         self, grid: LightGrid, specs: Sequence[LightSpec], values: Mapping[str, Any]
-    ) -> None:
+    ) -> Iterator[float]:
+        total = len(specs) + 1
         if not self._sigma_valid["cpu"] or self._sigma_cpu is None:
-            self._sigma_cpu = prefilter_cpu(self.host.opacity_volume(), grid)
+            opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0,
+                                             0.5 / total)
+            self._sigma_cpu = prefilter_cpu(opacity, grid)
             self._sigma_valid["cpu"] = True
+        yield 1 / total
         assert self.light_texture is not None
         packed = np.ones((*grid.shape_zyx, self.light_texture.channels), np.float32)
         for channel, spec in enumerate(specs):
@@ -235,4 +266,5 @@ class ShadowVolume(Technique):
                 softness=light_softness(spec, grid, values, self._origin(), self._direction()),
                 unit_distance=self.host.unit_distance,
             )
+            yield (channel + 2) / total
         self.light_texture.upload(packed[..., 0] if packed.shape[-1] == 1 else packed)

@@ -162,6 +162,19 @@ class Texture3D:
                 GL.GL_TEXTURE_3D, level, GL.GL_R32F, nx, ny, nz, 0, GL.GL_RED, GL.GL_FLOAT, arr
             )
 
+    def upload_slab(self, data: np.ndarray, z0: int) -> None:
+        """Replace z slices ``z0…z0 + len(data)`` of level 0 in place (a large upload in
+        parts: chunked precomputation)."""
+        GL = gl(self.render_window)
+        arr = np.ascontiguousarray(data, dtype=np.float32)
+        nz, ny, nx = arr.shape[:3]
+        if (ny, nx) != tuple(self.shape[1:3]) or not 0 <= z0 <= self.shape[0] - nz:
+            raise ValueError(f"slab of shape {arr.shape} at z {z0} does not fit {self.shape}")
+        self.tex.Activate()
+        self.render_window.GetState().vtkglPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, z0, nx, ny, nz, self._pixel_format,
+                           GL.GL_FLOAT, arr)
+
     def generate_mipmaps(self) -> None:
         """Fill levels 1… from level 0 with the driver's box filter (``mip_levels`` > 1)."""
         if self.mip_levels <= 1:

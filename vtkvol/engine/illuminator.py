@@ -22,7 +22,7 @@ import logging
 import math
 import re
 import time
-from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -40,6 +40,8 @@ from vtkvol.model.techniques import TechniqueSpec
 logger = logging.getLogger(__name__)
 
 MAX_LIGHTS = 4
+#: Voxels per chunk of :meth:`Illuminator.opacity_volume_steps` (about 0.1 s of numpy).
+OPACITY_SLAB_VOXELS = 1 << 21
 #: Floats per light in the ``vv_lights`` uniform array (layout in host_prelude.glsl).
 LIGHT_STRIDE = 12
 #: GLSL hooks a technique may define; the host supplies defaults for the others
@@ -84,6 +86,19 @@ class Changes:
     invalidates: Invalidates = field(default_factory=lambda: Invalidates(0))
     view: bool = False  #: camera or viewport changed (told to view-dependent techniques only)
     first: bool = False  #: first frame after attach
+
+    def merge(self, later: Changes) -> Changes:
+        """These changes followed by ``later`` (what a technique must catch up on when it
+        skipped a prepare: the host deferred it)."""
+        return Changes(
+            opacity=self.opacity or later.opacity,
+            lights=self.lights or later.lights,
+            light_colors=self.light_colors or later.light_colors,
+            parameters=self.parameters | later.parameters,
+            invalidates=self.invalidates | later.invalidates,
+            view=self.view or later.view,
+            first=self.first or later.first,
+        )
 
     def any_parameter(self, params: Iterable[Any], flag: Invalidates) -> bool:
         return any(p.name in self.parameters and p.invalidates & flag for p in params)
@@ -131,6 +146,15 @@ class Illuminator:
     profiling
         When True, techniques time their precomputation on the GPU (timer queries) and report
         it in ``technique.stats()``; off by default so that nothing waits for the GPU.
+    defer_precompute
+        While True, frames keep the technique's previous precomputed light (no ``prepare``)
+        and the changes wait, merged, for the first frame or :meth:`precompute` after it is
+        set back to False. Applications set it while the user drags an edit (a TF curve, a
+        light), so the frames of the drag cost what a frame costs; a change of the shader
+        (a new method, a ``SHADER``-invalidating parameter) is never deferred.
+    cancelled_method
+        The method whose :meth:`precompute` was cancelled last (local shading is shown
+        since); None after a precomputation that ran to its end.
     """
 
     def __init__(
@@ -203,6 +227,11 @@ class Illuminator:
         self.failed_method: str | None = None
         self.on_error: Callable[[str], None] | None = None
         self.on_progress: Callable[[int, bool], None] | None = None
+        self.defer_precompute = False
+        self.cancelled_method: str | None = None
+        #: True while :meth:`precompute` runs its chunks (frames then touch no technique state).
+        self._stepping = False
+        self._precomputed_ms = 0.0  # precompute()'s work since the last frame
         self.set_parameters(**(parameters or {}))
         # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
         # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
@@ -411,6 +440,122 @@ class Illuminator:
         """True once :meth:`release` has run (the volume has VTK's own shading again)."""
         return self._closed
 
+    # -- precomputation outside a frame -----------------------------------------------------------
+    @property
+    def precomputing(self) -> bool:
+        """True while :meth:`precompute` runs (between its chunks, too)."""
+        return self._stepping
+
+    def precompute(self, progress: Callable[[float], bool] | None = None) -> bool:
+        """Bring the technique's precomputed light up to date now, outside a frame, in the
+        chunks its :meth:`~vtkvol.engine.technique.Technique.prepare_steps` yields.
+
+        After every chunk ``progress(fraction)`` is called (fraction done, 0…1); it may run an
+        event loop (the context is made current again before the next chunk) and returns
+        False to cancel. A cancelled precomputation leaves a consistent state: the technique
+        is released, local shading is shown, :attr:`cancelled_method` names the method and
+        False is returned. Returns True otherwise, also when there was nothing to do: no
+        frame yet (the first frame precomputes), :attr:`defer_precompute` set, a progressive
+        technique (it refines over frames) or nothing changed. The next frame then only
+        installs the shader and uploads uniforms. Frames rendered between two chunks (an
+        application's repaint) leave the technique alone and show the previous light.
+
+        Scripts need not call this: every frame brings the light up to date by itself.
+        """
+        if (self._closed or self._stepping or self._unsupported is not None
+                or self.render_window is None or self.spec.has("progressive")):
+            return True
+        if self.defer_precompute and self._technique is not None and not self._detach_requested:
+            return True
+        window = self.render_window
+        with _no_collection():
+            window.MakeCurrent()
+            if self._follow_renderer:
+                self._lights = self._renderer_lights()
+            self._frame_specs = self._compute_light_specs()
+            try:
+                if self._detach_requested and self._technique is not None:
+                    self._release_technique()
+                self._detach_requested = False
+                self._detect_changes()
+                if self._technique is None:
+                    self._technique = self._technique_cls(self)
+                    self._changes.first = True
+                if not self._needs_prepare(self._changes):
+                    return True
+                self._upload_weights()
+                changes, self._changes = self._changes, Changes()
+                steps = self._technique.prepare_steps(changes, self.parameters)
+            finally:
+                self._frame_specs = None
+        return self._run_steps(steps, progress)
+
+    @property
+    def has_pending_changes(self) -> bool:
+        """Whether changes wait for a prepare (deferred ones included) that may recompute."""
+        return self._needs_prepare(self._changes) or (
+            self._signature is not None and self._opacity_signature() != self._signature)
+
+    def _needs_prepare(self, changes: Changes) -> bool:
+        """Whether ``changes`` may make a (non-progressive) technique recompute."""
+        return bool(changes.first or changes.opacity or changes.lights or changes.parameters
+                    or changes.view or changes.invalidates)
+
+    def _run_steps(self, steps: Iterator[float], progress: Callable[[float], bool] | None) -> bool:
+        window = self.render_window
+        assert window is not None
+        work_s = 0.0  # the chunks' time, without the event loop's in between
+        self._stepping = True
+        try:
+            while True:
+                with _no_collection():
+                    window.MakeCurrent()
+                    t0 = time.perf_counter()
+                    self._frame_specs = self._compute_light_specs()
+                    try:
+                        fraction = next(steps)
+                    except StopIteration:
+                        break
+                    finally:
+                        self._frame_specs = None
+                        work_s += time.perf_counter() - t0
+                    if self._technique is not None:
+                        self._on_draw_end()  # units go back between chunks
+                if progress is not None and not progress(min(max(float(fraction), 0.0), 1.0)):
+                    steps.close()
+                    self._cancel_precompute()
+                    return False
+                if self._closed:  # released while the progress callback ran an event loop
+                    steps.close()
+                    return False
+        except Exception as exc:  # a technique's GL or numpy failure must not kill the view
+            logger.exception("illumination %s failed to precompute", self.method)
+            with _no_collection():
+                window.MakeCurrent()
+                self._fail(f"failed ({type(exc).__name__}: {exc})")
+                self._release_technique()
+                self._detach_requested = False
+        finally:
+            self._stepping = False
+            self._precomputed_ms += work_s * 1e3  # reported with the next frame
+        self.cancelled_method = None
+        return True
+
+    def _cancel_precompute(self) -> None:
+        """Local shading, with nothing of the cancelled technique left bound."""
+        if self._closed:
+            return
+        cancelled = self.method
+        window = self.render_window
+        with _no_collection():
+            if window is not None:
+                window.MakeCurrent()
+            self._release_technique()
+            self._detach_requested = False
+            self.set_method("local")
+        self.cancelled_method = cancelled
+        logger.info("illumination %s: precomputation cancelled; local shading", cancelled)
+
     # -- progressive techniques -----------------------------------------------------------------
     @property
     def wants_frame(self) -> bool:
@@ -521,6 +666,13 @@ class Illuminator:
         coordinates. Gradients are VTK's central differences at the voxel centres. Cached
         until an input changes.
         """
+        return run_steps(self.opacity_volume_steps())
+
+    def opacity_volume_steps(self) -> Generator[float, None, np.ndarray]:
+        """:meth:`opacity_volume` in slabs of z slices (for ``prepare_steps``): yields the
+        fraction done after each slab of about :data:`OPACITY_SLAB_VOXELS` voxels and returns
+        the volume (``opacity = yield from host.opacity_volume_steps()``). A cached volume
+        returns at once."""
         key = self._opacity_signature()
         if self._opacity_cache is not None and self._opacity_cache[0] == key:
             return self._opacity_cache[1]
@@ -541,37 +693,56 @@ class Illuminator:
         spacing = self.spacing
         step = float(self.volume.GetMapper().GetSampleDistance())
         u0 = prop.GetScalarOpacityUnitDistance(0)
-        transparency = np.ones((nz, ny, nx), np.float32)
         comps = range(ncomp) if independent else [ncomp - 1]
+        # What classifies each component, over the whole volume: gradients need the
+        # neighbouring slices, which a slab does not hold.
+        tables: dict[int, np.ndarray] = {}
+        coords: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        gradients: dict[int, np.ndarray] = {}  # |g| in data units, for gradient opacity
         for c in comps:
             fc = c if independent else 0
-            weight = prop.GetComponentWeight(fc) if independent and ncomp > 1 else 1.0
-            if weight <= 0:
-                continue
-            uc = prop.GetScalarOpacityUnitDistance(fc)
             value_range = scalars.GetRange(c)
             if two_d and prop.GetTransferFunction2D(fc) is not None:
-                table = tf2d.unit_alpha_table(prop.GetTransferFunction2D(fc), step, uc)
-                alpha = tf2d.lookup(table, *self._table_coords(c, values[..., c], spacing,
-                                                               value_range))
-            else:
-                alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[..., c])
-                if _gradient_opacity_on(prop, fc):
-                    # VTK's table spans |g| in 0…¼·range and |g| is clamped to it.
-                    span = float(value_range[1] - value_range[0]) or 1.0
-                    t = tf2d.normalised_gradient(values[..., c], spacing, value_range)
-                    alpha = alpha * _evaluate_piecewise(
-                        prop.GetGradientOpacity(fc),
-                        t * np.float32(tf2d.GRADIENT_RANGE_FRACTION * span))
-            alpha = alpha * weight
-            if uc != u0:  # express every component per the same unit distance
-                alpha = 1.0 - np.power(1.0 - np.clip(alpha, 0, 1), u0 / uc)
-            transparency *= 1.0 - np.clip(alpha, 0.0, 1.0)
-        opacity = 1.0 - transparency
-        self._apply_crop(opacity)
-        if self._weights is not None:
-            opacity *= _axis_weights(self._weights, (nz, ny, nx))
-        opacity = np.ascontiguousarray(opacity, dtype=np.float32)
+                tables[c] = tf2d.unit_alpha_table(prop.GetTransferFunction2D(fc), step,
+                                                  prop.GetScalarOpacityUnitDistance(fc))
+                coords[c] = self._table_coords(c, values[..., c], spacing, value_range)
+            elif _gradient_opacity_on(prop, fc):
+                # VTK's table spans |g| in 0…¼·range and |g| is clamped to it.
+                span = float(value_range[1] - value_range[0]) or 1.0
+                gradients[c] = tf2d.normalised_gradient(values[..., c], spacing, value_range) * (
+                    np.float32(tf2d.GRADIENT_RANGE_FRACTION * span))
+        weights = _axis_weight_vectors(self._weights, (nz, ny, nx)) if (
+            self._weights is not None) else None
+        opacity = np.empty((nz, ny, nx), np.float32)
+        slab = max(1, OPACITY_SLAB_VOXELS // max(1, nx * ny))
+        for z0 in range(0, nz, slab):
+            z1 = min(nz, z0 + slab)
+            transparency = np.ones((z1 - z0, ny, nx), np.float32)
+            for c in comps:
+                fc = c if independent else 0
+                weight = prop.GetComponentWeight(fc) if independent and ncomp > 1 else 1.0
+                if weight <= 0:
+                    continue
+                if c in tables:
+                    s, t = coords[c]
+                    alpha = tf2d.lookup(tables[c], s[z0:z1], t[z0:z1])
+                else:
+                    alpha = _evaluate_piecewise(prop.GetScalarOpacity(fc), values[z0:z1, ..., c])
+                    if c in gradients:
+                        alpha = alpha * _evaluate_piecewise(prop.GetGradientOpacity(fc),
+                                                            gradients[c][z0:z1])
+                alpha = alpha * weight
+                uc = prop.GetScalarOpacityUnitDistance(fc)
+                if uc != u0:  # express every component per the same unit distance
+                    alpha = 1.0 - np.power(1.0 - np.clip(alpha, 0, 1), u0 / uc)
+                transparency *= 1.0 - np.clip(alpha, 0.0, 1.0)
+            part = opacity[z0:z1]
+            np.subtract(1.0, transparency, out=part)
+            self._apply_crop(part, z0)
+            if weights is not None:
+                wx, wy, wz = weights
+                part *= wz[z0:z1, None, None] * wy[None, :, None] * wx[None, None, :]
+            yield z1 / nz
         self._opacity_cache = (key, opacity)
         return opacity
 
@@ -588,9 +759,10 @@ class Illuminator:
             self._coords_cache[c] = cached = (key, coords)
         return cached[1]
 
-    def _apply_crop(self, opacity: np.ndarray) -> None:
+    def _apply_crop(self, opacity: np.ndarray, z0: int = 0) -> None:
         """Zero what the mapper does not show: its cropping regions (any of VTK's 27-region
-        flags, not only the sub-volume) and its clipping planes."""
+        flags, not only the sub-volume) and its clipping planes. ``opacity`` holds the z
+        slices from ``z0`` on."""
         mapper = self.volume.GetMapper()
         img = self.image
         origin, spacing = img.GetOrigin(), img.GetSpacing()
@@ -601,7 +773,8 @@ class Illuminator:
             # Region of each voxel per axis: 0 below the first plane, 1 between, 2 above.
             region = []
             for axis, n in enumerate((nx, ny, nz)):
-                coord = origin[axis] + spacing[axis] * np.arange(n)
+                first = z0 if axis == 2 else 0
+                coord = origin[axis] + spacing[axis] * np.arange(first, first + n)
                 lo, hi = planes[2 * axis], planes[2 * axis + 1]
                 tol = 1e-6 * spacing[axis]
                 region.append((coord >= lo - tol).astype(np.int64)
@@ -617,7 +790,7 @@ class Illuminator:
             m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
             x = origin[0] + spacing[0] * np.arange(nx)
             y = origin[1] + spacing[1] * np.arange(ny)
-            z = origin[2] + spacing[2] * np.arange(nz)
+            z = origin[2] + spacing[2] * np.arange(z0, z0 + nz)
             world = [m[i, 0] * x[None, None, :] + m[i, 1] * y[None, :, None]
                      + m[i, 2] * z[:, None, None] + m[i, 3] for i in range(3)]
             for k in range(clipping.GetNumberOfItems()):
@@ -736,6 +909,11 @@ class Illuminator:
         self._frame_specs = self._compute_light_specs()
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
+        if self._stepping:
+            # A repaint between two chunks of precompute(): the technique is half-way, so the
+            # frame keeps what was installed and bound before (changes wait for later).
+            self._on_draw_end()
+            return
         if self._detach_requested and self._technique is not None:
             self._release_technique()
         self._detach_requested = False
@@ -745,6 +923,15 @@ class Illuminator:
             self._changes.first = True
         self._upload_weights()
         changes, self._changes = self._changes, Changes()
+        if self._deferring(changes):
+            # Keep the previous light: no prepare, the changes wait (merged) for later;
+            # per-frame uniforms (colours, strengths) still follow.
+            self._changes = changes.merge(self._changes)
+            values = self.parameters
+            self._install_shader(values)
+            self._upload_uniforms(values)
+            self._on_draw_end()
+            return
         try:
             self._prepare_and_install(changes)
         except Exception as exc:  # a technique's GL or numpy failure must not kill the view
@@ -755,7 +942,20 @@ class Illuminator:
             self._technique = self._technique_cls(self)
             self._prepare_and_install(Changes(first=True, opacity=True, lights=True))
         self._on_draw_end()  # preparing activated them; they get units again to draw
-        self.last_prepare_ms = (time.perf_counter() - t0) * 1e3
+        self.last_prepare_ms = (time.perf_counter() - t0) * 1e3 + self._precomputed_ms
+        self._precomputed_ms = 0.0
+
+    def _deferring(self, changes: Changes) -> bool:
+        """Whether this frame keeps the previous light (:attr:`defer_precompute`)."""
+        if not self.defer_precompute or changes.first or self._technique is None:
+            return False
+        if changes.invalidates & Invalidates.SHADER:
+            return False
+        # What a drag changes (opacity, light geometry, parameters) waits; camera-only
+        # changes of view-dependent techniques do not (they follow the view as before).
+        # Progressive refinement pauses too.
+        return bool(changes.opacity or changes.lights or changes.parameters
+                    or changes.invalidates or not self._technique.converged)
 
     def _on_draw_start(self, *_args: Any) -> None:
         """Just before the volume draws: our textures take units, the samplers name them."""
@@ -1135,14 +1335,34 @@ def _node(function: vtk.vtkPiecewiseFunction, i: int) -> list[float]:
     return node
 
 
-def _axis_weights(weights: np.ndarray, shape_zyx: tuple[int, int, int]) -> np.ndarray:
-    """Outer product wZ(z)·wY(y)·wX(x) sampled at voxel centres; shape ``shape_zyx``."""
+def _axis_weight_vectors(weights: np.ndarray, shape_zyx: tuple[int, int, int]
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """wX(x), wY(y), wZ(z) sampled at voxel centres."""
     nz, ny, nx = shape_zyx
-    width = weights.shape[1]
-    grid = np.linspace(0.0, 1.0, width)
+    grid = np.linspace(0.0, 1.0, weights.shape[1])
 
     def sample(row: np.ndarray, n: int) -> np.ndarray:
         return np.interp(np.linspace(0.0, 1.0, n), grid, row).astype(np.float32)
 
-    wx, wy, wz = (sample(weights[i], n) for i, n in enumerate((nx, ny, nz)))
-    return wz[:, None, None] * wy[None, :, None] * wx[None, None, :]
+    return sample(weights[0], nx), sample(weights[1], ny), sample(weights[2], nz)
+
+
+def run_steps(steps: Generator[Any, None, Any]) -> Any:
+    """Run a chunked computation (a generator) to its end; returns its return value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
+
+
+def scale_steps(steps: Generator[float, None, Any], lo: float, hi: float
+                ) -> Generator[float, None, Any]:
+    """``steps``' fractions mapped onto ``lo…hi`` (a part of a larger progress); returns
+    its return value (``x = yield from scale_steps(...)``)."""
+    while True:
+        try:
+            fraction = next(steps)
+        except StopIteration as stop:
+            return stop.value
+        yield lo + (hi - lo) * fraction

@@ -573,6 +573,21 @@ class VolumeScene:
                 self.model.illumination.method = shown
         self.error.emit(message)
 
+    def precompute(self, progress: Callable[[float], bool] | None = None) -> bool:
+        """Bring the illumination's precomputed light up to date now, in chunks, outside a
+        frame (:meth:`Illuminator.precompute`; ``progress(fraction)`` runs between chunks and
+        returns False to cancel). A cancelled precomputation shows local shading and the
+        model says so (through :attr:`engine_edit`, like a failure); returns False then."""
+        illuminator = self.illuminator
+        if illuminator is None:
+            return True
+        if illuminator.precompute(progress):
+            return True
+        if not illuminator.closed and self.model.illumination.method != illuminator.method:
+            with self.engine_edit():
+                self.model.illumination.method = illuminator.method
+        return False
+
     def _on_illumination_progress(self, iteration: int, converged: bool) -> None:
         self.progress.emit(iteration, converged)
         # Ask for the next refinement frame (wants_frame is also False once the technique

@@ -24,6 +24,14 @@ all of them when the technique is switched or released. A technique releases onl
 objects it created (textures, compute programs).
 
 Lifecycle: ``__init__`` → (``prepare`` per frame)* → ``release``.
+
+Long precomputations may also be written as a generator, :meth:`Technique.prepare_steps`,
+that yields the fraction done between chunks of work (slabs of dispatches, one light, one
+pyramid level). The host then runs the chunks one by one, outside a frame, with the context
+current before each (:meth:`vtkvol.engine.illuminator.Illuminator.precompute`): an
+application can keep its event loop running between them, show progress and cancel. A
+technique that defines only ``prepare`` runs as one chunk; one that defines ``prepare_steps``
+gets a ``prepare`` that runs every chunk in a row, so synchronous callers see no difference.
 """
 
 from __future__ import annotations
@@ -129,7 +137,26 @@ class Technique:
         """Bring precomputed data up to date before a frame (``changes``: what changed since the
         last ``prepare``, see :class:`~vtkvol.engine.illuminator.Changes`). A progressive
         technique runs its iterations for this frame here, restarting when
-        ``changes.reset_accumulation``, and updates :attr:`iteration` and :attr:`converged`."""
+        ``changes.reset_accumulation``, and updates :attr:`iteration` and :attr:`converged`.
+
+        A technique that implements :meth:`prepare_steps` instead gets this default: all of
+        its chunks in a row."""
+        if type(self).prepare_steps is not Technique.prepare_steps:
+            for _fraction in self.prepare_steps(changes, values):
+                pass
+
+    def prepare_steps(self, changes: Changes, values: Mapping[str, Any]) -> Iterator[float]:
+        """:meth:`prepare` in chunks: a generator that does the same work and yields the
+        fraction done (0…1) after each chunk, so that the host can let an event loop run in
+        between (:meth:`Illuminator.precompute`). Between two chunks the host may run other GL
+        work in the same context (it makes the context current again before resuming), so a
+        chunk binds what it uses itself; GPU chunks end with ``glFinish`` (:func:`finish_gl`),
+        otherwise the work would only be queued and run in whatever comes next. When the host
+        stops early (cancel) it closes the generator and releases the technique.
+
+        The default runs :meth:`prepare` as one chunk."""
+        self.prepare(changes, values)
+        yield 1.0
 
     def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
         """Extra per-frame uniform values (numeric declared parameters are sent already)."""
@@ -155,6 +182,13 @@ class Technique:
     @classmethod
     def defaults(cls) -> dict[str, Any]:
         return cls.SPEC.defaults()
+
+
+def finish_gl(render_window: Any) -> None:
+    """Wait until the GL work issued so far has run (ends a chunk of :meth:`prepare_steps`)."""
+    from vtkvol.engine.gl import gl
+
+    gl(render_window).glFinish()
 
 
 class ComputePath:

@@ -43,6 +43,7 @@ uniform float vv_lodWidth;     // lod_width * sigma
 uniform float vv_h;            // level-0 step, voxels
 uniform float vv_h0;           // start offset, voxels
 uniform float vv_maxDistUm;    // AO maximum distance, µm
+uniform int vv_zOffset;        // first grid slice of this dispatch (baked in slabs)
 
 const vec3 vv_dirs[VV_CONES] = VV_DIRS;
 
@@ -63,7 +64,8 @@ float clearAt(vec3 p)
 
 void main()
 {
-  ivec3 g = ivec3(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y, gl_GlobalInvocationID.z);
+  ivec3 g = ivec3(gl_GlobalInvocationID.x, gl_GlobalInvocationID.y,
+                  int(gl_GlobalInvocationID.z) + vv_zOffset);
   if (g.x >= vv_gridDims[0] || g.y >= vv_gridDims[1] || g.z >= vv_gridDims[2]) return;
   vec3 p = vec3(g) * vv_gridStep;  // data voxel index coordinates
   vec3 tex0 = (p + 0.5) / vv_dims;

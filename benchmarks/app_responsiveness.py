@@ -1,0 +1,249 @@
+"""How long the app's event loop stalls while a user works (issue 15's responsiveness
+acceptance). Not part of the installed library; run from a checkout:
+
+    python benchmarks/app_responsiveness.py                      # 512×512×200, two channels
+    python benchmarks/app_responsiveness.py --shape 64 128 128   # a quick dry run
+
+Without ``$DISPLAY`` it re-runs itself under ``xvfb-run``. It opens the app's window on a
+generated two-channel uint16 stack (the built-in confocal phantom at the given size), starts
+a 10 ms ``QTimer`` heartbeat that records the largest gap between its ticks (the longest time
+the event loop could not run: no repaint, no input, no Cancel), and scripts, through the
+window's public widgets and model only (so the same script measures older versions):
+
+1. **TF drag**: a press in the transfer-function editor, 6 moves 40 ms apart, a release
+   (local shading);
+2. **shadow precompute**: the illumination set to the precomputed shadow volume;
+3. **light drag**: the light's handle in the 3-D view dragged (4 moves, 60 ms apart) with
+   the shadow volume on;
+4. **AO precompute**: the illumination set to cone-traced AO.
+
+Each phase reports the longest stall *during* the scripted gesture and *after* it, until no
+frame has been rendered for a while (the settle frame, the precompute), the longest stall
+that overlaps no frame (work outside VTK's render: a precomputation run in chunks shows here
+as its longest chunk), the longest frame (``Viewport.frameRendered``'s duration; with the
+precomputation inside the frame, as older versions ran it, that includes it) and the phase's
+wall time. Prints a markdown table; ``--json`` writes the rows too.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+#: Heartbeat interval (ms).
+HEARTBEAT_MS = 10
+#: A phase is over when no frame was rendered for this long (s) after its gesture ended.
+QUIET_S = 1.5
+
+
+def _reexec_under_xvfb() -> None:
+    if os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"):
+        return
+    runner = shutil.which("xvfb-run")
+    if runner is None:
+        sys.exit("no X display and no xvfb-run: run under an X server")
+    args = [runner, "-a", "-s", "-screen 0 1600x1000x24", sys.executable, *sys.argv]
+    sys.exit(subprocess.call(args))
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--shape", type=int, nargs=3, default=(200, 512, 512),
+                        metavar=("Z", "Y", "X"), help="stack size in voxels (z y x)")
+    parser.add_argument("--window", type=int, nargs=2, default=(960, 640),
+                        metavar=("W", "H"), help="window size in pixels")
+    parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
+    parser.add_argument("--phase-timeout", type=float, default=240.0,
+                        help="give up waiting for one phase to settle after this many seconds")
+    args = parser.parse_args()
+    _reexec_under_xvfb()
+
+    os.environ.setdefault("QT_API", "pyside6")
+    from PySide6.QtCore import QElapsedTimer, QEventLoop, QPoint, QPointF, QSettings, Qt, QTimer
+    from PySide6.QtGui import QMouseEvent
+    from PySide6.QtWidgets import QApplication
+
+    from vtkvol.io import confocal_phantom
+    from vtkvol.ui.app import MainWindow, configure_gl_platform
+
+    app = QApplication.instance() or QApplication(sys.argv)
+    configure_gl_platform(app)
+    settings = QSettings(str(Path(tempfile.mkdtemp()) / "vtkvol.ini"),
+                         QSettings.Format.IniFormat)
+    window = MainWindow(settings=settings)
+    window.resize(*args.window)
+    window.show()
+    app.processEvents()
+
+    # -- heartbeat ---------------------------------------------------------------------------
+    clock = QElapsedTimer()
+    clock.start()
+    state = {"last": 0.0, "max_gap": 0.0, "last_frame": 0.0, "frames": 0}
+    gaps: list[tuple[float, float]] = []  # heartbeat gaps over 3 intervals (start, end), ms
+    frames: list[tuple[float, float]] = []  # frames (start, end), ms
+
+    def tick() -> None:
+        now = clock.nsecsElapsed() / 1e6
+        state["max_gap"] = max(state["max_gap"], now - state["last"])
+        if now - state["last"] > 3 * HEARTBEAT_MS:
+            gaps.append((state["last"], now))
+        state["last"] = now
+
+    def on_frame(frame_ms: float, *_: object) -> None:
+        now = clock.nsecsElapsed() / 1e6
+        state["last_frame"] = now
+        state["frames"] += 1
+        frames.append((now - frame_ms, now))
+
+    heartbeat = QTimer()
+    heartbeat.setInterval(HEARTBEAT_MS)
+    heartbeat.setTimerType(Qt.TimerType.PreciseTimer)
+    heartbeat.timeout.connect(tick)
+    window.viewport.frameRendered.connect(on_frame)
+
+    def reset_gap() -> None:
+        state["last"] = clock.nsecsElapsed() / 1e6
+        state["max_gap"] = 0.0
+
+    def spin(ms: float) -> None:
+        """Run the event loop for ``ms`` (late when a frame blocks it, like a real user)."""
+        loop = QEventLoop()
+        QTimer.singleShot(max(0, round(ms)), loop.quit)
+        loop.exec()
+
+    def pending() -> bool:
+        """A frame or the settle frame is still to come (the view's timers; read through
+        getattr so older versions, which have the same timers, are measured alike)."""
+        vp = window.viewport
+        timers = [getattr(vp, name, None) for name in ("_render_timer", "_settle_timer")]
+        return any(t is not None and t.isActive() for t in timers) or bool(
+            getattr(vp, "busy", False) or getattr(vp.plotter, "needs_render", False))
+
+    def wait_quiet(timeout_s: float) -> bool:
+        """Run the loop until nothing is pending and no frame has been rendered for
+        QUIET_S."""
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < timeout_s:
+            spin(100)
+            idle = clock.nsecsElapsed() / 1e6 - state["last_frame"]
+            if idle > QUIET_S * 1e3 and not pending():
+                return True
+        return False
+
+    rows: list[dict[str, object]] = []
+
+    def phase(name: str, gesture: Callable[[], None]) -> None:
+        frames0 = state["frames"]
+        gaps0, frame_list0 = len(gaps), len(frames)
+        t0 = time.perf_counter()
+        reset_gap()
+        gesture()
+        during = state["max_gap"]
+        gesture_s = time.perf_counter() - t0
+        reset_gap()
+        settled = wait_quiet(args.phase_timeout)
+        after = state["max_gap"]
+        total = time.perf_counter() - t0 - (QUIET_S if settled else 0.0)
+        phase_frames = frames[frame_list0:]
+        outside = [end - start for start, end in gaps[gaps0:]
+                   if not any(start < f_end and f_start < end for f_start, f_end in phase_frames)]
+        row = {"phase": name, "stall_during_ms": round(during), "stall_after_ms": round(after),
+               "stall_outside_frames_ms": round(max(outside, default=0.0)),
+               "longest_frame_ms": round(max((e - s for s, e in phase_frames), default=0.0)),
+               "gesture_s": round(gesture_s, 2), "until_idle_s": round(total, 2),
+               "frames": state["frames"] - frames0, "settled": settled}
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+
+    def send_mouse(widget, kind, pos: QPoint, button, buttons) -> None:
+        event = QMouseEvent(kind, QPointF(pos), QPointF(widget.mapToGlobal(pos)), button, buttons,
+                            Qt.KeyboardModifier.NoModifier)
+        QApplication.sendEvent(widget, event)
+
+    def drag(widget, points: list[QPoint], interval_ms: float) -> None:
+        left = Qt.MouseButton.LeftButton
+        none = Qt.MouseButton.NoButton
+        send_mouse(widget, QMouseEvent.Type.MouseButtonPress, points[0], left, left)
+        for p in points[1:]:
+            spin(interval_ms)
+            send_mouse(widget, QMouseEvent.Type.MouseMove, p, none, left)
+        spin(interval_ms)
+        send_mouse(widget, QMouseEvent.Type.MouseButtonRelease, points[-1], left, none)
+
+    # -- data --------------------------------------------------------------------------------
+    t0 = time.perf_counter()
+    data = confocal_phantom(shape_zyx=tuple(args.shape))
+    generate_s = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    window.show_volume(data)
+    window.viewport.render_now()
+    app.processEvents()
+    open_s = time.perf_counter() - t0
+    heartbeat.start()
+    wait_quiet(args.phase_timeout)
+    view = window.viewport.plotter
+    print(json.dumps({"stack": list(data.array.shape), "dtype": str(data.array.dtype),
+                      "generate_s": round(generate_s, 2), "show_s": round(open_s, 2),
+                      "view_px": [view.width(), view.height()],
+                      "load_average": os.getloadavg()}), flush=True)
+
+    # -- phases ------------------------------------------------------------------------------
+    window.tf_dock.raise_()
+    editor = window.tf_dock.editor
+    app.processEvents()
+
+    def tf_drag() -> None:
+        rect = editor.plot_rect()
+        x = rect.left() + 0.45 * rect.width()
+        ys = [0.75, 0.6, 0.45, 0.35, 0.45, 0.55, 0.5]
+        points = [QPoint(round(x + 2 * i), round(rect.top() + y * rect.height()))
+                  for i, y in enumerate(ys)]
+        drag(editor, points, 40)
+
+    def set_method(name: str) -> Callable[[], None]:
+        def gesture() -> None:
+            window.model.illumination.method = name
+            spin(0)
+        return gesture
+
+    def light_drag() -> None:
+        vp = window.viewport
+        renderer = vp.renderer
+        renderer.SetWorldPoint(*vp.gizmo.handle_position(), 1.0)
+        renderer.WorldToDisplay()
+        hx, hy, _ = renderer.GetDisplayPoint()
+        ratio = vp.plotter.devicePixelRatioF()
+        start = QPoint(round(hx / ratio), round(vp.plotter.height() - hy / ratio))
+        points = [start + QPoint(-10 * i, 6 * i) for i in range(5)]
+        drag(vp.plotter, points, 60)
+
+    phase("TF drag (local shading)", tf_drag)
+    phase("shadow-volume precompute", set_method("shadow_volume"))
+    phase("light drag (shadow volume)", light_drag)
+    phase("AO precompute (cone-traced)", set_method("cone_traced"))
+
+    heartbeat.stop()
+    window.close()
+    print()
+    print(f"load average before/after: {os.getloadavg()}")
+    print("| phase | longest stall during the gesture | longest stall after it | "
+          "longest stall outside frames | longest frame | until idle | frames |")
+    print("|---|---|---|---|---|---|---|")
+    for row in rows:
+        print(f"| {row['phase']} | {row['stall_during_ms']} ms | {row['stall_after_ms']} ms | "
+              f"{row['stall_outside_frames_ms']} ms | {row['longest_frame_ms']} ms | "
+              f"{row['until_idle_s']} s | {row['frames']} |")
+    if args.json is not None:
+        args.json.write_text(json.dumps(rows, indent=2))
+
+
+if __name__ == "__main__":
+    main()
