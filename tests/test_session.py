@@ -111,6 +111,8 @@ def rich_model() -> SceneModel:
                 "fake_shadows": {"density": 2.5, "steps": 32, "soft": False, "quality": "low"},
                 "local": {},
             },
+            auto=True,
+            auto_budget_ssim=0.95,
         ),
         crop=CropBox(x=(0.5, 3.5), z=(1.0, 2.0)),
         slice_weights=SliceWeights(z=[(0.0, 0.0), (0.5, 1.0), (1.0, 0.2)]),
@@ -431,7 +433,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 5)"),
+         "(format version 99; this version reads up to 6)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -584,7 +586,8 @@ def test_technique_parameters_are_checked_against_declarations(tmp_path: Path) -
     def read_with(values: dict[str, Any]) -> Session:
         doc = saved_doc(tmp_path)
         doc["scene"]["illumination"] = {"method": "fake_shadows",
-                                        "parameters": {"fake_shadows": values}}
+                                        "parameters": {"fake_shadows": values},
+                                        "auto": False, "auto_budget_ssim": 0.98}
         return read_session(write_json(tmp_path / "v.vtkvol.json", doc))
 
     ok = read_with({"density": 5, "steps": 64.0, "soft": True})
@@ -797,7 +800,7 @@ def test_migrate_v4_to_v5_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[4](raw)
     assert out == load_fixture("v4_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert out["scene"]["clip_plane"]["enabled"] is False  # v4 had no clipping plane
     assert raw == untouched
 
@@ -808,8 +811,31 @@ def test_v4_file_reads_without_warnings_and_no_clipping_plane() -> None:
     assert session.model.clip_plane == ClipPlane()
 
 
+def test_migrate_v5_to_v6_matches_fixture() -> None:
+    raw = load_fixture("v5_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[5](raw)
+    assert out == load_fixture("v5_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    illumination = out["scene"]["illumination"]
+    assert illumination["auto"] is False  # v5 always showed the method it named
+    assert illumination["auto_budget_ssim"] == 0.98
+    assert raw == untouched
+
+
+def test_v5_file_reads_without_warnings_with_auto_off() -> None:
+    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.illumination.auto is False
+    assert session.model.illumination.method == "fake_shadows"
+    expected = rich_model()
+    expected.illumination.auto = False
+    expected.illumination.auto_budget_ssim = 0.98
+    assert _same_except_volume(session.model, expected)
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v5_complete.vtkvol.json")
+    doc = load_fixture("v6_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -839,8 +865,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v5 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -860,8 +886,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 6; this version reads up to 5"):
-        migrate({"format": FORMAT, "version": 6})
+    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
+        migrate({"format": FORMAT, "version": 7})
 
 
 @pytest.mark.parametrize(

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 5
+VERSION = 6
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -149,8 +149,21 @@ def _v4_to_v5(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
+    """v5 → v6: ``illumination`` gained ``auto`` and ``auto_budget_ssim`` (the app's Auto
+    quality). v5 always showed the method it named, which Auto off states exactly; the budget
+    gets its default, SSIM 0.98."""
+    out = copy.deepcopy(raw)
+    out["version"] = 6
+    scene = out.get("scene")
+    if isinstance(scene, dict) and isinstance(scene.get("illumination"), dict):
+        scene["illumination"].setdefault("auto", False)
+        scene["illumination"].setdefault("auto_budget_ssim", 0.98)
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
-                                    4: _v4_to_v5}
+                                    4: _v4_to_v5, 5: _v5_to_v6}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 
