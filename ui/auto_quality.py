@@ -18,6 +18,7 @@ when none can be made (a point light, no light on, no measured method).
 
 from __future__ import annotations
 
+import contextlib
 import math
 import threading
 from collections.abc import Callable
@@ -202,9 +203,12 @@ class AutoQuality(QObject):
                                          timings=timings or default_timings(),
                                          unit_distance=unit_distance, voxels=voxels)
             except Exception as exc:  # reported on the GUI thread as a one-line message
-                self._done.emit(generation, None, str(exc) or type(exc).__name__)
+                result: tuple[Choice | None, str | None] = (None, str(exc) or type(exc).__name__)
             else:
-                self._done.emit(generation, choice, None)
+                result = (choice, None)
+            # The window (and this object) may have gone while choosing: nothing to tell.
+            with contextlib.suppress(RuntimeError):
+                self._done.emit(generation, *result)
 
         threading.Thread(target=job, name="vtkvol-auto-quality", daemon=True).start()
 
