@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import re
 import shutil
 import warnings
 from collections.abc import Iterator
@@ -905,3 +906,16 @@ def test_bad_light_size_or_falloff_is_named(tmp_path: Path, edit, message) -> No
     path = write_json(tmp_path / "bad.vtkvol.json", doc)
     with pytest.raises(SessionError, match=message):
         read_session(path)
+
+
+@pytest.mark.parametrize(("values", "message"), [
+    ({"auto_budget_ssim": 1.5}, "illumination.auto_budget_ssim = 1.5 is above 1"),
+    ({"auto_budget_ssim": 0}, "illumination.auto_budget_ssim = 0 must be greater than 0"),
+    ({"auto_budget_ssim": float("nan")}, "is not valid JSON: NaN is not a number JSON allows"),
+    ({"auto": "sometimes"}, 'illumination.auto = "sometimes" should be true or false'),
+])
+def test_hostile_auto_quality_values_are_refused_in_words(tmp_path: Path, values, message):
+    doc = saved_doc(tmp_path)
+    doc["scene"]["illumination"].update(values)
+    with pytest.raises(SessionError, match=re.escape(message)):
+        read_session(write_json(tmp_path / "v.vtkvol.json", doc))
