@@ -78,3 +78,23 @@ def test_an_output_that_appears_during_the_render_is_kept(tmp_path, capsys, monk
     # with --overwrite it is replaced, as asked
     assert main(["render", "sample", "-o", str(out), "--size", "32", "32", "--overwrite"]) == 0
     assert out.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.gl
+def test_pyvista_blend_names_render_like_ours(tmp_path):
+    """--blend takes PyVista's names (maximum, minimum) for MIP and MinIP: the same image."""
+    from PIL import Image
+
+    volume = tmp_path / "v.npy"
+    rng = np.random.default_rng(0)
+    np.save(volume, rng.integers(0, 255, (16, 16, 16)).astype(np.uint8))
+    images = {}
+    for name in ("mip", "maximum", "composite"):
+        out = tmp_path / f"{name}.png"
+        assert main(["render", str(volume), "-o", str(out), "--size", "64", "64",
+                     "--blend", name]) == 0
+        images[name] = np.asarray(Image.open(out)).astype(int)
+    assert np.array_equal(images["maximum"], images["mip"])
+    assert np.abs(images["mip"] - images["composite"]).max() > 20  # the option took effect
+    with pytest.raises(SystemExit):
+        main(["render", str(volume), "-o", str(tmp_path / "x.png"), "--blend", "brightest"])

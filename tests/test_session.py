@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import json
+import re
 import shutil
 import warnings
 from collections.abc import Iterator
@@ -123,6 +124,8 @@ def rich_model() -> SceneModel:
                 "fake_shadows": {"density": 2.5, "steps": 32, "soft": False, "quality": "low"},
                 "local": {},
             },
+            auto=True,
+            auto_budget_ssim=0.95,
         ),
         crop=CropBox(x=(0.5, 3.5), z=(1.0, 2.0)),
         slice_weights=SliceWeights(z=[(0.0, 0.0), (0.5, 1.0), (1.0, 0.2)]),
@@ -444,7 +447,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 8)"),
+         "(format version 99; this version reads up to 6)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -597,7 +600,8 @@ def test_technique_parameters_are_checked_against_declarations(tmp_path: Path) -
     def read_with(values: dict[str, Any]) -> Session:
         doc = saved_doc(tmp_path)
         doc["scene"]["illumination"] = {"method": "fake_shadows",
-                                        "parameters": {"fake_shadows": values}}
+                                        "parameters": {"fake_shadows": values},
+                                        "auto": False, "auto_budget_ssim": 0.98}
         return read_session(write_json(tmp_path / "v.vtkvol.json", doc))
 
     ok = read_with({"density": 5, "steps": 64.0, "soft": True})
@@ -826,55 +830,31 @@ def test_migrate_v5_to_v6_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[5](raw)
     assert out == load_fixture("v5_complete.migrated.vtkvol.json")
-    assert migrate(raw) == migrate(out)  # the later steps follow
+    assert migrate(raw) == out
+    scene = out["scene"]
     # v5 had no slice views: the data's centre, and no plane outlines in the 3-D view.
-    assert out["scene"]["cursor"] is None
-    assert out["scene"]["overlays"]["slice_planes"] is False
+    assert scene["cursor"] is None and scene["overlays"]["slice_planes"] is False
+    assert [c["tf_mode"] for c in scene["channels"]] == ["1d", "1d"]  # v5 was 1-D
+    # v5 showed the level the budget chose and the whole image.
+    assert scene["volume"]["level"] is None and scene["volume"]["region_um"] is None
+    assert scene["illumination"]["auto"] is False  # v5 always showed the method it named
+    assert scene["illumination"]["auto_budget_ssim"] == 0.98
     assert raw == untouched
 
 
-def test_v5_file_reads_without_warnings_and_a_centred_cursor() -> None:
+def test_v5_file_reads_without_warnings_as_it_was_shown() -> None:
     session = read_session(FIXTURES / "v5_complete.vtkvol.json")
     assert session.warnings == []
-    assert session.model.cursor is None and session.model.overlays.slice_planes is False
-
-
-def test_migrate_v6_to_v7_matches_fixture() -> None:
-    raw = load_fixture("v6_complete.vtkvol.json")
-    untouched = copy.deepcopy(raw)
-    out = MIGRATIONS[6](raw)
-    assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == migrate(out)  # the later steps follow
-    assert [c["tf_mode"] for c in out["scene"]["channels"]] == ["1d", "1d"]  # v6 was 1-D
-    assert raw == untouched
-
-
-def test_v6_file_reads_without_warnings_and_1d_classification() -> None:
-    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
-    assert session.warnings == []
-    assert all(c.tf_mode == "1d" and c.tf2d == TransferFunction2D()
-               for c in session.model.channels)
-
-
-def test_migrate_v7_to_v8_matches_fixture() -> None:
-    raw = load_fixture("v7_complete.vtkvol.json")
-    untouched = copy.deepcopy(raw)
-    out = MIGRATIONS[7](raw)
-    assert out == load_fixture("v7_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
-    # v7 showed the level the budget chose and the whole image.
-    assert out["scene"]["volume"]["level"] is None and out["scene"]["volume"]["region_um"] is None
-    assert raw == untouched
-
-
-def test_v7_file_reads_without_warnings_and_no_pyramid_region() -> None:
-    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
-    assert session.warnings == []
-    assert session.model.volume.level is None and session.model.volume.region_um is None
+    model = session.model
+    assert model.cursor is None and model.overlays.slice_planes is False
+    assert all(c.tf_mode == "1d" and c.tf2d == TransferFunction2D() for c in model.channels)
+    assert model.volume.level is None and model.volume.region_um is None
+    assert model.illumination.auto is False
+    assert model.illumination.method == "fake_shadows"
 
 
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v8_complete.vtkvol.json")
+    doc = load_fixture("v6_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -904,8 +884,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v8 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v8_complete.vtkvol.json")
+    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -925,8 +905,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 9; this version reads up to 8"):
-        migrate({"format": FORMAT, "version": 9})
+    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
+        migrate({"format": FORMAT, "version": 7})
 
 
 @pytest.mark.parametrize(
@@ -944,3 +924,16 @@ def test_bad_light_size_or_falloff_is_named(tmp_path: Path, edit, message) -> No
     path = write_json(tmp_path / "bad.vtkvol.json", doc)
     with pytest.raises(SessionError, match=message):
         read_session(path)
+
+
+@pytest.mark.parametrize(("values", "message"), [
+    ({"auto_budget_ssim": 1.5}, "illumination.auto_budget_ssim = 1.5 is above 1"),
+    ({"auto_budget_ssim": 0}, "illumination.auto_budget_ssim = 0 must be greater than 0"),
+    ({"auto_budget_ssim": float("nan")}, "is not valid JSON: NaN is not a number JSON allows"),
+    ({"auto": "sometimes"}, 'illumination.auto = "sometimes" should be true or false'),
+])
+def test_hostile_auto_quality_values_are_refused_in_words(tmp_path: Path, values, message):
+    doc = saved_doc(tmp_path)
+    doc["scene"]["illumination"].update(values)
+    with pytest.raises(SessionError, match=re.escape(message)):
+        read_session(write_json(tmp_path / "v.vtkvol.json", doc))

@@ -12,7 +12,7 @@ from PySide6.QtCore import QPoint, Qt
 from vtkvol.io import VolumeData, confocal_phantom
 from vtkvol.model.defaults import contrast_limits
 from vtkvol.ui.docks import base as dock_base
-from vtkvol.ui.docks.lights import angles_to_direction
+from vtkvol.ui.docks.lights import AUTO_CHOICE, angles_to_direction
 from vtkvol.ui.undo import apply_state
 
 pytestmark = pytest.mark.gui
@@ -339,7 +339,9 @@ def test_lights_view_updates_model_and_the_image(window):
 def test_illumination_method_and_generated_parameters(window):
     dock = window.lights_dock
     choices = [dock.method.itemData(i) for i in range(dock.method.count())]
-    assert "local" in choices
+    assert choices[0] == AUTO_CHOICE  # Auto first (tests/test_ui_auto_quality.py), then methods
+    choices = choices[1:]
+    assert "local" in choices and set(choices) <= set(dock.techniques)
     with_params = [n for n in choices if dock.techniques[n].parameters]
     if not with_params:
         pytest.skip("no installed technique declares parameters")

@@ -73,6 +73,7 @@ from vtkvol.model.session import (
     save_session,
 )
 from vtkvol.ui import errors
+from vtkvol.ui.auto_quality import AutoOutcome, AutoQuality
 from vtkvol.ui.background import Worker
 from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.docks.channels import ChannelsDock
@@ -320,6 +321,7 @@ class MainWindow(QMainWindow):
         app = QApplication.instance()
         if app is not None:
             app.installEventFilter(self.edit_watcher)
+        self._make_auto_quality()
         self.resize(1280, 820)
         self._refresh_recent()
 
@@ -649,6 +651,28 @@ class MainWindow(QMainWindow):
         for dock in self.docks:
             dock.set_voxels(data)
 
+    def _make_auto_quality(self) -> None:
+        """Auto quality (``illumination.auto``): a pick amends the edit that caused it, so
+        undo never returns to a method Auto would not pick for that state."""
+        self.auto_quality = AutoQuality(
+            self.model, self.viewport.opacity_snapshot, engine_edit=self.recorder.amending,
+            method_labels={name: spec.label for name, spec in self.lights_dock.techniques.items()},
+            parent=self)
+        dock = self.lights_dock
+        self.auto_quality.busy.connect(
+            lambda: dock.show_auto_status("Choosing the method for this scene…"))
+        self.auto_quality.chosen.connect(self._on_auto_chosen)
+        self.auto_quality.failed.connect(self._on_auto_failed)
+
+    def _on_auto_chosen(self, outcome: AutoOutcome) -> None:
+        self.lights_dock.show_auto_status(outcome.summary, outcome.details,
+                                          warning=not outcome.met)
+        self.statusBar().showMessage(outcome.summary, 15000)
+
+    def _on_auto_failed(self, message: str) -> None:
+        self.lights_dock.show_auto_status(message, warning=True)
+        self.statusBar().showMessage(message, 15000)
+
     # -- status ---------------------------------------------------------------------------------
     def _on_frame(self, frame_ms: float, illumination_ms: float) -> None:
         self.frame_label.setText(f"frame {frame_ms:.0f} ms · light {illumination_ms:.0f} ms")
@@ -858,6 +882,7 @@ class MainWindow(QMainWindow):
         self._update_title()
         self._update_file_actions()
         self._update_time_bar()
+        self.auto_quality.request(delay_ms=0)  # new data: Auto (when on) chooses for it
         if self.data is not None and self.data.notes:
             # The full notes are in the data label's tooltip (describe()); the bar shows the
             # first, elided so it does not run under the permanent labels.
@@ -1380,6 +1405,7 @@ class MainWindow(QMainWindow):
         if app is not None:
             app.removeEventFilter(self.edit_watcher)
         self.edit_watcher.release()
+        self.auto_quality.close()
         self.view_actions.release()
         for dock in self.docks:
             dock.release()

@@ -422,6 +422,16 @@ class Viewport(QWidget):
         """World bounds (µm) of the data, voxel centres."""
         return self.scene.bounds if self.scene is not None else (0.0, 1.0, 0.0, 1.0, 0.0, 1.0)
 
+    def opacity_snapshot(self) -> tuple[np.ndarray, tuple[float, float, float], float] | None:
+        """What the illumination sees, for CPU work off the GUI thread (Auto quality): a copy
+        of the per-voxel opacity ``[z, y, x]`` (TFs, crop and slice weights applied), the voxel
+        size (x, y, z) in µm and the opacity unit distance in µm; None without data."""
+        illum = self.scene.illuminator if self.scene is not None else None
+        if self._closed or illum is None:
+            return None
+        return (illum.opacity_volume().copy(), tuple(float(s) for s in illum.spacing),
+                float(illum.unit_distance))
+
     # -- rendering ------------------------------------------------------------------------------
     def request_render(self) -> None:
         """Ask for a frame; many requests in one event-loop pass give one frame."""

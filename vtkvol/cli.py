@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from vtkvol.model.scene import BLEND_MODES
+from vtkvol.model.scene import BLEND_ALIASES, BLEND_MODES
 
 SESSION_SUFFIX = ".vtkvol.json"
 
@@ -27,7 +27,9 @@ def _add_view_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--method", help="illumination method (e.g. local, shadow_volume)")
     parser.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                         help="illumination parameter (repeatable)")
-    parser.add_argument("--blend", choices=BLEND_MODES, help="blend mode")
+    # PyVista's names (maximum, minimum) are accepted too; the model stores ours.
+    parser.add_argument("--blend", choices=(*BLEND_MODES, *BLEND_ALIASES),
+                        help="blend mode (PyVista's maximum/minimum = mip/minip)")
     parser.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
 
 

@@ -16,6 +16,22 @@
 //   vtkVolumeProperty (per component).
 
 //@inject //VTK::ComputeLighting::Dec pre before
+#ifdef VV_MC_SHARE_LIGHT
+// Multi-channel sample (host_multichannel.glsl): the transmittance towards each light depends
+// on the position only, so it is evaluated once per sample for every component.
+vec3 vv_mcTransmittance[4];
+
+void vv_mcLights()
+{
+  vec3 posDS = vv_texToDataset(g_dataPos);
+  for (int i = 0; i < vv_numLights; ++i)
+  {
+    vv_mcTransmittance[i] = vv_light_transmittance_rgb(i, g_dataPos,
+                                                       vv_directionToLight(i, posDS));
+  }
+}
+#endif
+
 vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
 {
   vec3 posDS = vv_texToDataset(g_dataPos);
@@ -28,7 +44,11 @@ vec3 vv_shade(vec3 albedo, vec3 gradientDS, int c)
   for (int i = 0; i < vv_numLights; ++i)
   {
     vec3 l = vv_directionToLight(i, posDS);
+#ifdef VV_MC_SHARE_LIGHT
+    vec3 transmittance = vv_mcTransmittance[i];
+#else
     vec3 transmittance = vv_light_transmittance_rgb(i, g_dataPos, l);
+#endif
     float ndl = 1.0;
     float spec = 0.0;
     if (oriented)

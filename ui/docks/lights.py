@@ -3,10 +3,14 @@
 * Lights (``model.lights``, up to four): add, remove, enable; kind (directional or point),
   direction as azimuth/elevation in degrees or position in µm, colour, intensity. The light
   selected here is the one the 3-D view's gizmo moves (``currentLightChanged``).
-* Illumination (``model.illumination``): the method chooser lists the installed techniques
-  (``vtkvol.model.techniques.technique_specs``, no VTK); each technique's parameters become
-  widgets generated from its ``PARAMETERS`` declaration, with the declared range, step,
-  unit, scale and doc (as the tooltip). Nothing about a parameter is written here.
+* Illumination (``model.illumination``): the method chooser lists **Auto** and the installed
+  techniques (``vtkvol.model.techniques.technique_specs``, no VTK); each technique's
+  parameters become widgets generated from its ``PARAMETERS`` declaration, with the declared
+  range, step, unit, scale and doc (as the tooltip). Nothing about a parameter is written
+  here. Auto sets ``illumination.auto`` and shows its error budget; the method it picked
+  (``ui/auto_quality.py`` writes it into the model) is shown with its parameters read-only,
+  and :meth:`LightsDock.show_auto_status` shows what was picked and why. Picking a method
+  leaves Auto.
 
 Direction convention: azimuth is measured in the x–y plane from +x towards +y, elevation
 from that plane towards +z; the direction points from the volume towards the light.
@@ -53,6 +57,8 @@ NUMBER_WIDTH = 70
 #: A new point light's distance from the data's centre, in half-diagonals of its box: just
 #: outside the data, where the view (framed on the data) still shows its handle.
 POINT_LIGHT_DISTANCE = 1.05
+#: Item data of the method chooser's Auto entry (not a technique name: those are identifiers).
+AUTO_CHOICE = ":auto"
 
 
 # -- direction <-> angles (pure) ----------------------------------------------------------------
@@ -330,11 +336,33 @@ class LightsDock(ModelDock):
         method_layout = QVBoxLayout(method_box)
         self.method = QComboBox()
         self.method.setObjectName("illum_method")
+        self.method.addItem("Auto (cheapest within the error budget)", AUTO_CHOICE)
+        self.method.setItemData(0, "Let vtkvol pick the cheapest method whose predicted image "
+                                   "error meets the budget below, and pick again when the "
+                                   "data, a transfer function or a light changes",
+                                Qt.ItemDataRole.ToolTipRole)
         for name, spec in self.techniques.items():
             self.method.addItem(spec.label, name)
             self.method.setItemData(self.method.count() - 1, spec.description,
                                     Qt.ItemDataRole.ToolTipRole)
         method_layout.addWidget(self.method)
+        # Auto: its error budget and what it picked, and why.
+        self.auto_box = QWidget()
+        auto_column = QVBoxLayout(self.auto_box)
+        auto_column.setContentsMargins(0, 0, 0, 0)
+        auto_layout = QFormLayout()
+        auto_column.addLayout(auto_layout)
+        self.auto_budget = number_box(
+            minimum=0.5, maximum=1.0, decimals=3, step=0.005, object_name="illum_auto_budget",
+            tooltip="Error budget: the smallest predicted SSIM (structural similarity, 1 = "
+                    "identical) of the image against the reference lighting that Auto accepts")
+        auto_layout.addRow("Error budget: SSIM ≥", self.auto_budget)
+        self.auto_status = QLabel("")
+        self.auto_status.setObjectName("illum_auto_status")
+        self.auto_status.setWordWrap(True)
+        # In the column, not a form row: a form row does not grow for wrapped lines.
+        auto_column.addWidget(self.auto_status)
+        method_layout.addWidget(self.auto_box)
         self.description = hint_label("")
         method_layout.addWidget(self.description)
         # The medium lighting model's material (render settings, shared by medium methods).
@@ -388,6 +416,8 @@ class LightsDock(ModelDock):
         b.connect_qt(self.phase_g.valueChanged,
                      lambda v: setattr(self.model.render, "phase_g", float(v)))
         b.connect_qt(self.method.currentIndexChanged, self._on_method)
+        b.connect_qt(self.auto_budget.valueChanged,
+                     lambda v: setattr(self.model.illumination, "auto_budget_ssim", float(v)))
         b.connect_qt(self.reset_params.clicked, self._on_defaults)
 
     # -- lights ---------------------------------------------------------------------------------
@@ -465,8 +495,21 @@ class LightsDock(ModelDock):
 
     def _on_method(self, index: int) -> None:
         name = self.method.itemData(index)
-        if name is not None:
-            self.model.illumination.method = name
+        illumination = self.model.illumination
+        if name == AUTO_CHOICE:
+            illumination.auto = True
+        elif name is not None:
+            with self.model.batch():  # picking a method leaves Auto
+                illumination.auto = False
+                illumination.method = name
+
+    def show_auto_status(self, text: str, details: str = "", *, warning: bool = False) -> None:
+        """What Auto picked and why (``text``; ``details`` as the tooltip), or why it could
+        not choose (``warning``: shown in the palette's link-visited colour, a second tone
+        that every style has)."""
+        self.auto_status.setText(text)
+        self.auto_status.setToolTip(details or text)
+        self.auto_status.setStyleSheet("color: palette(link-visited);" if warning else "")
 
     def _on_param(self, param: Param, value: Any) -> None:
         try:
@@ -595,19 +638,31 @@ class LightsDock(ModelDock):
             w.setVisible(point)
 
     def _show_illumination(self) -> None:
-        method = self.model.illumination.method
+        illumination = self.model.illumination
+        method = illumination.method
         index = self.method.findData(method)
-        with signals_blocked(self.method):
+        with signals_blocked(self.method, self.auto_budget):
             if index < 0:  # a session's method that is not installed: show it, disabled
                 self.method.addItem(f"{method} (not installed)", method)
                 index = self.method.count() - 1
-            self.method.setCurrentIndex(index)
+            self.method.setCurrentIndex(
+                self.method.findData(AUTO_CHOICE) if illumination.auto else index)
+            self.auto_budget.setValue(illumination.auto_budget_ssim)
         if method != self._shown_method:
             self._rebuild_params()
         else:
             self._show_params()
         spec = self.technique()
         self.material_box.setVisible(spec is not None and spec.lighting == "medium")
+        # Under Auto the picked method's parameters are shown, not edited: Auto would
+        # overwrite an edit at its next choice. Picking the method makes them editable.
+        self.auto_box.setVisible(illumination.auto)
+        self.param_form_host.setEnabled(not illumination.auto)
+        self.material_box.setEnabled(not illumination.auto)
+        self.reset_params.setEnabled(not illumination.auto and spec is not None
+                                     and bool(spec.parameters))
+        if not illumination.auto:
+            self.show_auto_status("")
 
     def _show_material(self) -> None:
         render = self.model.render

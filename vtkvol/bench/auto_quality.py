@@ -38,12 +38,23 @@ Predicted error comes from cheap CPU measurements on the scene itself, no GPU ne
 
 Only the candidates up to the first that passes are evaluated, so a smooth scene that a
 quarter-resolution light volume serves costs one or two cheap CPU passes.
+
+For callers without a results file of their own (the app's Auto), :func:`default_timings`
+names the cost source: the ``benchmarks.json`` in ``$VTKVOL_BENCHMARKS``, else the timings
+shipped with vtkvol (``vtkvol/resources/auto_quality/timings.json``: the frame and recompute
+times of the project's ``docs/benchmarks.json``, a quick run on llvmpipe). The cost *order*
+of the settings is what matters, and it is the same on a GPU for the candidates that matter
+(local < light volume at quarter/half/full resolution < cone tracing), only the gaps differ.
+:func:`choose_measured` then chooses among the declared candidates that have measurements and
+says which it left out.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import os
 import statistics
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -113,6 +124,12 @@ class Choice:
     cost_ms: float
     reason: str
     considered: tuple[dict[str, Any], ...] = ()
+    #: Where the costs came from (:attr:`Timings.source`); "" when the caller passed them.
+    cost_source: str = ""
+    #: Labels of declared candidates left out for want of a measured cost.
+    unmeasured: tuple[str, ...] = ()
+    #: The picked candidate's label: the method and the settings it sets itself.
+    label: str = ""
 
 
 class _CpuHost:
@@ -247,6 +264,7 @@ def choose(
     timings: Any = None,
     unit_distance: float | None = None,
     renderer: str | None = None,
+    voxels: int | None = None,
 ) -> Choice:
     """The cheapest candidate whose predicted SSIM against the reference is ≥ ``budget_ssim``.
 
@@ -280,6 +298,9 @@ def choose(
         Opacity unit distance (µm); default the smallest voxel edge.
     renderer
         Prefer timings measured on this renderer string.
+    voxels
+        Voxel count the recompute costs are scaled to; default ``scene_opacity``'s (give the
+        full data's when ``scene_opacity`` was binned, see :func:`binned_for_prediction`).
     """
     from vtkvol.bench.references import relevant_mask
     from vtkvol.engine.illuminator import LightSpec
@@ -301,7 +322,7 @@ def choose(
     cands = [c for c in (candidates or spec_candidates()) if c.method in installed]
     if not cands:
         raise ValueError("none of the candidate techniques is installed")
-    costs = measured_costs(cands, timings, int(opacity.size), renderer,
+    costs = measured_costs(cands, timings, int(voxels or opacity.size), renderer,
                            {c.method: installed[c.method].defaults() for c in cands})
     if len(costs) == len(cands):
         # Costs within ~15 % of each other count as equal (frame times on a shared machine are
@@ -353,10 +374,159 @@ def choose(
             cost_text = f", cost {cost:.0f} ms" if math.isfinite(cost) else ""
             return Choice(cand.method, values, ssim, cost,
                           f"picked {cand.label}: predicted SSIM {ssim:.3f} ≥ {budget_ssim:g}"
-                          f"{cost_text}{why}.", tuple(considered))
+                          f"{cost_text}{why}.", tuple(considered), label=cand.label)
     assert best is not None
     ssim, cand, values = best
     cost = costs.get(cand, math.nan)
     return Choice(cand.method, values, ssim, cost,
                   f"no candidate meets SSIM ≥ {budget_ssim:g}; picked the most accurate, "
-                  f"{cand.label} (predicted SSIM {ssim:.3f}).", tuple(considered))
+                  f"{cand.label} (predicted SSIM {ssim:.3f}).", tuple(considered),
+                  label=cand.label)
+
+
+#: Environment variable naming a ``benchmarks.json`` (written by ``vtkvol bench -o DIR``) whose
+#: costs :func:`default_timings` prefers to the shipped ones.
+TIMINGS_ENV = "VTKVOL_BENCHMARKS"
+
+
+@dataclass(frozen=True)
+class Timings:
+    """Benchmark records to rank candidates by, and where they came from.
+
+    ``records``: dicts with at least ``method``, ``parameters``, ``size`` ("XxYxZ" voxels),
+    ``frame_ms``, ``recompute_ms``, ``renderer`` and ``ok``. ``source``: one line for people,
+    e.g. "shipped measurements (llvmpipe …, 2026-11-24)". ``note``: why a named file was not
+    used ("" when nothing went wrong).
+    """
+
+    records: tuple[dict[str, Any], ...]
+    source: str
+    note: str = ""
+
+
+def _read_records(path: Path) -> list[dict[str, Any]]:
+    """The usable records of a results file; ValueError with a one-line reason otherwise."""
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ValueError(f"cannot read {path}: {exc.strerror or exc}") from None
+    except ValueError as exc:
+        raise ValueError(f"{path} is not valid JSON ({exc})") from None
+    records = doc.get("records") if isinstance(doc, Mapping) else None
+    if not isinstance(records, list):
+        raise ValueError(f"{path} has no \"records\" list (not a benchmarks.json)")
+    usable = [r for r in records if isinstance(r, Mapping) and r.get("ok")
+              and isinstance(r.get("method"), str)
+              and isinstance(r.get("frame_ms"), int | float) and math.isfinite(r["frame_ms"])
+              and (r.get("recompute_ms") is None
+                   or (isinstance(r["recompute_ms"], int | float)
+                       and math.isfinite(r["recompute_ms"])))
+              and isinstance(r.get("size", "1x1x1"), str)
+              and _valid_size(r.get("size", "1x1x1"))]
+    if not usable:
+        raise ValueError(f"{path} has no successful timing records")
+    return usable
+
+
+def _valid_size(size: str) -> bool:
+    parts = size.split("x")
+    return len(parts) == 3 and all(p.isdigit() and int(p) > 0 for p in parts)
+
+
+def shipped_timings() -> Timings:
+    """The timings shipped with vtkvol (``resources/auto_quality/timings.json``)."""
+    from importlib import resources
+
+    text = resources.files("vtkvol.resources").joinpath("auto_quality", "timings.json")
+    doc = json.loads(text.read_text(encoding="utf-8"))
+    date = str(doc.get("date") or "")[:10]
+    return Timings(tuple(doc["records"]),
+                   f"shipped measurements ({doc.get('renderer')}, {date})")
+
+
+def default_timings(environ: Mapping[str, str] | None = None) -> Timings:
+    """The costs to rank by when the caller has no results file: the ``benchmarks.json`` that
+    ``$VTKVOL_BENCHMARKS`` names (this machine's, ideally), else :func:`shipped_timings`. A
+    named file that cannot be used falls back to the shipped timings with a ``note`` saying
+    why."""
+    env = os.environ if environ is None else environ
+    named = env.get(TIMINGS_ENV, "").strip()
+    if not named:
+        return shipped_timings()
+    path = Path(named).expanduser()
+    try:
+        records = _read_records(path)
+    except ValueError as exc:
+        shipped = shipped_timings()
+        return dataclasses.replace(shipped, note=f"{TIMINGS_ENV}: {exc}; using the "
+                                                 f"{shipped.source}")
+    return Timings(tuple(records), f"measurements in {path}")
+
+
+def choose_measured(
+    scene_opacity: np.ndarray,
+    spacing: Sequence[float],
+    lights: Sequence[Any],
+    *,
+    budget_ssim: float = 0.98,
+    timings: Timings | None = None,
+    unit_distance: float | None = None,
+    renderer: str | None = None,
+    voxels: int | None = None,
+) -> Choice:
+    """:func:`choose` over the declared candidates (:func:`spec_candidates`) that ``timings``
+    (default :func:`default_timings`) has costs for, cheapest first. Candidates without a
+    measurement are left out (a technique newer than the measurements): the choice lists them
+    in ``unmeasured`` and its ``reason`` says so, with the cost source.
+
+    Raises
+    ------
+    ValueError
+        Bad inputs (see :func:`choose`), or no declared candidate has a measurement.
+    """
+    from vtkvol.engine.technique import installed_techniques
+
+    timings = default_timings() if timings is None else timings
+    installed = installed_techniques()
+    declared = spec_candidates()
+    opacity_size = int(voxels or np.asarray(scene_opacity).size)
+    costs = measured_costs(declared, list(timings.records), opacity_size, renderer,
+                           {c.method: installed[c.method].defaults() for c in declared})
+    measured = [c for c in declared if c in costs]
+    unmeasured = tuple(c.label for c in declared if c not in costs)
+    if not measured:
+        raise ValueError(f"none of the installed methods has a measured cost in the "
+                         f"{timings.source}: run `vtkvol bench -o DIR` and set {TIMINGS_ENV} "
+                         "to DIR/benchmarks.json")
+    choice = choose(scene_opacity, spacing, lights, budget_ssim=budget_ssim,
+                    candidates=measured, timings=list(timings.records),
+                    unit_distance=unit_distance, renderer=renderer, voxels=opacity_size)
+    reason = f"{choice.reason} Costs: {timings.source}."
+    if unmeasured:
+        reason += f" Not measured there, so not considered: {', '.join(unmeasured)}."
+    if timings.note:
+        reason += f" ({timings.note})"
+    return dataclasses.replace(choice, reason=reason, cost_source=timings.source,
+                               unmeasured=unmeasured)
+
+
+def binned_for_prediction(opacity: np.ndarray, spacing: Sequence[float],
+                          max_voxels: int = 96**3) -> tuple[np.ndarray, tuple[float, ...]]:
+    """``opacity`` ``[z, y, x]`` averaged over blocks of k×k×k voxels (k the smallest whole
+    factor that leaves at most ``max_voxels``), and the blocks' edge (x, y, z) in µm; the
+    input itself when it is small enough. The prediction's cost grows with the voxel count
+    (several seconds and ~1 GB of temporaries at 96³); on binned data a coarse light volume
+    is judged on the coarser grid, so the prediction errs towards finer (dearer) settings."""
+    opacity = np.asarray(opacity, dtype=np.float32)
+    if max_voxels < 1:
+        raise ValueError(f"max_voxels {max_voxels} must be at least 1")
+    k = 1
+    while math.prod(-(-n // k) for n in opacity.shape) > max_voxels:
+        k += 1
+    if k == 1:
+        return opacity, tuple(float(s) for s in spacing)
+    nz, ny, nx = (-(-n // k) * k for n in opacity.shape)
+    padded = np.pad(opacity, [(0, t - n) for t, n in zip((nz, ny, nx), opacity.shape,
+                                                          strict=True)], mode="edge")
+    blocks = padded.reshape(nz // k, k, ny // k, k, nx // k, k).mean(axis=(1, 3, 5))
+    return np.ascontiguousarray(blocks, dtype=np.float32), tuple(float(s) * k for s in spacing)

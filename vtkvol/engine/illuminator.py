@@ -223,6 +223,11 @@ class Illuminator:
         self.last_prepare_ms = 0.0
         self.render_window: vtk.vtkRenderWindow | None = None
         self.profiling = False
+        #: Multi-channel data: classify and shade the components with constant indices and
+        #: shared gradient fetches (host_multichannel.glsl; the same image as VTK's loop, at a
+        #: fraction of its cost on llvmpipe). False keeps VTK's own per-component loop: the
+        #: reference the tests and the benchmark compare with.
+        self.multichannel_sample = True
         self.last_error: str | None = None
         self.failed_method: str | None = None
         self.on_error: Callable[[str], None] | None = None
@@ -1019,7 +1024,11 @@ class Illuminator:
             sections += shaders.load(
                 "host_slice_weights.glsl", {"VV_INDEPENDENT": "1"} if independent else None
             )
-        sections += self._interpolation_sections()
+        interpolation = self._interpolation_sections()
+        sections += interpolation
+        multichannel = self._multichannel_sections(shares_gradient=any(
+            "#define VV_IP_SHARE_GRADIENT" in s.code for s in interpolation))
+        sections += multichannel
         own = tech.sections(values)
         defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
@@ -1035,13 +1044,42 @@ class Illuminator:
         ]
         if self.shaded or (tech.SPEC.lighting == "medium" and self._compositing()):
             sections += shaders.load("host_hooks.glsl", hooks)
-            sections += shaders.load(lighting)
+            # Multi-channel, shaded surface lighting: one transmittance per light and sample.
+            share_light = bool(multichannel) and self.shaded and tech.SPEC.lighting == "surface"
+            sections += shaders.load(lighting, {"VV_MC_SHARE_LIGHT": "1"} if share_light
+                                     else None)
         replacements = shaders.compose(sections)
+        if multichannel:
+            # VTK's classification loop: its body moves to vv_mcClassify (constant component
+            # indices), called where the loop starts; the emptied loop compiles away.
+            for line, text in _MULTICHANNEL_LINES.items():
+                replacements[(line, "post")] = text
         for name, (_texture, sampler) in self._textures.items():
             replacements[(f"uniform int {name};", "post")] = f"uniform {sampler} {name};"
         if self._replacements.install(replacements):
             markers = {shaders.marker(s) for s in sections}
             self._expected_markers = (markers, set(self._technique_uniform_values(values)))
+
+    def _multichannel_sections(self, *, shares_gradient: bool) -> list[shaders.Section]:
+        """The multi-channel sample's sections (``host_multichannel.glsl``: VTK's per-component
+        work with constant indices, one set of gradient fetches), or none. For two to four
+        independent components on a composite blend; ``shares_gradient``: the corrected
+        trilinear filter already shares its fetches with the gradient."""
+        scalars = self.image.GetPointData().GetScalars()
+        ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
+        prop = self.volume.GetProperty()
+        mapper = self.volume.GetMapper()
+        if not (self.multichannel_sample and 2 <= ncomp <= 4 and prop.GetIndependentComponents()
+                and mapper.GetBlendMode() == vtk.vtkVolumeMapper.COMPOSITE_BLEND):
+            return []
+        defines = {"VV_MC_COMPONENTS": str(ncomp)}
+        if (self.shaded and not shares_gradient
+                and not any(prop.HasGradientOpacity(c) for c in range(ncomp))
+                and mapper.GetVolumetricScatteringBlending() == 0):
+            # As for the corrected filter: VTK's gradient-opacity variant returns a magnitude
+            # and its volumetric shadows take gradients away from the sample.
+            defines["VV_MC_SHARE_GRADIENT"] = "1"
+        return shaders.load("host_multichannel.glsl", defines)
 
     def _interpolation_sections(self) -> list[shaders.Section]:
         """The corrected-trilinear filter's sections (after the slice weights: both wrap
@@ -1218,6 +1256,15 @@ class Illuminator:
 
 #: Uniforms and textures the host sets for itself (not for the technique).
 _MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
+#: Lines of VTK 9.7's independent-component composite loop (post replacements, see
+#: host_multichannel.glsl): the classification loop's body becomes one vv_mcClassify call.
+_MULTICHANNEL_LINES = {
+    "float totalAlpha = 0.0;":
+        "float totalAlpha = 0.0;\n      vv_mcClassify(scalar, color, totalAlpha);",
+    "color[i][3] = computeOpacity(scalar, i);": "",
+    "color[i] = computeColor(scalar, color[i][3], i);": "",
+    "totalAlpha += color[i][3] * in_componentWeight[i];": "",
+}
 _HOST_TEXTURES = frozenset({"vv_sliceWeights"})
 
 

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 8
+VERSION = 6
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -150,51 +150,41 @@ def _v4_to_v5(raw: dict[str, Any]) -> dict[str, Any]:
 
 
 def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
-    """v5 → v6: the scene gained the slice views' ``cursor`` (world µm) and the overlays
-    gained ``slice_planes``. v5 had neither: a ``null`` cursor (the data's centre) and no
-    plane outlines state exactly what v5 showed."""
+    """v5 → v6: new settings, each filled with the value that states exactly what v5 showed.
+
+    * the scene gained the slice views' ``cursor`` (world µm; ``null``: the data's centre) and
+      the overlays ``slice_planes`` (off: v5 had no slice views);
+    * each channel gained ``tf_mode`` and ``tf2d``, the 2-D transfer function over value ×
+      gradient magnitude (``"1d"`` and an empty 2-D TF: v5 classified by the 1-D ``tf``);
+    * ``volume`` gained ``level`` and ``region_um``, the pyramid level and refined region
+      shown (``null``: the level the budget chooses, the whole image);
+    * ``illumination`` gained ``auto`` and ``auto_budget_ssim``, the app's Auto quality (off:
+      v5 showed the method it named; the budget's default, SSIM 0.98).
+    """
     out = copy.deepcopy(raw)
     out["version"] = 6
     scene = out.get("scene")
-    if isinstance(scene, dict):
-        scene.setdefault("cursor", None)
-        overlays = scene.get("overlays")
-        if isinstance(overlays, dict):
-            overlays.setdefault("slice_planes", False)
-    return out
-
-
-def _v6_to_v7(raw: dict[str, Any]) -> dict[str, Any]:
-    """v6 → v7: each channel gained ``tf_mode`` and ``tf2d`` (the 2-D transfer function over
-    value × gradient magnitude). v6 classified by the 1-D ``tf`` only, which ``"1d"`` with an
-    empty 2-D TF states exactly."""
-    out = copy.deepcopy(raw)
-    out["version"] = 7
-    scene = out.get("scene")
-    channels = scene.get("channels") if isinstance(scene, dict) else None
-    if isinstance(channels, list):
-        for channel in channels:
+    if not isinstance(scene, dict):
+        return out
+    scene.setdefault("cursor", None)
+    if isinstance(scene.get("overlays"), dict):
+        scene["overlays"].setdefault("slice_planes", False)
+    if isinstance(scene.get("channels"), list):
+        for channel in scene["channels"]:
             if isinstance(channel, dict):
                 channel.setdefault("tf_mode", "1d")
                 channel.setdefault("tf2d", {"primitives": [], "gradient_max": None})
-    return out
-
-
-def _v7_to_v8(raw: dict[str, Any]) -> dict[str, Any]:
-    """v7 → v8: ``scene.volume`` gained ``level`` and ``region_um`` (the pyramid level and the
-    refined region shown). v7 showed the level the budget chose and the whole image: ``None``
-    for both says exactly that."""
-    out = copy.deepcopy(raw)
-    out["version"] = 8
-    scene = out.get("scene")
-    if isinstance(scene, dict) and isinstance(scene.get("volume"), dict):
+    if isinstance(scene.get("volume"), dict):
         scene["volume"].setdefault("level", None)
         scene["volume"].setdefault("region_um", None)
+    if isinstance(scene.get("illumination"), dict):
+        scene["illumination"].setdefault("auto", False)
+        scene["illumination"].setdefault("auto_budget_ssim", 0.98)
     return out
 
 
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
-                                    4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8}
+                                    4: _v4_to_v5, 5: _v5_to_v6}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

@@ -213,10 +213,18 @@ class Illumination(EventedModel):
 
     Values are validated against the technique's declared ``PARAMETERS`` by the engine (which
     knows the installed techniques); the model only stores them.
+
+    ``auto``: the app picks ``method`` and its parameters itself, as the cheapest setting whose
+    predicted image error meets ``auto_budget_ssim`` (predicted SSIM against the reference,
+    0…1; :func:`vtkvol.bench.choose`), and picks again when the data, a TF or a light changes.
+    ``method`` and ``parameters`` then hold the last pick, so a file saved with Auto renders
+    the same where nothing re-chooses (``vtkvol render``).
     """
 
     method: str = "local"
     parameters: dict[str, dict[str, Any]] = Field(default_factory=dict)
+    auto: bool = False
+    auto_budget_ssim: float = Field(0.98, gt=0.0, le=1.0)
 
     def values_for(self, method: str | None = None) -> dict[str, Any]:
         return dict(self.parameters.get(method or self.method, {}))
