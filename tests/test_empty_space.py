@@ -81,7 +81,8 @@ def test_max_over_intervals_matches_dense_evaluation() -> None:
     lo = rng.uniform(-20, 80, 500)
     hi = lo + rng.uniform(0, 30, 500)
     got = occupancy.max_over_intervals(xs, ys, lo, hi)
-    dense = np.array([np.interp(np.linspace(a, b, 4001), xs, ys).max() for a, b in zip(lo, hi)])
+    dense = np.array([np.interp(np.linspace(a, b, 4001), xs, ys).max()
+                      for a, b in zip(lo, hi, strict=True)])
     assert np.allclose(got, dense, atol=1e-3)
     assert occupancy.max_over_intervals(xs, ys, np.array([0.0]), np.array([10.0]))[0] == 0.0
 
@@ -348,3 +349,21 @@ def test_scene_follows_the_model_setting(small_volume) -> None:
     finally:
         scene.close()
         rw.Finalize()
+
+
+@pytest.mark.gui
+def test_channels_dock_checkbox(qapp) -> None:
+    """The channels dock's render settings show the switch and set it, both ways."""
+    from vtkvol.model.scene import SceneModel
+    from vtkvol.ui.docks.channels import ChannelsDock
+
+    model = SceneModel()
+    dock = ChannelsDock(model)
+    try:
+        assert dock.skip_empty.isChecked()
+        dock.skip_empty.setChecked(False)
+        assert model.render.empty_space_skipping is False
+        model.render.empty_space_skipping = True
+        assert dock.skip_empty.isChecked()
+    finally:
+        dock.deleteLater()

@@ -122,6 +122,7 @@ def rich_model() -> SceneModel:
             blend_mode="mip", channel_mixing="composite", sample_distance=0.25, jitter=False,
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
             background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3, interpolation="corrected",
+            empty_space_skipping=False,
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
                           color_legend=True),
@@ -431,7 +432,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 5)"),
+         "(format version 99; this version reads up to 6)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -797,7 +798,7 @@ def test_migrate_v4_to_v5_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[4](raw)
     assert out == load_fixture("v4_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert out["scene"]["clip_plane"]["enabled"] is False  # v4 had no clipping plane
     assert raw == untouched
 
@@ -808,8 +809,25 @@ def test_v4_file_reads_without_warnings_and_no_clipping_plane() -> None:
     assert session.model.clip_plane == ClipPlane()
 
 
+def test_migrate_v5_to_v6_matches_fixture() -> None:
+    raw = load_fixture("v5_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[5](raw)
+    assert out == load_fixture("v5_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # Skipping is exact, so v5 files get the default (on) and render as v5 did.
+    assert out["scene"]["render"]["empty_space_skipping"] is True
+    assert raw == untouched
+
+
+def test_v5_file_reads_without_warnings_with_skipping_on() -> None:
+    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.render.empty_space_skipping is True
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v5_complete.vtkvol.json")
+    doc = load_fixture("v6_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -839,8 +857,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v5 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v5_complete.vtkvol.json")
+    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -860,8 +878,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 6; this version reads up to 5"):
-        migrate({"format": FORMAT, "version": 6})
+    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
+        migrate({"format": FORMAT, "version": 7})
 
 
 @pytest.mark.parametrize(

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 5
+VERSION = 6
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -149,8 +149,20 @@ def _v4_to_v5(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
+    """v5 → v6: render settings gained ``empty_space_skipping``. Skipping is exact (the image
+    is the one v5 rendered, within one 8-bit level), so old files get its default, on."""
+    out = copy.deepcopy(raw)
+    out["version"] = 6
+    scene = out.get("scene")
+    render = scene.get("render") if isinstance(scene, dict) else None
+    if isinstance(render, dict):
+        render.setdefault("empty_space_skipping", True)
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
-                                    4: _v4_to_v5}
+                                    4: _v4_to_v5, 5: _v5_to_v6}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 
