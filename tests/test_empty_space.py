@@ -367,3 +367,19 @@ def test_channels_dock_checkbox(qapp) -> None:
         assert dock.skip_empty.isChecked()
     finally:
         dock.deleteLater()
+
+
+def test_bricks_are_near_cubes_in_space() -> None:
+    assert occupancy.brick_for_spacing((0.1, 0.1, 0.1)) == (8, 8, 8)
+    # A confocal stack with 5.6× coarser z: 8 × 8 voxels in x, y and 2 (not 1.4) in z.
+    assert occupancy.brick_for_spacing((0.0225, 0.0225, 0.125)) == (2, 8, 8)
+    assert occupancy.brick_for_spacing((-0.5, 1.0, 0.25)) == (8, 2, 4)  # (z, y, x)
+    ranges = occupancy.brick_ranges(np.zeros((5, 17, 9)), brick=(2, 8, 8))
+    assert ranges.bricks_zyx == (3, 3, 2)
+
+
+@pytest.mark.gl
+def test_anisotropic_bricks_render_the_same_image() -> None:
+    off, on, stats = _render_pair(_nothing, "shadow_volume", spacing=(0.5, 0.5, 2.0))
+    assert stats["brick_voxels"] == (8, 8, 2)
+    _same_image(off, on, stats)

@@ -2,7 +2,8 @@
 // Injected by the host at the top of VTK's per-sample loop, after `g_skip = false` and before
 // cropping, the fetch and every technique's lighting.
 //
-// The occupancy grid (vtkvol.engine.occupancy) marks bricks of VV_ESS_BRICK³ voxels in which
+// The occupancy grid (vtkvol.engine.occupancy) marks bricks of VV_ESS_BRICK voxels (a vec3:
+// x, y, z; near cubes in µm) in which
 // no sample can have a non-zero opacity (transfer function, crop and slice weights; every
 // trilinear sample in a brick reads only the brick and its apron). When the current sample
 // lies in such a brick, every sample up to the brick's far face is zero too: the ray jumps
@@ -43,7 +44,13 @@
     // Samples strictly inside the brick are zero; the margin keeps a sample rounding puts on
     // the face (it is simply taken, as without skipping).
     float vv_essJump = max(1.0, ceil(vv_essExit - 1e-3));
-    g_dataPos += vv_essJump * g_dirStep;
+    // One addition per skipped step, as VTK's loop makes them: the samples after the jump
+    // sit at bit-identical positions (a single multiply-add rounds differently, and at a sharp
+    // edge a 1e-5 texel shift is visible).
+    for (float vv_essI = 0.0; vv_essI < vv_essJump; vv_essI += 1.0)
+    {
+      g_dataPos += g_dirStep;
+    }
     g_currentT += vv_essJump;
     // VTK's termination test, as it would have run on the skipped samples: the sample at
     // T + k is taken only if the ray is still inside the texture and T + k − 1 < max.

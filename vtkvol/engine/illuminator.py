@@ -402,8 +402,9 @@ class Illuminator:
 
     def empty_space_stats(self) -> dict[str, Any]:
         """The last frame's occupancy: ``active`` (bool), ``reason`` (why not, or ""),
-        ``bricks`` (x, y, z), ``brick_voxels``, ``empty_fraction`` (0…1) and ``ranges_ms`` /
-        ``occupancy_ms`` (wall time of the per-data min/max pass and the per-edit lookup)."""
+        ``bricks`` (x, y, z), ``brick_voxels`` (x, y, z), ``empty_fraction`` (0…1) and
+        ``ranges_ms`` / ``occupancy_ms`` (wall time of the per-data min/max pass and of the
+        per-edit lookup)."""
         return dict(self._ess_stats)
 
     def set_slice_weights(self, weights: np.ndarray | None) -> None:
@@ -805,8 +806,9 @@ class Illuminator:
             )
         sections += self._interpolation_sections()
         if self._ess_stats.get("active"):
-            sections += shaders.load("host_empty_space.glsl",
-                                     {"VV_ESS_BRICK": f"{float(occupancy.BRICK):.1f}"})
+            bz, by, bx = self._ess_stats["brick_voxels_zyx"]
+            sections += shaders.load("host_empty_space.glsl", {
+                "VV_ESS_BRICK": f"vec3({float(bx):.1f}, {float(by):.1f}, {float(bz):.1f})"})
         own = tech.sections(values)
         defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
@@ -945,9 +947,11 @@ class Illuminator:
                        "every sample")
         t0 = time.perf_counter()
         apron = 2 if self._interpolation_sections() else 1
-        range_key = (img.GetMTime(), scalars.GetMTime(), apron)
+        brick = occupancy.brick_for_spacing(img.GetSpacing())
+        range_key = (img.GetMTime(), scalars.GetMTime(), apron, brick)
         if self._ess_ranges is None or self._ess_ranges[0] != range_key:
-            self._ess_ranges = (range_key, occupancy.brick_ranges(values, apron=apron))
+            self._ess_ranges = (range_key, occupancy.brick_ranges(values, apron=apron,
+                                                                     brick=brick))
         ranges = self._ess_ranges[1]
         ranges_ms = (time.perf_counter() - t0) * 1e3
         t1 = time.perf_counter()
@@ -965,14 +969,16 @@ class Illuminator:
         if mapper.GetCropping():
             grid &= occupancy.crop_occupancy(
                 (nz, ny, nx), img.GetOrigin(), img.GetSpacing(),
-                mapper.GetCroppingRegionPlanes(), int(mapper.GetCroppingRegionFlags()))
+                mapper.GetCroppingRegionPlanes(), int(mapper.GetCroppingRegionFlags()),
+                brick=brick)
         if self._weights is not None and blend != vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND:
-            grid &= occupancy.weight_occupancy((nz, ny, nx), self._weights)
+            grid &= occupancy.weight_occupancy((nz, ny, nx), self._weights, brick=brick)
         stats = {
             "active": True,
             "reason": "",
             "bricks": tuple(int(n) for n in grid.shape[::-1]),
-            "brick_voxels": occupancy.BRICK,
+            "brick_voxels": tuple(brick[::-1]),
+            "brick_voxels_zyx": brick,
             "empty_fraction": float(1.0 - grid.mean()),
             "ranges_ms": ranges_ms,
             "occupancy_ms": (time.perf_counter() - t1) * 1e3,

@@ -30,7 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Brick edge in voxels: 8³ bricks cost 1/512 of the data in occupancy (Krüger & Westermann).
+#: Brick edge in voxels along the finest axis: 8³ bricks cost 1/512 of the data in occupancy
+#: (Krüger & Westermann); coarser axes get fewer voxels (:func:`brick_for_spacing`).
 BRICK = 8
 #: VTK samples an opacity function into a table of (at least) this many entries and the GPU
 #: interpolates linearly between entries; ranges are widened by two entries' worth.
@@ -58,12 +59,35 @@ class BrickRanges:
         return tuple(int(n) for n in self.lo.shape[1:])  # type: ignore[return-value]
 
 
-def brick_grid(shape_zyx: Sequence[int], brick: int = BRICK) -> tuple[int, int, int]:
+Brick = int | Sequence[int]
+"""A brick's edge in voxels: one for every axis, or ``(bz, by, bx)``."""
+
+
+def brick_shape(brick: Brick) -> tuple[int, int, int]:
+    """``(bz, by, bx)`` voxels of a brick."""
+    if isinstance(brick, int | np.integer):
+        return (int(brick),) * 3
+    bz, by, bx = (int(b) for b in brick)
+    return bz, by, bx
+
+
+def brick_for_spacing(spacing_xyz: Sequence[float], brick: int = BRICK) -> tuple[int, int, int]:
+    """``(bz, by, bx)``: ``brick`` voxels along the finest axis and about as many µm along the
+    others (at least 2 voxels), so bricks of anisotropic stacks are near cubes in space: an
+    8³-voxel brick of a confocal stack with 5× coarser z would reach 5× deeper than wide."""
+    sizes = [abs(float(s)) or 1.0 for s in spacing_xyz]  # negative spacing: mirrored axes
+    finest = min(sizes)
+    x, y, z = (max(2, min(brick, round(brick * finest / s))) for s in sizes)
+    return z, y, x
+
+
+def brick_grid(shape_zyx: Sequence[int], brick: Brick = BRICK) -> tuple[int, int, int]:
     """Number of bricks per axis, ``[z, y, x]``."""
-    return tuple(-(-int(n) // brick) for n in shape_zyx)  # type: ignore[return-value]
+    return tuple(-(-int(n) // b)  # type: ignore[return-value]
+                 for n, b in zip(shape_zyx, brick_shape(brick), strict=True))
 
 
-def brick_ranges(values: np.ndarray, apron: int = 1, brick: int = BRICK) -> BrickRanges:
+def brick_ranges(values: np.ndarray, apron: int = 1, brick: Brick = BRICK) -> BrickRanges:
     """Min/max per brick and component of ``values`` (``[z, y, x]`` or ``[z, y, x, c]``) over
     the brick and ``apron`` voxels around it (clamped at the volume's faces, as the texture's
     clamp-to-edge sampling is)."""
@@ -104,12 +128,13 @@ def _dilate(a: np.ndarray, radius: int, op: np.ufunc) -> np.ndarray:
     return out
 
 
-def _block_reduce(a: np.ndarray, grid: tuple[int, int, int], brick: int, op) -> np.ndarray:
-    pad = [(0, g * brick - n) for g, n in zip(grid, a.shape, strict=True)]
+def _block_reduce(a: np.ndarray, grid: tuple[int, int, int], brick: Brick, op) -> np.ndarray:
+    ez, ey, ex = brick_shape(brick)
+    pad = [(0, g * e - n) for g, e, n in zip(grid, (ez, ey, ex), a.shape, strict=True)]
     if any(p for _, p in pad):
         a = np.pad(a, pad, mode="edge")
     bz, by, bx = grid
-    return op(a.reshape(bz, brick, by, brick, bx, brick), axis=(1, 3, 5))
+    return op(a.reshape(bz, ez, by, ey, bx, ex), axis=(1, 3, 5))
 
 
 def widen_for_corrected(ranges: BrickRanges) -> BrickRanges:
@@ -179,7 +204,7 @@ def crop_occupancy(
     spacing: Sequence[float],
     planes: Sequence[float],
     flags: int,
-    brick: int = BRICK,
+    brick: Brick = BRICK,
 ) -> np.ndarray:
     """Bricks that reach a region VTK's cropping shows: bool ``[bz, by, bx]``.
 
@@ -190,8 +215,9 @@ def crop_occupancy(
     nz, ny, nx = (int(n) for n in shape_zyx)
     grid = brick_grid((nz, ny, nx), brick)
     overlaps = []  # per axis x, y, z: bool [3, bricks]
+    edges = brick_shape(brick)[::-1]
     for axis, (n, g) in enumerate(zip((nx, ny, nz), grid[::-1], strict=True)):
-        lo, hi = _axis_extent(n, g, brick, 0.5)
+        lo, hi = _axis_extent(n, g, edges[axis], 0.5)
         lo = origin[axis] + spacing[axis] * lo
         hi = origin[axis] + spacing[axis] * hi
         lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)  # negative spacing
@@ -208,7 +234,7 @@ def crop_occupancy(
 
 
 def weight_occupancy(
-    shape_zyx: Sequence[int], weights: np.ndarray, brick: int = BRICK
+    shape_zyx: Sequence[int], weights: np.ndarray, brick: Brick = BRICK
 ) -> np.ndarray:
     """Bricks where every axis' slice weight can reach ``WEIGHT_CUT``: bool ``[bz, by, bx]``.
 
@@ -219,8 +245,9 @@ def weight_occupancy(
     grid = brick_grid((nz, ny, nx), brick)
     width = weights.shape[1]
     keep_axis = []
+    edges = brick_shape(brick)[::-1]
     for axis, (n, g) in enumerate(zip((nx, ny, nz), grid[::-1], strict=True)):
-        lo, hi = _axis_extent(n, g, brick, 0.5)
+        lo, hi = _axis_extent(n, g, edges[axis], 0.5)
         scale = (width - 1) / max(n - 1, 1)
         first = np.clip(np.floor(lo * scale), 0, width - 1).astype(int)
         last = np.clip(np.ceil(hi * scale), 0, width - 1).astype(int)
