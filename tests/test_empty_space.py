@@ -383,3 +383,27 @@ def test_anisotropic_bricks_render_the_same_image() -> None:
     off, on, stats = _render_pair(_nothing, "shadow_volume", spacing=(0.5, 0.5, 2.0))
     assert stats["brick_voxels"] == (8, 8, 2)
     _same_image(off, on, stats)
+
+
+@pytest.mark.gl
+def test_bench_measures_both_sides_and_writes_a_section(tmp_path) -> None:
+    """`vtkvol bench --empty-space` (tiny): both sides timed, the images equal, the section
+    and the JSON lists written, other results kept."""
+    import json
+
+    from vtkvol.bench import empty_space
+    from vtkvol.bench.scenes import phantom_scenes
+
+    (tmp_path / "benchmarks.json").write_text(json.dumps(
+        {"format": "vtkvol-bench", "version": 1, "runs": [], "records": [],
+         "stability": [], "scattering_runs": [{"renderer": "x", "mode": "quick"}]}))
+    config = empty_space.SkipConfig("quick", 24, 64, 1, 1, ("local",))
+    result = empty_space.run(config, tmp_path, phantom_scenes(24)[:1], progress=False)
+    (rec,) = result["records"]
+    assert rec["ok"] and rec["active"] and rec["max_abs"] <= 1, rec
+    assert rec["frame_off_ms"] > 0 and rec["cpu_on_ms"] > 0 and rec["ratio"] > 0
+    doc = json.loads((tmp_path / "benchmarks.json").read_text())
+    assert len(doc["empty_space"]) == 1 and len(doc["empty_space_runs"]) == 1
+    assert doc["scattering_runs"] == [{"renderer": "x", "mode": "quick"}]
+    md = (tmp_path / "benchmarks.md").read_text()
+    assert "## Empty-space skipping (quick," in md and "sphere_over_slab" in md
