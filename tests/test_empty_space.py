@@ -407,3 +407,19 @@ def test_bench_measures_both_sides_and_writes_a_section(tmp_path) -> None:
     assert doc["scattering_runs"] == [{"renderer": "x", "mode": "quick"}]
     md = (tmp_path / "benchmarks.md").read_text()
     assert "## Empty-space skipping (quick," in md and "sphere_over_slab" in md
+
+
+def test_max_over_intervals_with_thousands_of_nodes() -> None:
+    """A label transfer function (a spike per id) is answered by a range-maximum query."""
+    ids = np.arange(1, 4001, dtype=np.float64)
+    xs = np.sort(np.concatenate([ids - 0.4, ids, ids + 0.4, [0.0]]))
+    ys = np.where(np.isin(xs, ids), np.random.default_rng(1).uniform(0.1, 1, xs.size), 0.0)
+    rng = np.random.default_rng(2)
+    lo = np.concatenate([rng.uniform(0, 4000, 3000), [-1.0, 5.0]])
+    hi = np.concatenate([lo[:3000] + rng.exponential(3, 3000), [5000.0, 4000.0]])
+    got = occupancy.max_over_intervals(xs, ys, lo, hi)
+    want = np.array([max(np.interp([a, b], xs, ys).max(),
+                         ys[(xs >= a) & (xs <= b)].max(initial=0.0)) for a, b in
+                     zip(lo, hi, strict=True)])
+    assert np.array_equal(got, want)
+    assert (got == 0).any() and (got > 0).any()

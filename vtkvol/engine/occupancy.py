@@ -161,10 +161,25 @@ def max_over_intervals(
     ends_lo = np.interp(np.clip(lo, xs[0], xs[-1]), xs, ys)
     ends_hi = np.interp(np.clip(hi, xs[0], xs[-1]), xs, ys)
     out = np.maximum(ends_lo, ends_hi)
-    for x, y in zip(xs, ys, strict=True):
-        if y > 0:
-            inside = (lo <= x) & (x <= hi)
-            np.maximum(out, np.where(inside, y, 0.0), out=out)
+    # Nodes inside [lo, hi] are a contiguous run xs[first:stop] (xs sorted): a range-maximum
+    # query on a sparse table, so label transfer functions with thousands of nodes stay cheap.
+    first = np.searchsorted(xs, lo, side="left")
+    stop = np.searchsorted(xs, hi, side="right")
+    count = stop - first
+    has = count > 0
+    if np.any(has):
+        table = [ys]
+        while (1 << len(table)) <= len(ys):  # level k: maxima of 2^k consecutive nodes
+            prev, half = table[-1], 1 << (len(table) - 1)
+            table.append(np.maximum(prev[:-half], prev[half:]))
+        f, n = first[has], count[has]
+        level = np.floor(np.log2(n)).astype(int)
+        inner = np.empty(len(f))
+        for k in np.unique(level):
+            sel = level == k
+            row = table[k]
+            inner[sel] = np.maximum(row[f[sel]], row[f[sel] + n[sel] - (1 << k)])
+        out[has] = np.maximum(out[has], inner)
     return out
 
 
