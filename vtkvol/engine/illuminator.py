@@ -872,17 +872,21 @@ class Illuminator:
         self._ess_key = key
         try:
             stats, grid = self._occupancy_grid()
+            if grid is not None:
+                self._upload_occupancy(grid)
         except Exception as exc:  # never lose the view to an optimisation
             logger.exception("empty-space skipping failed; rays march the whole volume")
             stats, grid = {"active": False, "reason": f"failed ({type(exc).__name__}: {exc})"}, None
         self._ess_stats = stats
         if grid is None:
             self._drop_occupancy()
-            return
+
+    def _upload_occupancy(self, grid: np.ndarray) -> None:
         data = grid.astype(np.float32)
         if self._ess_texture is None or self._ess_texture.shape != data.shape:
             if self._ess_texture is not None:
                 self._ess_texture.release()
+                self._ess_texture = None
             self._ess_texture = Texture3D(self.render_window, data.shape, data=data)
         else:
             self._ess_texture.upload(data)
