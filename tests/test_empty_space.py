@@ -322,18 +322,20 @@ def test_render_setting_default_and_validation() -> None:
 
 
 @pytest.mark.gl
-def test_scene_follows_the_model_setting(small_volume) -> None:
+def test_scene_follows_the_model_setting() -> None:
     import vtk
 
     from vtkvol.engine.offscreen import grab, make_render_window
     from vtkvol.engine.scene import VolumeScene
+    from vtkvol.io import VolumeData
     from vtkvol.model.defaults import scene_for
 
-    model = scene_for(small_volume)
+    data = VolumeData.from_array(sparse_phantom(32)[None], (0.5, 0.5, 1.0), ["beads"])
+    model = scene_for(data)
     rw = make_render_window((96, 96))
     ren = vtk.vtkRenderer()
     rw.AddRenderer(ren)
-    scene = VolumeScene(ren, model, small_volume, request_render=lambda: None)
+    scene = VolumeScene(ren, model, data, request_render=lambda: None)
     try:
         il = scene.illuminator
         assert il is not None and il.empty_space_skipping
@@ -392,13 +394,15 @@ def test_bench_measures_both_sides_and_writes_a_section(tmp_path) -> None:
     import json
 
     from vtkvol.bench import empty_space
-    from vtkvol.bench.scenes import phantom_scenes
+    from vtkvol.bench.scenes import Scene
 
     (tmp_path / "benchmarks.json").write_text(json.dumps(
         {"format": "vtkvol-bench", "version": 1, "runs": [], "records": [],
          "stability": [], "scattering_runs": [{"renderer": "x", "mode": "quick"}]}))
     config = empty_space.SkipConfig("quick", 24, 64, 1, 1, ("local",))
-    result = empty_space.run(config, tmp_path, phantom_scenes(24)[:1], progress=False)
+    beads = Scene("beads", sparse_phantom(32), (1.0, 1.0, 1.0),
+                  [(0.0, 0.0), (30.0, 0.0), (255.0, 0.8)], "sparse blobs")
+    result = empty_space.run(config, tmp_path, [beads], progress=False)
     (rec,) = result["records"]
     assert rec["ok"] and rec["active"] and rec["max_abs"] <= 1, rec
     assert rec["frame_off_ms"] > 0 and rec["cpu_on_ms"] > 0 and rec["ratio"] > 0
@@ -406,7 +410,7 @@ def test_bench_measures_both_sides_and_writes_a_section(tmp_path) -> None:
     assert len(doc["empty_space"]) == 1 and len(doc["empty_space_runs"]) == 1
     assert doc["scattering_runs"] == [{"renderer": "x", "mode": "quick"}]
     md = (tmp_path / "benchmarks.md").read_text()
-    assert "## Empty-space skipping (quick," in md and "sphere_over_slab" in md
+    assert "## Empty-space skipping (quick," in md and "| beads |" in md
 
 
 def test_max_over_intervals_with_thousands_of_nodes() -> None:
@@ -439,3 +443,15 @@ def test_a_gl_failure_of_the_grid_leaves_the_full_march(monkeypatch) -> None:
     off, on, stats = _render_pair(_nothing)
     assert not stats["active"] and "could not allocate" in stats["reason"]
     assert np.array_equal(off, on) and off.max() > 60
+
+
+@pytest.mark.gl
+def test_dense_data_keeps_the_full_march() -> None:
+    """With (almost) nothing empty the per-sample check would only cost: skipping stays out
+    of the shader and says why."""
+    dense = np.full((32, 32, 32), 40, np.uint8)
+    dense[8:24, 8:24, 8:24] = 200
+    off, on, stats = _render_pair(_nothing, array=dense)
+    assert not stats["active"] and stats["empty_fraction"] == 0.0
+    assert "only 0 % of the bricks are empty" in stats["reason"]
+    assert np.array_equal(off, on)

@@ -194,7 +194,8 @@ class Illuminator:
         self._phase_g = 0.0
         self._interpolation = "trilinear"
         self._skip_empty = True
-        self._ess_ranges: tuple[tuple, occupancy.BrickRanges] | None = None
+        #: (key, per-brick ranges, ms the pass took): computed once per data set.
+        self._ess_ranges: tuple[tuple, occupancy.BrickRanges, float] | None = None
         self._ess_key: tuple | None = None
         self._ess_texture: Texture3D | None = None
         self._ess_stats: dict[str, Any] = {"active": False, "reason": "not rendered yet"}
@@ -949,15 +950,14 @@ class Illuminator:
         elif blend not in composite:
             return off("average, minimum-intensity and isosurface blending count or compare "
                        "every sample")
-        t0 = time.perf_counter()
         apron = 2 if self._interpolation_sections() else 1
         brick = occupancy.brick_for_spacing(img.GetSpacing())
         range_key = (img.GetMTime(), scalars.GetMTime(), apron, brick)
         if self._ess_ranges is None or self._ess_ranges[0] != range_key:
-            self._ess_ranges = (range_key, occupancy.brick_ranges(values, apron=apron,
-                                                                     brick=brick))
-        ranges = self._ess_ranges[1]
-        ranges_ms = (time.perf_counter() - t0) * 1e3
+            t0 = time.perf_counter()
+            computed = occupancy.brick_ranges(values, apron=apron, brick=brick)
+            self._ess_ranges = (range_key, computed, (time.perf_counter() - t0) * 1e3)
+        _key, ranges, ranges_ms = self._ess_ranges
         t1 = time.perf_counter()
         if apron == 2:
             ranges = occupancy.widen_for_corrected(ranges)
@@ -977,17 +977,21 @@ class Illuminator:
                 brick=brick)
         if self._weights is not None and blend != vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND:
             grid &= occupancy.weight_occupancy((nz, ny, nx), self._weights, brick=brick)
+        empty = float(1.0 - grid.mean())
         stats = {
-            "active": True,
-            "reason": "",
+            "active": empty >= occupancy.MIN_EMPTY_FRACTION,
+            "reason": "" if empty >= occupancy.MIN_EMPTY_FRACTION else (
+                f"only {100 * empty:.0f} % of the bricks are empty (below "
+                f"{100 * occupancy.MIN_EMPTY_FRACTION:.0f} %: the check per sample would cost "
+                "more than the jumps save)"),
             "bricks": tuple(int(n) for n in grid.shape[::-1]),
             "brick_voxels": tuple(brick[::-1]),
             "brick_voxels_zyx": brick,
-            "empty_fraction": float(1.0 - grid.mean()),
+            "empty_fraction": empty,
             "ranges_ms": ranges_ms,
             "occupancy_ms": (time.perf_counter() - t1) * 1e3,
         }
-        return stats, grid
+        return stats, grid if stats["active"] else None
 
     def _upload_weights(self) -> None:
         if self._weights is None:
