@@ -6,12 +6,14 @@
 // x, y, z; near cubes in µm) in which
 // no sample can have a non-zero opacity (transfer function, crop and slice weights; every
 // trilinear sample in a brick reads only the brick and its apron). When the current sample
-// lies in such a brick, every sample up to the brick's far face is zero too: the ray jumps
-// over them by a whole number k of steps, so it stays on VTK's own sample lattice
+// lies in such a brick, every sample up to the brick's far face is zero too: the ray moves on
+// by a whole number k of steps, so it stays on VTK's own sample lattice
 // (g_rayOrigin + n·g_dirStep, jitter included) and the samples it still takes are exactly the
-// ones it took without skipping. g_currentT advances with it, and the jump ends the ray where
-// VTK's own termination test would have ended it on any of the skipped samples (past the
-// texture's bounds, or past g_terminatePointMax: the depth buffer and clipping planes).
+// ones it took without skipping. It moves k − 1 steps here and marks the sample it lands on
+// (still inside the empty brick) g_skip; VTK's loop then makes the last step and runs its own
+// termination test (past the texture's bounds, or past g_terminatePointMax: the depth buffer
+// and clipping planes), which, bounds and T being monotone along the ray, is the test it would
+// have run on every skipped sample. g_currentT advances with the ray.
 // Leading, trailing and interior empty space are all skipped, one brick per loop iteration.
 //
 // Uniforms (custom, set by the host):
@@ -44,22 +46,14 @@
     // Samples strictly inside the brick are zero; the margin keeps a sample rounding puts on
     // the face (it is simply taken, as without skipping).
     float vv_essJump = max(1.0, ceil(vv_essExit - 1e-3));
-    // One addition per skipped step, as VTK's loop makes them: the samples after the jump
-    // sit at bit-identical positions (a single multiply-add rounds differently, and at a sharp
-    // edge a 1e-5 texel shift is visible).
-    for (float vv_essI = 0.0; vv_essI < vv_essJump; vv_essI += 1.0)
+    // One addition per step, as VTK's loop makes them: the samples after the jump sit at
+    // bit-identical positions (a single multiply-add rounds differently, and at a sharp edge a
+    // 1e-5 texel shift is visible).
+    for (float vv_essI = 1.0; vv_essI < vv_essJump; vv_essI += 1.0)
     {
       g_dataPos += g_dirStep;
     }
-    g_currentT += vv_essJump;
-    // VTK's termination test, as it would have run on the skipped samples: the sample at
-    // T + k is taken only if the ray is still inside the texture and T + k − 1 < max.
-    if (any(greaterThan(max(g_dirStep, vec3(0.0)) * (g_dataPos - in_texMax[0]), vec3(0.0))) ||
-        any(greaterThan(min(g_dirStep, vec3(0.0)) * (g_dataPos - in_texMin[0]), vec3(0.0))) ||
-        g_currentT - 1.0 >= g_terminatePointMax)
-    {
-      break;
-    }
-    continue;
+    g_currentT += vv_essJump - 1.0;
+    g_skip = true;
   }
 }
