@@ -91,11 +91,23 @@ def test_transfer_occupancy_widens_by_two_table_entries() -> None:
     ranges = occupancy.BrickRanges(np.array([[[[0.0, 0.0]]]]), np.array([[[[99.0, 99.6]]]]), 1,
                                    (8, 8, 16))
     ramp = (np.array([0.0, 100.0, 255.0]), np.array([0.0, 0.0, 1.0]))
-    # Span 255: two table entries ≈ 0.5 units; a brick ending 1 unit below the ramp is empty,
-    # one ending 0.4 below it is not (the GPU's interpolated table may be non-zero there).
-    grid = occupancy.transfer_occupancy(ranges, [ramp], [255.0])
+    # Table over 0…255: two entries ≈ 0.5 units; a brick ending 1 unit below the ramp is
+    # empty, one ending 0.4 below it is not (the GPU's interpolated table may be non-zero).
+    grid = occupancy.transfer_occupancy(ranges, [ramp], [(0.0, 255.0)])
     assert grid.tolist() == [[[False, True]]]
-    assert not occupancy.transfer_occupancy(ranges, [None], [255.0]).any()
+    assert not occupancy.transfer_occupancy(ranges, [None], [(0.0, 255.0)]).any()
+
+
+def test_a_ramp_starting_at_the_data_minimum_leaves_the_background_empty() -> None:
+    """Bricks all at the table's first value read exactly its first entry, f(r0) = 0; one
+    value above it may already read the ramp."""
+    ranges = occupancy.BrickRanges(np.array([[[[0.0, 0.0, np.nan]]]]),
+                                   np.array([[[[0.0, 0.01, np.nan]]]]), 1, (8, 8, 24))
+    ranges = occupancy.BrickRanges(np.nan_to_num(ranges.lo, nan=-np.inf),
+                                   np.nan_to_num(ranges.hi, nan=np.inf), 1, (8, 8, 24))
+    identity = (np.array([0.0, 1.0]), np.array([0.0, 1.0]))
+    grid = occupancy.transfer_occupancy(ranges, [identity], [(0.0, 1.0)])
+    assert grid.tolist() == [[[False, True, True]]]
 
 
 def test_crop_occupancy_agrees_with_the_voxels_it_shows() -> None:
@@ -238,6 +250,17 @@ def _weights(vol, il) -> None:
     il.set_slice_weights(w)
 
 
+def _clip(vol, il) -> None:
+    import vtk
+
+    plane = vtk.vtkPlane()
+    plane.SetOrigin(24.0, 24.0, 24.0)
+    plane.SetNormal(0.3, 0.5, 0.8)
+    planes = vtk.vtkPlaneCollection()
+    planes.AddItem(plane)
+    vol.GetMapper().SetClippingPlanes(planes)
+
+
 def _jitter(vol, il) -> None:
     vol.GetMapper().SetUseJittering(1)
 
@@ -247,8 +270,8 @@ def _corrected(vol, il) -> None:
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("configure", [_crop, _weights, _jitter, _corrected],
-                         ids=["crop", "slice_weights", "jitter", "corrected"])
+@pytest.mark.parametrize("configure", [_crop, _weights, _clip, _jitter, _corrected],
+                         ids=["crop", "slice_weights", "clip_plane", "jitter", "corrected"])
 def test_crop_weights_jitter_and_filter(configure: Callable) -> None:
     off, on, stats = _render_pair(configure, "shadow_volume")
     _same_image(off, on, stats)
@@ -455,3 +478,15 @@ def test_dense_data_keeps_the_full_march() -> None:
     assert not stats["active"] and stats["empty_fraction"] == 0.0
     assert "only 0 % of the bricks are empty" in stats["reason"]
     assert np.array_equal(off, on)
+
+
+@pytest.mark.gl
+def test_opacity_volume_data_with_a_ramp_from_zero() -> None:
+    """The bench's sphere over slab: float opacity data, identity transfer function 0 → 0,
+    1 → 1. The background (exactly 0, the table's first value) is skipped, exactly."""
+    from vtkvol.bench.scenes import phantom_scenes
+
+    scene = phantom_scenes(48)[0]
+    off, on, stats = _render_pair(_nothing, "shadow_volume", array=scene.data,
+                                  opacity=scene.opacity_points)
+    _same_image(off, on, stats, min_empty=0.3)

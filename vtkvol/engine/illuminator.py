@@ -959,17 +959,16 @@ class Illuminator:
             self._ess_ranges = (range_key, computed, (time.perf_counter() - t0) * 1e3)
         _key, ranges, ranges_ms = self._ess_ranges
         t1 = time.perf_counter()
-        if apron == 2:
-            ranges = occupancy.widen_for_corrected(ranges)
-        spans = []
-        for c, f in enumerate(functions):
+        # VTK samples each opacity table over the component's scalar range (the data's).
+        table_range = []
+        for c in range(ncomp):
             finite_lo = ranges.lo[c][np.isfinite(ranges.lo[c])]
             finite_hi = ranges.hi[c][np.isfinite(ranges.hi[c])]
-            data_span = (float(finite_hi.max() - finite_lo.min())
-                         if finite_lo.size and finite_hi.size else 0.0)
-            function_span = float(f[0][-1] - f[0][0]) if f is not None else 0.0
-            spans.append(max(data_span, function_span))
-        grid = occupancy.transfer_occupancy(ranges, functions, spans)
+            table_range.append((float(finite_lo.min()), float(finite_hi.max()))
+                               if finite_lo.size and finite_hi.size else (np.nan, np.nan))
+        if apron == 2:
+            ranges = occupancy.widen_for_corrected(ranges)
+        grid = occupancy.transfer_occupancy(ranges, functions, table_range)
         if mapper.GetCropping():
             grid &= occupancy.crop_occupancy(
                 (nz, ny, nx), img.GetOrigin(), img.GetSpacing(),

@@ -190,21 +190,39 @@ def max_over_intervals(
 def transfer_occupancy(
     ranges: BrickRanges,
     functions: Sequence[tuple[np.ndarray, np.ndarray] | None],
-    table_span: Sequence[float],
+    table_range: Sequence[tuple[float, float]],
 ) -> np.ndarray:
     """Bricks where some component's opacity can be non-zero: bool ``[bz, by, bx]``.
 
     ``functions[c]``: the nodes ``(xs, ys)`` of component ``c``'s opacity function in data
     units, or None for a component that cannot contribute (weight 0, or not the opacity
-    component of dependent data). ``table_span[c]``: the value span VTK's opacity table covers
-    (data and function range); ranges are widened by two table entries of it."""
+    component of dependent data). ``table_range[c]``: the value range (r0, r1) VTK samples
+    component ``c``'s opacity table over (its scalar range).
+
+    The GPU reads the table, not the function: entry i holds f(r0 + i·(r1 − r0)/(W − 1)),
+    W ≥ 1024 entries, interpolated linearly with clamping at both ends. A value v therefore
+    mixes entries up to two entries' width away, so ranges are widened by that much; they are
+    also clamped to [r0, r1], since no lookup reaches beyond the end entries, and a brick all
+    at r0 (or all at r1) reads exactly the end entry f(r0) (f(r1)): the empty background of a
+    volume whose opacity ramp starts right at its minimum stays empty."""
     occupied = np.zeros(ranges.bricks_zyx, bool)
     for c, function in enumerate(functions):
         if function is None:
             continue
         xs, ys = function
-        delta = 2.0 * max(float(table_span[c]), 1e-30) / TABLE_ENTRIES
-        occupied |= max_over_intervals(xs, ys, ranges.lo[c] - delta, ranges.hi[c] + delta) > 0
+        r0, r1 = (float(v) for v in table_range[c])
+        if not (np.isfinite(r0) and np.isfinite(r1)) or r1 < r0:
+            r0, r1 = -np.inf, np.inf
+        span = max(r1 - r0, float(xs[-1] - xs[0]), 1e-30) if np.isfinite(r1 - r0) else np.inf
+        delta = 2.0 * span / TABLE_ENTRIES
+        lo, hi = ranges.lo[c], ranges.hi[c]
+        with np.errstate(invalid="ignore"):
+            lo_w = np.where(lo >= r1, r1, np.clip(lo - delta, r0, r1))
+            hi_w = np.where(hi <= r0, r0, np.clip(hi + delta, r0, r1))
+        # NaN bricks (−inf, inf) read anything the table holds.
+        lo_w = np.where(np.isfinite(lo), lo_w, r0 if np.isfinite(r0) else -np.inf)
+        hi_w = np.where(np.isfinite(hi), hi_w, r1 if np.isfinite(r1) else np.inf)
+        occupied |= max_over_intervals(xs, ys, lo_w, hi_w) > 0
     return occupied
 
 
