@@ -12,9 +12,11 @@ for f in Bead_Image1_crop.tif platynereis_nuclei_labels_256x256x103.tif \
          DeconvolutionSampleVerticalGrid1AU-crop.tif; do
   if [ -f "$DATA/$f" ]; then args+=(--data "$DATA/$f"); fi
 done
-vtkvol bench -o docs "${args[@]}" "$@"
+status=0
+vtkvol bench -o docs "${args[@]}" "$@" || status=$?  # 1: some setting failed (recorded)
 sparse=()
 for f in Bead_Image1_crop.tif platynereis_nuclei_labels_256x256x103.tif; do
   if [ -f "$DATA/$f" ]; then sparse+=(--data "$DATA/$f"); fi
 done
-exec vtkvol bench --empty-space -o docs "${sparse[@]}" "$@"
+vtkvol bench --empty-space -o docs "${sparse[@]}" "$@" || status=$?
+exit "$status"
