@@ -490,3 +490,22 @@ def test_opacity_volume_data_with_a_ramp_from_zero() -> None:
     off, on, stats = _render_pair(_nothing, "shadow_volume", array=scene.data,
                                   opacity=scene.opacity_points)
     _same_image(off, on, stats, min_empty=0.3)
+
+
+@pytest.mark.parametrize("value", [1, "yes", None, [True]])
+def test_a_session_with_a_bad_switch_is_refused_in_one_line(tmp_path, value) -> None:
+    """The switch is strict like the other settings: 1 or "yes" is not true."""
+    import json
+    from pathlib import Path
+
+    from vtkvol.model.session import SessionError, read_session
+
+    fixture = Path(__file__).parent / "fixtures" / "sessions" / "v6_complete.vtkvol.json"
+    doc = json.loads(fixture.read_text(encoding="utf-8"))
+    doc["scene"]["render"]["empty_space_skipping"] = value
+    path = tmp_path / "v.vtkvol.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(SessionError, match=r"^v\.vtkvol\.json: ") as info:
+        read_session(path)
+    message = str(info.value)
+    assert "render.empty_space_skipping" in message and "\n" not in message
