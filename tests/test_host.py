@@ -60,7 +60,9 @@ def test_no_uniform_or_texture_of_a_technique_survives_a_switch():
     il.set_method("local")
     image = grab(rw)
     assert not any(n.startswith("vv_shadow_volume_") for n in uniform_names(volume))
-    assert il._textures == {}
+    assert il.bound_textures() == {}
+    # Only the host's own binding may stay (the empty-space grid, where skipping applies).
+    assert set(il._textures) <= {"vv_essOccupancy"}
     assert image.max() > 50
     il.release()
     assert uniform_names(volume) == set()

@@ -137,6 +137,7 @@ def rich_model() -> SceneModel:
             blend_mode="mip", channel_mixing="composite", sample_distance=0.25, jitter=False,
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
             background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3, interpolation="corrected",
+            empty_space_skipping=False,
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
                           color_legend=True, slice_planes=True),
@@ -839,6 +840,8 @@ def test_migrate_v5_to_v6_matches_fixture() -> None:
     assert scene["volume"]["level"] is None and scene["volume"]["region_um"] is None
     assert scene["illumination"]["auto"] is False  # v5 always showed the method it named
     assert scene["illumination"]["auto_budget_ssim"] == 0.98
+    # Skipping is exact, so v5 files get the default (on) and render as v5 did.
+    assert scene["render"]["empty_space_skipping"] is True
     assert raw == untouched
 
 
@@ -851,6 +854,7 @@ def test_v5_file_reads_without_warnings_as_it_was_shown() -> None:
     assert model.volume.level is None and model.volume.region_um is None
     assert model.illumination.auto is False
     assert model.illumination.method == "fake_shadows"
+    assert model.render.empty_space_skipping is True
 
 
 def test_migrate_current_version_is_identity() -> None:

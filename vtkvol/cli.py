@@ -144,6 +144,9 @@ def _parser() -> argparse.ArgumentParser:
     p_bench.add_argument("--scattering", action="store_true",
                          help="run the convergence study of the multiple-scattering techniques "
                               "instead (against path-traced references, 1 and 3 lights)")
+    p_bench.add_argument("--empty-space", action="store_true",
+                         help="measure empty-space skipping instead: frame time with it off and "
+                              "on, side by side, on the phantoms and every --data file")
 
     p_batch = sub.add_parser(
         "batch", help="render many sessions or time points to PNGs on a Dask cluster",
@@ -559,6 +562,11 @@ def cmd_bench(args: argparse.Namespace) -> int:
         if not Path(file).exists():
             print(f"vtkvol: --data {file}: no such file", file=sys.stderr)
             return 1
+    if args.empty_space:
+        from vtkvol.bench.empty_space import main as empty_space_main
+
+        return empty_space_main(quick=args.quick, out=str(output), size=args.size,
+                                data=args.data)
     if args.scattering:
         from vtkvol.bench.runner import main_scattering
 

@@ -241,6 +241,13 @@ class ChannelsDock(ModelDock):
         for mode, label in INTERPOLATION_LABELS.items():
             self.interpolation.addItem(label, mode)
         form.addRow("Interpolation", self.interpolation)
+        self.skip_empty = QCheckBox("Skip empty space")
+        self.skip_empty.setObjectName("render_empty_space_skipping")
+        self.skip_empty.setToolTip(
+            "Rays jump over 8³-voxel bricks the transfer function, crop and slice weights make "
+            "fully transparent. Exact (the image does not change); faster on sparse data. "
+            "Composite, additive and (with opacity rising with the value) MIP blending")
+        form.addRow("", self.skip_empty)
         self.iso = number_box(minimum=-1e9, maximum=1e9, decimals=1, object_name="render_iso_value",
                               tooltip="Data value of the isosurface")
         self.iso_auto = QPushButton("Auto")
@@ -273,6 +280,8 @@ class ChannelsDock(ModelDock):
                lambda mode: self.interpolation.setCurrentIndex(
                    self.interpolation.findData(mode)),
                to_model=lambda i: self.interpolation.itemData(i))
+        b.bind(render, "empty_space_skipping", self.skip_empty, self.skip_empty.toggled,
+               lambda on: self.skip_empty.setChecked(bool(on)))
         b.connect_qt(self.iso.valueChanged, self._on_iso)
         b.connect_qt(self.iso_auto.clicked, lambda: setattr(self.model.render,
                                                              "isosurface_value", None))

@@ -151,8 +151,7 @@ def _atomic_write(path: Path, text: str) -> None:
 
 def load(path: Path) -> dict[str, Any]:
     """The results file, or an empty one when absent or not ours."""
-    empty = {"format": FORMAT, "version": VERSION, "runs": [], "records": [], "stability": [],
-             "scattering_runs": [], "scattering": []}
+    empty: dict[str, Any] = {"format": FORMAT, "version": VERSION, **{k: [] for k in _LISTS}}
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8"))
     except (OSError, ValueError):
@@ -164,9 +163,11 @@ def load(path: Path) -> dict[str, Any]:
     return doc
 
 
-#: The lists of a results document: the matrix runs, their records and stability cases, and
-#: the convergence study's runs and records (``vtkvol bench --scattering``).
-_LISTS = ("runs", "records", "stability", "scattering_runs", "scattering")
+#: The lists of a results document: the matrix runs, their records and stability cases, the
+#: convergence study's runs and records (``vtkvol bench --scattering``) and the empty-space
+#: measurement's (``vtkvol bench --empty-space``).
+_LISTS = ("runs", "records", "stability", "scattering_runs", "scattering", "empty_space_runs",
+          "empty_space")
 
 
 def merge(doc: dict[str, Any], run: Mapping[str, Any], records: Iterable[Mapping[str, Any]],
@@ -455,7 +456,8 @@ def markdown(doc: Mapping[str, Any]) -> str:
     runs = sorted(doc["runs"], key=lambda r: (r["mode"] != "full", r["renderer"]))
     if not runs:
         out.append("No results yet: run `vtkvol bench -o DIR --quick`.")
-        return "\n".join([*out, "", *scattering_markdown(doc)]) + "\n"
+        return "\n".join([*out, "", *scattering_markdown(doc),
+                          *empty_space_markdown(doc)]) + "\n"
     out += ["## Runs", "",
             "| mode | renderer | GPU | VTK | CPU (cores) | date | scenes | image | frames "
             "| duration (CPU time; load) | command |",
@@ -537,6 +539,7 @@ def markdown(doc: Mapping[str, Any]) -> str:
                            f"{checks} |")
             out.append("")
     out += scattering_markdown(doc)
+    out += empty_space_markdown(doc)
     return "\n".join(out) + "\n"
 
 
@@ -587,6 +590,77 @@ def write_all(out_dir: Path, run: Mapping[str, Any], records: Sequence[Mapping[s
     _atomic_write(out_dir / "benchmarks.json", json.dumps(doc, indent=1, ensure_ascii=False)
                   + "\n")
     return regenerate(out_dir, doc)
+
+
+def merge_empty_space(doc: dict[str, Any], run: Mapping[str, Any],
+                      records: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
+    """``doc`` with the empty-space measurement of ``run``'s (renderer, mode) replaced."""
+    key = (run["renderer"], run["mode"])
+
+    def other(entry: Mapping[str, Any]) -> bool:
+        return (entry.get("renderer"), entry.get("mode")) != key
+
+    return {
+        **doc,
+        "format": FORMAT,
+        "version": VERSION,
+        "empty_space_runs": [r for r in doc["empty_space_runs"] if other(r)]
+        + [_clean(dict(run))],
+        "empty_space": [r for r in doc["empty_space"] if other(r)]
+        + [_clean(dict(r)) for r in records],
+    }
+
+
+def write_empty_space(out_dir: Path, run: Mapping[str, Any],
+                      records: Sequence[Mapping[str, Any]]) -> dict[str, Path]:
+    """Merge an empty-space measurement into ``out_dir/benchmarks.json`` and regenerate."""
+    out_dir = Path(out_dir)
+    doc = merge_empty_space(load(out_dir / "benchmarks.json"), run, records)
+    _atomic_write(out_dir / "benchmarks.json", json.dumps(doc, indent=1, ensure_ascii=False)
+                  + "\n")
+    return regenerate(out_dir, doc)
+
+
+def empty_space_markdown(doc: Mapping[str, Any]) -> list[str]:
+    """The "Empty-space skipping" section of ``benchmarks.md`` (empty without a run)."""
+    out: list[str] = []
+    for run in doc.get("empty_space_runs", []):
+        recs = [x for x in doc["empty_space"]
+                if x["renderer"] == run["renderer"] and x["mode"] == run["mode"]]
+        if not recs:
+            continue
+        out += [f"## Empty-space skipping ({run['mode']}, {run['renderer']})", "",
+                f"`{run.get('command', '')}`, {run['date'][:16].replace('T', ' ')} UTC, "
+                f"{_duration(run.get('duration_s'))} (CPU {_duration(run.get('cpu_seconds'))}; "
+                f"load average {_fmt(run.get('load_average_start'), 1)}–"
+                f"{_fmt(run.get('load_average_end'), 1)}), {run.get('cpu', '')} "
+                f"({run.get('cores', '')} cores), {run.get('image_size')}² images. Each row "
+                "renders the same view with skipping off and on in alternating blocks "
+                f"({run.get('rounds')} × {run.get('frames')} timed frames each, 2° orbit per "
+                "frame); ratios are off ÷ on (above 1: faster with skipping). Process CPU time "
+                "counts llvmpipe's own threads, so it is the steadier measure on a loaded "
+                "machine. *max Δ* is the largest pixel difference between the two images "
+                "(8-bit levels; skipping is exact when ≤ 1). Method: "
+                "[empty-space-skipping.md](empty-space-skipping.md).", "",
+                "| scene | size | method | empty bricks (brick voxels) | frame ms off → on | "
+                "× wall | CPU ms off → on | × CPU | max Δ | occupancy ms (per data / per "
+                "edit) |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for x in recs:
+            if not x.get("ok"):
+                out.append(f"| {x['scene']} | {x.get('size', '')} | {x['method']} | "
+                           f"**failed**: {x.get('error', '')} |||||||")
+                continue
+            empty = (f"{100 * x['empty_fraction']:.0f} % "
+                     f"({'×'.join(str(b) for b in x.get('brick_voxels') or [])})"
+                     if x.get("active") else f"off: {x.get('reason', '')}")
+            out.append(
+                f"| {x['scene']} | {x.get('size', '')} | {x['method']} | {empty} | "
+                f"{_fmt(x['frame_off_ms'], 0)} → {_fmt(x['frame_on_ms'], 0)} | "
+                f"{_fmt(x['ratio'], 2)} | {_fmt(x['cpu_off_ms'], 0)} → "
+                f"{_fmt(x['cpu_on_ms'], 0)} | {_fmt(x['cpu_ratio'], 2)} | {x['max_abs']} | "
+                f"{_fmt(x.get('ranges_ms'), 1)} / {_fmt(x.get('occupancy_ms'), 2)} |")
+        out.append("")
+    return out
 
 
 def write_scattering(out_dir: Path, run: Mapping[str, Any],

@@ -30,8 +30,8 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
-from vtkvol.engine import shaders, tf2d
-from vtkvol.engine.gl import Texture2D
+from vtkvol.engine import occupancy, shaders, tf2d
+from vtkvol.engine.gl import Texture2D, Texture3D
 from vtkvol.engine.technique import Technique, technique_class
 from vtkvol.model.params import Invalidates
 from vtkvol.model.scene import Light
@@ -220,6 +220,12 @@ class Illuminator:
         self._albedo = 1.0
         self._phase_g = 0.0
         self._interpolation = "trilinear"
+        self._skip_empty = True
+        #: (key, per-brick ranges, ms the pass took): computed once per data set.
+        self._ess_ranges: tuple[tuple, occupancy.BrickRanges, float] | None = None
+        self._ess_key: tuple | None = None
+        self._ess_texture: Texture3D | None = None
+        self._ess_stats: dict[str, Any] = {"active": False, "reason": "not rendered yet"}
         self.last_prepare_ms = 0.0
         self.render_window: vtk.vtkRenderWindow | None = None
         self.profiling = False
@@ -418,6 +424,26 @@ class Illuminator:
                 f"interpolation must be 'trilinear' or 'corrected', not {interpolation!r}"
             )
         self._interpolation = interpolation
+
+    @property
+    def empty_space_skipping(self) -> bool:
+        """Whether rays jump over bricks in which no sample can be visible
+        (docs/empty-space-skipping.md). Exact: the image does not change."""
+        return self._skip_empty
+
+    def set_empty_space_skipping(self, enabled: bool) -> None:
+        """Switch empty-space skipping on or off (on by default). It applies to composite
+        and additive blending, and to maximum-intensity projection with non-decreasing opacity
+        functions and no slice weights; elsewhere rays march the whole box
+        (:meth:`empty_space_stats` says why)."""
+        self._skip_empty = bool(enabled)
+
+    def empty_space_stats(self) -> dict[str, Any]:
+        """The last frame's occupancy: ``active`` (bool), ``reason`` (why not, or ""),
+        ``bricks`` (x, y, z), ``brick_voxels`` (x, y, z), ``empty_fraction`` (0…1) and
+        ``ranges_ms`` / ``occupancy_ms`` (wall time of the per-data min/max pass and of the
+        per-edit lookup)."""
+        return dict(self._ess_stats)
 
     def set_slice_weights(self, weights: np.ndarray | None) -> None:
         """Per-axis slice-contribution weights, shape (3, W) for x, y, z over 0…1 (or None)."""
@@ -927,6 +953,7 @@ class Illuminator:
             self._technique = self._technique_cls(self)
             self._changes.first = True
         self._upload_weights()
+        self._update_empty_space()
         changes, self._changes = self._changes, Changes()
         if self._deferring(changes):
             # Keep the previous light: no prepare, the changes wait (merged) for later;
@@ -1029,6 +1056,10 @@ class Illuminator:
         multichannel = self._multichannel_sections(shares_gradient=any(
             "#define VV_IP_SHARE_GRADIENT" in s.code for s in interpolation))
         sections += multichannel
+        if self._ess_stats.get("active"):
+            bz, by, bx = self._ess_stats["brick_voxels_zyx"]
+            sections += shaders.load("host_empty_space.glsl", {
+                "VV_ESS_BRICK": f"vec3({float(bx):.1f}, {float(by):.1f}, {float(bz):.1f})"})
         own = tech.sections(values)
         defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
@@ -1110,6 +1141,139 @@ class Illuminator:
             # take gradients away from the sample).
             defines["VV_IP_SHARE_GRADIENT"] = "1"
         return shaders.load("host_interpolation.glsl", defines)
+
+    # -- empty-space skipping -------------------------------------------------------------------
+    def _update_empty_space(self) -> None:
+        """Recompute the occupancy grid when what decides it changed (data, TFs, crop, slice
+        weights, blend mode, filter, the switch) and bind it; camera moves cost nothing."""
+        mapper = self.volume.GetMapper()
+        prop = self.volume.GetProperty()
+        key = (self._signature, self._skip_empty, int(mapper.GetBlendMode()),
+               self._interpolation, int(prop.GetTransferFunctionMode()),
+               mapper.GetMaskInput() is not None)
+        if key == self._ess_key:
+            return
+        self._ess_key = key
+        try:
+            stats, grid = self._occupancy_grid()
+            if grid is not None:
+                self._upload_occupancy(grid)
+        except Exception as exc:  # never lose the view to an optimisation
+            logger.exception("empty-space skipping failed; rays march the whole volume")
+            stats, grid = {"active": False, "reason": f"failed ({type(exc).__name__}: {exc})"}, None
+        self._ess_stats = stats
+        if grid is None:
+            self._drop_occupancy()
+
+    def _upload_occupancy(self, grid: np.ndarray) -> None:
+        data = grid.astype(np.float32)
+        if self._ess_texture is None or self._ess_texture.shape != data.shape:
+            if self._ess_texture is not None:
+                self._ess_texture.release()
+                self._ess_texture = None
+            self._ess_texture = Texture3D(self.render_window, data.shape, data=data)
+        else:
+            self._ess_texture.upload(data)
+        self.bind_texture("vv_essOccupancy", self._ess_texture)
+        nz, ny, nx = (int(n) for n in self.image.GetDimensions()[::-1])
+        bz, by, bx = data.shape
+        fu = self.shader_property.GetFragmentCustomUniforms()
+        fu.SetUniform3f("vv_essTexDims", [float(nx), float(ny), float(nz)])
+        fu.SetUniform3f("vv_essBricks", [float(bx), float(by), float(bz)])
+
+    def _drop_occupancy(self) -> None:
+        self.unbind_texture("vv_essOccupancy")
+        fu = self.shader_property.GetFragmentCustomUniforms()
+        for name in _ESS_UNIFORMS:
+            fu.RemoveUniform(name)
+        if self._ess_texture is not None:
+            self._ess_texture.release()
+            self._ess_texture = None
+
+    def _occupancy_grid(self) -> tuple[dict[str, Any], np.ndarray | None]:
+        """``(stats, grid)``: the occupancy (bool ``[bz, by, bx]``) the shader reads, or None
+        with the reason skipping does not apply to this volume's settings."""
+        def off(reason: str) -> tuple[dict[str, Any], None]:
+            return {"active": False, "reason": reason}, None
+
+        if not self._skip_empty:
+            return off("switched off")
+        mapper = self.volume.GetMapper()
+        prop = self.volume.GetProperty()
+        if prop.GetTransferFunctionMode() != vtk.vtkVolumeProperty.TF_1D:
+            return off("2-D transfer functions are not supported")
+        if mapper.GetMaskInput() is not None:
+            return off("masked volumes are not supported")
+        blend = mapper.GetBlendMode()
+        img = self.image
+        nx, ny, nz = img.GetDimensions()
+        scalars = img.GetPointData().GetScalars()
+        values = vtk_to_numpy(scalars).reshape(nz, ny, nx, -1)
+        ncomp = values.shape[-1]
+        independent = ncomp == 1 or bool(prop.GetIndependentComponents())
+        functions: list[tuple[np.ndarray, np.ndarray] | None] = [None] * ncomp
+        for c in range(ncomp) if independent else [ncomp - 1]:
+            fc = c if independent else 0
+            if independent and ncomp > 1 and prop.GetComponentWeight(fc) <= 0:
+                continue  # VTK multiplies this component's contribution by 0
+            function = prop.GetScalarOpacity(fc)
+            nodes = np.array([_node(function, i)[:2] for i in range(function.GetSize())])
+            functions[c] = (nodes[:, 0], nodes[:, 1]) if len(nodes) else (
+                np.zeros(1), np.zeros(1))
+        composite = (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ADDITIVE_BLEND)
+        if blend == vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND:
+            # The maximum of the samples left equals the full maximum, or both map to
+            # opacity 0, only if zero opacity is a prefix of the value axis; the final
+            # classification reads the slice weight at the ray's last position, which a jump
+            # moves.
+            if not all(f is None or occupancy.non_decreasing(f) for f in functions):
+                return off("maximum-intensity projection needs non-decreasing opacity")
+            if self._weights is not None:
+                return off("maximum-intensity projection with slice weights")
+        elif blend not in composite:
+            return off("average, minimum-intensity and isosurface blending count or compare "
+                       "every sample")
+        apron = 2 if self._interpolation_sections() else 1
+        brick = occupancy.brick_for_spacing(img.GetSpacing())
+        range_key = (img.GetMTime(), scalars.GetMTime(), apron, brick)
+        if self._ess_ranges is None or self._ess_ranges[0] != range_key:
+            t0 = time.perf_counter()
+            computed = occupancy.brick_ranges(values, apron=apron, brick=brick)
+            self._ess_ranges = (range_key, computed, (time.perf_counter() - t0) * 1e3)
+        _key, ranges, ranges_ms = self._ess_ranges
+        t1 = time.perf_counter()
+        # VTK samples each opacity table over the component's scalar range (the data's).
+        table_range = []
+        for c in range(ncomp):
+            finite_lo = ranges.lo[c][np.isfinite(ranges.lo[c])]
+            finite_hi = ranges.hi[c][np.isfinite(ranges.hi[c])]
+            table_range.append((float(finite_lo.min()), float(finite_hi.max()))
+                               if finite_lo.size and finite_hi.size else (np.nan, np.nan))
+        if apron == 2:
+            ranges = occupancy.widen_for_corrected(ranges)
+        grid = occupancy.transfer_occupancy(ranges, functions, table_range)
+        if mapper.GetCropping():
+            grid &= occupancy.crop_occupancy(
+                (nz, ny, nx), img.GetOrigin(), img.GetSpacing(),
+                mapper.GetCroppingRegionPlanes(), int(mapper.GetCroppingRegionFlags()),
+                brick=brick)
+        if self._weights is not None and blend != vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND:
+            grid &= occupancy.weight_occupancy((nz, ny, nx), self._weights, brick=brick)
+        empty = float(1.0 - grid.mean())
+        stats = {
+            "active": empty >= occupancy.MIN_EMPTY_FRACTION,
+            "reason": "" if empty >= occupancy.MIN_EMPTY_FRACTION else (
+                f"only {100 * empty:.0f} % of the bricks are empty (below "
+                f"{100 * occupancy.MIN_EMPTY_FRACTION:.0f} %: the check per sample would cost "
+                "more than the jumps save)"),
+            "bricks": tuple(int(n) for n in grid.shape[::-1]),
+            "brick_voxels": tuple(brick[::-1]),
+            "brick_voxels_zyx": brick,
+            "empty_fraction": empty,
+            "ranges_ms": ranges_ms,
+            "occupancy_ms": (time.perf_counter() - t1) * 1e3,
+        }
+        return stats, grid if stats["active"] else None
 
     def _upload_weights(self) -> None:
         if self._weights is None:
@@ -1235,6 +1399,7 @@ class Illuminator:
         if self._weights_texture is not None:
             self._weights_texture.release()
             self._weights_texture = None
+        self._drop_occupancy()
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name in list(self._textures):
             self.unbind_texture(name)
@@ -1265,7 +1430,8 @@ _MULTICHANNEL_LINES = {
     "color[i] = computeColor(scalar, color[i][3], i);": "",
     "totalAlpha += color[i][3] * in_componentWeight[i];": "",
 }
-_HOST_TEXTURES = frozenset({"vv_sliceWeights"})
+_HOST_TEXTURES = frozenset({"vv_sliceWeights", "vv_essOccupancy"})
+_ESS_UNIFORMS = ("vv_essTexDims", "vv_essBricks")
 
 
 @functools.lru_cache(maxsize=64)

@@ -291,6 +291,8 @@ class VolumeScene:
                 # Nearest is VTK's own texture filter; the host's shader path stays trilinear.
                 self.illuminator.set_interpolation(
                     "trilinear" if nearest else render.interpolation)
+        if (every or "empty_space_skipping" in names) and self.illuminator is not None:
+            self.illuminator.set_empty_space_skipping(render.empty_space_skipping)
 
     def _apply_all(self) -> None:
         self._on_render_change(None)

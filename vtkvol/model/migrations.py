@@ -159,7 +159,9 @@ def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
     * ``volume`` gained ``level`` and ``region_um``, the pyramid level and refined region
       shown (``null``: the level the budget chooses, the whole image);
     * ``illumination`` gained ``auto`` and ``auto_budget_ssim``, the app's Auto quality (off:
-      v5 showed the method it named; the budget's default, SSIM 0.98).
+      v5 showed the method it named; the budget's default, SSIM 0.98);
+    * ``render`` gained ``empty_space_skipping`` (on: skipping is exact, the image is the one
+      v5 rendered within one 8-bit level).
     """
     out = copy.deepcopy(raw)
     out["version"] = 6
@@ -180,6 +182,8 @@ def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
     if isinstance(scene.get("illumination"), dict):
         scene["illumination"].setdefault("auto", False)
         scene["illumination"].setdefault("auto_budget_ssim", 0.98)
+    if isinstance(scene.get("render"), dict):
+        scene["render"].setdefault("empty_space_skipping", True)
     return out
 
 

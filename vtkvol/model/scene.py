@@ -273,6 +273,11 @@ class RenderSettings(EventedModel):
     #: ``corrected`` reuses the six fetches of the shading gradient, so shaded it costs almost
     #: nothing; unshaded it adds six texture fetches per sample.
     interpolation: Interpolation = "trilinear"
+    #: Empty-space skipping (unit-free switch): rays jump over bricks of 8³ voxels where no
+    #: sample can be visible (transfer function, crop, slice weights). Exact (the image does
+    #: not change); applies to composite, additive and, with non-decreasing opacity, MIP
+    #: blending. docs/empty-space-skipping.md.
+    empty_space_skipping: bool = True
 
     @field_validator("blend_mode", mode="before")
     @classmethod
