@@ -49,6 +49,7 @@ from vtkvol.model.session import (
     save_session,
 )
 from vtkvol.model.techniques import TechniqueSpec, register
+from vtkvol.model.tf_paint import TFPaintLayer, apply_stroke, stroke_mask
 from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
 
 FIXTURES = Path(__file__).parent / "fixtures" / "sessions"
@@ -85,6 +86,16 @@ def make_data(path: Path, shape_czyx: tuple[int, ...] = (2, 4, 5, 6), seed: int 
     return path
 
 
+def rich_paint() -> TFPaintLayer:
+    """A small painted layer: an orange dab and a half-transparent blue one (8 × 6 pixels)."""
+    layer = TFPaintLayer.blank((20.0, 220.0), (0.0, 40.0), shape=(6, 8))
+    pixels = apply_stroke(layer.pixels(), stroke_mask(layer.shape, [(2.0, 2.0)], 1.2),
+                          (1.0, 0.5, 0.0), 0.6)
+    pixels = apply_stroke(pixels, stroke_mask(layer.shape, [(6.0, 4.0)], 1.0),
+                          (0.0, 0.2, 1.0), 0.3)
+    return layer.with_pixels(pixels)
+
+
 def rich_model() -> SceneModel:
     """A scene with every part set away from its default."""
     return SceneModel(
@@ -108,6 +119,7 @@ def rich_model() -> SceneModel:
                                     opacity=0.8),
                     ],
                     gradient_max=50.0,
+                    paint=rich_paint(),
                 ),
             ),
             Channel(name="membrane", visible=False, color=(1.0, 0.2, 1.0), tf_linked_to=0),
@@ -444,7 +456,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 7)"),
+         "(format version 99; this version reads up to 8)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -844,7 +856,7 @@ def test_migrate_v6_to_v7_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[6](raw)
     assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     assert [c["tf_mode"] for c in out["scene"]["channels"]] == ["1d", "1d"]  # v6 was 1-D
     assert raw == untouched
 
@@ -856,8 +868,26 @@ def test_v6_file_reads_without_warnings_and_1d_classification() -> None:
                for c in session.model.channels)
 
 
+def test_migrate_v7_to_v8_matches_fixture() -> None:
+    raw = load_fixture("v7_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[7](raw)
+    assert out == load_fixture("v7_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    assert [c["tf2d"]["paint"] for c in out["scene"]["channels"]] == [None, None]  # v7: none
+    assert raw == untouched
+
+
+def test_v7_file_reads_without_warnings_and_no_paint() -> None:
+    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
+    assert session.warnings == []
+    channel = session.model.channels[0]
+    assert channel.tf_mode == "2d" and len(channel.tf2d.primitives) == 2
+    assert all(c.tf2d.paint is None for c in session.model.channels)
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v7_complete.vtkvol.json")
+    doc = load_fixture("v8_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -887,8 +917,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v7 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
+    """The checked-in v8 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v8_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -908,8 +938,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 8; this version reads up to 7"):
-        migrate({"format": FORMAT, "version": 8})
+    with pytest.raises(ValueError, match="format version 9; this version reads up to 8"):
+        migrate({"format": FORMAT, "version": 9})
 
 
 @pytest.mark.parametrize(
