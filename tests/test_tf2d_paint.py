@@ -115,6 +115,27 @@ def test_the_layer_is_compact_and_round_trips_through_json() -> None:
     assert again.paint.value_range == (0.0, 255.0)
 
 
+def test_restoring_a_state_replaces_the_layer_whole_whatever_its_shape() -> None:
+    """Undo and opening a session assign states field by field; the layer's shape and
+    pixels must change together (a layer is an immutable value)."""
+    from vtkvol.model import Channel, SceneModel
+    from vtkvol.ui.undo import apply_state
+
+    small = SceneModel(channels=[Channel()])
+    small.channels[0].tf2d.paint = blob(TFPaintLayer.blank((0.0, 1.0), (0.0, 1.0), (6, 8)),
+                                        (3.0, 2.0), 1.5)
+    large = SceneModel(channels=[Channel()])
+    large.channels[0].tf2d.paint = blob(TFPaintLayer.blank((0.0, 9.0), (0.0, 2.0)),
+                                        (64.0, 64.0), 5.0)
+    seen: list[frozenset[str]] = []
+    small.changed.connect(seen.append)
+    apply_state(small, large.copy_state())
+    assert small.channels[0].tf2d.paint == large.channels[0].tf2d.paint
+    assert seen == [frozenset({"channels[0].tf2d.paint"})]
+    with pytest.raises(ValidationError, match="frozen"):
+        small.channels[0].tf2d.paint.shape = (6, 8)  # type: ignore[misc]
+
+
 def _packed(array: np.ndarray) -> str:
     return base64.b64encode(zlib.compress(array.tobytes())).decode()
 

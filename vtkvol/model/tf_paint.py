@@ -27,9 +27,7 @@ import zlib
 from collections.abc import Iterable
 
 import numpy as np
-from pydantic import field_validator, model_validator
-
-from vtkvol.model.evented import EventedModel
+from pydantic import BaseModel, ConfigDict, field_validator, model_validator
 
 #: (rows = gradient, columns = value) of a new layer: VTK's 1024² table reads it bilinearly.
 PAINT_SHAPE = (128, 128)
@@ -89,12 +87,19 @@ def _decode(rgba: str, height: int, width: int) -> np.ndarray:
     return pixels
 
 
-class TFPaintLayer(EventedModel):
+class TFPaintLayer(BaseModel):
     """A painted RGBA raster over the box ``value_range × gradient_range`` (module docstring).
 
     Outside the box the layer is transparent; inside it is read bilinearly between pixel
     centres (clamped to the edge pixels within half a pixel of the border), with colour
-    interpolated premultiplied by alpha so that a painted edge does not fade to black."""
+    interpolated premultiplied by alpha so that a painted edge does not fade to black.
+
+    An immutable value (frozen, like a tuple): an edit replaces the whole layer
+    (:meth:`with_pixels`), so its fields, which must agree with each other (``shape`` and
+    ``rgba``), are never assigned one by one — restoring a state (undo, opening a session)
+    assigns the layer whole and validates it whole."""
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
 
     value_range: Range = (0.0, 255.0)
     gradient_range: Range = (0.0, 1.0)
