@@ -22,6 +22,7 @@ from vtkvol.io.volume_data import VolumeData
 from vtkvol.model.classification import classes_to_tf, feature_sample, spatialized_classes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.gradient import gradient_axis_max
+from vtkvol.model.tf_paint import TFPaintLayer, apply_stroke, stroke_mask
 from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
 
 BEADS = Path(__file__).resolve().parents[2] / "shared" / "data" / "Bead_Image1_crop.tif"
@@ -67,8 +68,19 @@ def opacity_volume_ms(n: int, mode: str) -> float:
 
 
 def main() -> None:
+    layer = TFPaintLayer.blank((1, 156), (0, 684))
+    layer = layer.with_pixels(apply_stroke(layer.pixels(), stroke_mask(
+        layer.shape, [(20.0, 10.0), (100.0, 60.0)], 8.0), (1.0, 0.2, 0.1), 0.6))
+    painted = TWO_REGIONS.model_copy(update={"paint": layer})
+    stroke_points = [(20.0 + k, 10.0 + 0.5 * k) for k in range(80)]
     rows = [("rasterise a 1024 × 1024 table, 2 primitives",
-             best_ms(lambda: TWO_REGIONS.table((1, 156), (0, 684), (1024, 1024))))]
+             best_ms(lambda: TWO_REGIONS.table((1, 156), (0, 684), (1024, 1024)))),
+            ("rasterise a 1024 × 1024 table, 2 primitives + 128² painted layer",
+             best_ms(lambda: painted.table((1, 156), (0, 684), (1024, 1024)))),
+            ("one brush-stroke update (80 points, radius 8 px) + encode",
+             best_ms(lambda: layer.with_pixels(apply_stroke(
+                 layer.pixels(), stroke_mask(layer.shape, stroke_points, 8.0),
+                 (0.0, 1.0, 0.0), 0.5))))]
     for n in (64, 128):
         for mode in ("1d", "2d"):
             rows.append((f"host opacity volume, {n}³, {mode}", opacity_volume_ms(n, mode)))

@@ -50,6 +50,7 @@ from vtkvol.model.session import (
     save_session,
 )
 from vtkvol.model.techniques import TechniqueSpec, register
+from vtkvol.model.tf_paint import TFPaintLayer, apply_stroke, stroke_mask
 from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
 
 FIXTURES = Path(__file__).parent / "fixtures" / "sessions"
@@ -86,6 +87,16 @@ def make_data(path: Path, shape_czyx: tuple[int, ...] = (2, 4, 5, 6), seed: int 
     return path
 
 
+def rich_paint() -> TFPaintLayer:
+    """A small painted layer: an orange dab and a half-transparent blue one (8 × 6 pixels)."""
+    layer = TFPaintLayer.blank((20.0, 220.0), (0.0, 40.0), shape=(6, 8))
+    pixels = apply_stroke(layer.pixels(), stroke_mask(layer.shape, [(2.0, 2.0)], 1.2),
+                          (1.0, 0.5, 0.0), 0.6)
+    pixels = apply_stroke(pixels, stroke_mask(layer.shape, [(6.0, 4.0)], 1.0),
+                          (0.0, 0.2, 1.0), 0.3)
+    return layer.with_pixels(pixels)
+
+
 def rich_model() -> SceneModel:
     """A scene with every part set away from its default."""
     return SceneModel(
@@ -109,6 +120,7 @@ def rich_model() -> SceneModel:
                                     opacity=0.8),
                     ],
                     gradient_max=50.0,
+                    paint=rich_paint(),
                 ),
             ),
             Channel(name="membrane", visible=False, color=(1.0, 0.2, 1.0), tf_linked_to=0),
@@ -851,6 +863,7 @@ def test_v5_file_reads_without_warnings_as_it_was_shown() -> None:
     model = session.model
     assert model.cursor is None and model.overlays.slice_planes is False
     assert all(c.tf_mode == "1d" and c.tf2d == TransferFunction2D() for c in model.channels)
+    assert all(c.tf2d.paint is None for c in model.channels)  # nothing painted
     assert model.volume.level is None and model.volume.region_um is None
     assert model.illumination.auto is False
     assert model.illumination.method == "fake_shadows"

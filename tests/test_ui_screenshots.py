@@ -230,13 +230,15 @@ def test_write_tf2d_editor_screenshot_on_real_data(qapp, qtbot, tmp_path):
     """``docs/screenshots/tf2d-editor.png``: the confocal bead stack of ../shared/data
     classified in 2-D: the beads' bright cores (a rectangle over every gradient) in orange
     and their steep flanks (a triangle rising from |∇I| = 0) in cyan, over the stack's
-    value × gradient histogram; the rectangle is selected."""
+    value × gradient histogram; the rectangle is selected. A painted stroke (magenta, the
+    Paint tool active) adds the dim flanks of the steepest voxels."""
+    from vtkvol.model.tf_paint import TFPaintLayer, apply_stroke, stroke_mask
     from vtkvol.model.transfer_function import TFPrimitive
 
     configure_gl_platform(qapp)
     window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
     qtbot.addWidget(window)
-    window.resize(1240, 800)
+    window.resize(1240, 880)  # room for the editor's three rows of controls
     window.show()
     qtbot.waitExposed(window)
     window.model.render.sample_distance = 1.0
@@ -253,6 +255,12 @@ def test_write_tf2d_editor_screenshot_on_real_data(qapp, qtbot, tmp_path):
                     color=(0.2, 0.85, 1.0), opacity=0.25, soft_edge=0.4),
     ]
     dock.editor_2d.select(0)
+    layer = TFPaintLayer.blank(*dock.axes_2d())
+    stroke = [(float(x), float(y)) for x, y in zip(*layer.pixel_coords(
+        np.array([10.0, 25.0, 38.0]), np.array([0.35, 0.55, 0.7]) * g1), strict=True)]
+    window.model.channels[0].tf2d.paint = layer.with_pixels(apply_stroke(
+        layer.pixels(), stroke_mask(layer.shape, stroke, 5.0), (1.0, 0.2, 0.8), 0.15))
+    dock.tool_group.button(1).click()
     window.viewport.scene.orbit(-25.0, 15.0)
     qtbot.wait(100)
     OUT.mkdir(parents=True, exist_ok=True)

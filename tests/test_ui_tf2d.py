@@ -157,3 +157,72 @@ def test_colour_delete_and_proposed_classes_are_undoable(window, monkeypatch) ->
     assert window.recorder.stack.count() == count + 1
     window.undo_action.trigger()
     assert channel.tf2d.primitives == []
+
+
+def test_paint_stroke_to_model_to_pixels_erase_and_undo(window, qtbot, monkeypatch) -> None:
+    dock, channel = window.tf_dock, window.model.channels[0]
+    dock.dimension_combo.setCurrentIndex(1)
+    empty = shot(window)
+    assert drawn(empty, window) < 0.002
+    editor = dock.editor_2d
+    (v0, v1), (g0, g1) = editor.axes
+    dock.tool_group.button(1).click()
+    assert editor.tool == "paint"
+    monkeypatch.setattr(dock_base, "pick_color", lambda parent, initial, title: (1.0, 0.0, 0.0))
+    dock.brush_color.click()
+    dock.brush_opacity.setValue(0.9)
+    dock.brush_size.setValue(20.0)
+    count = window.recorder.stack.count()
+    start = editor.to_pixel(v0 + 0.3 * (v1 - v0), g0 + 0.08 * (g1 - g0)).toPoint()
+    end = editor.to_pixel(v0 + 0.9 * (v1 - v0), g0 + 0.08 * (g1 - g0)).toPoint()
+    drag(qtbot, editor, start, end)
+    paint = channel.tf2d.paint
+    assert paint is not None
+    assert paint.value_range == (v0, v1) and paint.gradient_range == (g0, g1)  # the axes
+    assert window.recorder.stack.count() == count + 1  # the throttled stroke: one step
+    pixels = paint.pixels().copy()
+    x, y = paint.pixel_coords(v0 + 0.6 * (v1 - v0), g0 + 0.08 * (g1 - g0))
+    assert pixels[round(float(y)), round(float(x))].tolist() == [255, 0, 0, round(0.9 * 255)]
+    assert pixels[40:, :, 3].max() == 0 and pixels[:, :15, 3].max() == 0  # away from it
+    painted = shot(window)
+    assert drawn(painted, window) > 0.01
+    changed = np.abs(painted - empty).max(axis=-1) > 12
+    red, green = painted[..., 0][changed], painted[..., 1][changed]
+    assert red.mean() > 2 * green.mean()  # the brush's colour
+
+    # The eraser along the same path, wider: the layer is blank again, the image as before.
+    dock.tool_group.button(2).click()
+    dock.brush_size.setValue(30.0)
+    drag(qtbot, editor, start, end)
+    assert channel.tf2d.paint.pixels().max() == 0
+    assert np.abs(shot(window) - empty).max() == 0
+    # Undo: one step back to the painted pixels exactly, one more to no layer at all.
+    window.undo_action.trigger()
+    np.testing.assert_array_equal(channel.tf2d.paint.pixels(), pixels)
+    window.undo_action.trigger()
+    assert channel.tf2d.paint is None
+    assert not dock.clear_paint.isEnabled()
+
+
+def test_model_paint_shows_in_the_editor(window) -> None:
+    from vtkvol.model.tf_paint import TFPaintLayer, apply_stroke, stroke_mask
+
+    dock, channel = window.tf_dock, window.model.channels[0]
+    channel.tf_mode = "2d"
+    editor = dock.editor_2d
+    (v0, v1), (g0, g1) = editor.axes
+    layer = TFPaintLayer.blank((v0, v1), (g0, g1))
+    layer = layer.with_pixels(apply_stroke(layer.pixels(), stroke_mask(layer.shape, [(64, 64)],
+                                                                        10.0), (1, 0, 0), 0.9))
+    channel.tf2d.paint = layer
+    assert editor._tf.paint is layer and dock.clear_paint.isEnabled()
+    image = editor.grab().toImage()
+    centre = editor.to_pixel(0.5 * (v0 + v1), 0.5 * (g0 + g1)).toPoint()
+    far = editor.to_pixel(v0 + 0.1 * (v1 - v0), g0 + 0.9 * (g1 - g0)).toPoint()
+    dpr = image.devicePixelRatio()
+    inside = image.pixelColor(round(centre.x() * dpr), round(centre.y() * dpr))
+    outside = image.pixelColor(round(far.x() * dpr), round(far.y() * dpr))
+    assert inside.red() > 150 and inside.green() < 90 and inside.blue() < 90
+    assert not (outside.red() > 150 and outside.green() < 90)
+    dock.clear_paint.click()
+    assert channel.tf2d.paint is None and editor._tf.paint is None

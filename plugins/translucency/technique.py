@@ -17,7 +17,7 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
-from vtkvol.engine import shaders
+from vtkvol.engine import shaders, tf2d
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
 from vtkvol.engine.technique import ComputePath, Technique
 from vtkvol.model.params import Invalidates
@@ -57,7 +57,10 @@ def colour_volume(host: Illuminator) -> np.ndarray:
     the weight of each component's opacity × component weight (what each adds to the
     extinction). Dependent components: two → the colour function of the first; four → the first
     three components as RGB (8-bit data divided by 255, others by their maximum), as VTK
-    shows them.
+    shows them. In 2-D mode (docs/transfer-functions-2d.md) colour and opacity are each
+    component's 2-D table read by the host at VTK's (value, gradient) coordinates
+    (:meth:`~vtkvol.engine.illuminator.Illuminator.classify_2d`, the lookup its opacity volume
+    makes), so the tint follows the same classification as the extinction.
     """
     img = host.image
     nx, ny, nz = img.GetDimensions()
@@ -71,20 +74,32 @@ def colour_volume(host: Illuminator) -> np.ndarray:
             return np.clip(rgb / scale, 0.0, 1.0)
         return _colour_of(prop, 0, values[..., 0])
     if ncomp == 1:
-        return _colour_of(prop, 0, values[..., 0])
+        return _component_colour(host, 0, values[..., 0])
     total = np.zeros((nz, ny, nx, 3), np.float64)
     weight_sum = np.zeros((nz, ny, nx), np.float64)
     for c in range(ncomp):
         weight = prop.GetComponentWeight(c)
         if weight <= 0:
             continue
-        w = _table_lookup(prop.GetScalarOpacity(c), values[..., c], 1)[..., 0] * weight
-        total += w[..., None] * _colour_of(prop, c, values[..., c])
+        alpha = host.classify_2d(c, "alpha")
+        if alpha is None:
+            alpha = _table_lookup(prop.GetScalarOpacity(c), values[..., c], 1)[..., 0]
+        w = alpha * weight
+        total += w[..., None] * _component_colour(host, c, values[..., c])
         weight_sum += w
     # Where nothing is opaque the colour does not matter (it multiplies a zero extinction).
     out = np.where(weight_sum[..., None] > 0, total / np.maximum(weight_sum, 1e-30)[..., None],
                    1.0)
     return out.astype(np.float32)
+
+
+def _component_colour(host: Illuminator, c: int, values: np.ndarray) -> np.ndarray:
+    """Independent component ``c``'s colour at every voxel: its 2-D table in 2-D mode, else
+    its colour function; ``[z, y, x, 3]`` float32."""
+    rgb = host.classify_2d(c, "rgb")
+    if rgb is not None:
+        return rgb
+    return _colour_of(host.volume.GetProperty(), c, values)
 
 
 def _colour_function(prop: vtk.vtkVolumeProperty, c: int) -> Any:
@@ -258,6 +273,13 @@ class Translucency(Technique):
         prop = self.host.volume.GetProperty()
         scalars = self.host.image.GetPointData().GetScalars()
         ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
+        if prop.GetTransferFunctionMode() == vtk.vtkVolumeProperty.TF_2D:
+            # The tables' colour; the per-unit alpha's MTime moves with every new table and
+            # not with the ray step, so a camera drag (coarser step) recomputes nothing.
+            return ("2d", *(
+                tf2d.unit_alpha_mtime(prop.GetTransferFunction2D(c))
+                if prop.GetTransferFunction2D(c) is not None else None
+                for c in range(max(1, ncomp))))
         return tuple(_colour_function(prop, c).GetMTime() for c in range(max(1, ncomp)))
 
     def _colour(self, shape_zyx: tuple[int, ...], values: Mapping[str, Any]) -> np.ndarray:

@@ -1,12 +1,14 @@
-"""The 2-D transfer-function editor: primitives over the (value, |∇I|) histogram.
+"""The 2-D transfer-function editor: primitives and paint over the (value, |∇I|) histogram.
 
 A view of one :class:`~vtkvol.model.transfer_function.TransferFunction2D`: the channel's 2-D
-histogram (log counts, grey) with the rasterised TF over it, and each primitive's outline in
-its colour; the selected one has four corner handles. Press inside a primitive to select and
-move it, drag a handle of the selected one to resize it. The widget only reports gestures
-(``selectionChanged``, ``primitiveMoved``, ``editStarted``/``editFinished``); the dock writes
-the model. Moves are throttled like the 1-D editor's, so a drag re-rasterises at most every
-:data:`THROTTLE_MS`.
+histogram (log counts, grey) with the rasterised TF (primitives and painted layer) over it,
+each primitive's outline in its colour and the painted layer's box dotted; the selected
+primitive has four corner handles. With the ``"regions"`` tool, press inside a primitive to
+select and move it, drag a handle of the selected one to resize it. With ``"paint"`` or
+``"erase"``, a drag is a brush stroke (a circle of the brush's size follows the pointer).
+The widget only reports gestures (``selectionChanged``, ``primitiveMoved``, ``strokeMoved``,
+``editStarted``/``editFinished``); the dock writes the model. Moves and strokes are throttled
+like the 1-D editor's, so a drag re-rasterises at most every :data:`THROTTLE_MS`.
 
 Coordinates: values in data units along x, gradient magnitude |∇I| in data units per µm
 along y (0 at the bottom).
@@ -27,6 +29,7 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
+from vtkvol.model.tf_paint import PAINT_SHAPE
 from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
 from vtkvol.ui.docks.function_editor import format_value
 
@@ -35,6 +38,8 @@ HANDLE_PX = 7  #: how close (px) to a corner a press grabs the handle
 _MARGINS = (46, 8, 8, 22)  #: left, top, right, bottom (px)
 _OVERLAY_SHAPE = (96, 192)  #: rows × columns of the TF preview drawn over the histogram
 Range = tuple[float, float]
+#: The editor's tools: move/resize primitives, or brush into the painted layer.
+TOOLS = ("regions", "paint", "erase")
 
 
 class TF2DEditor(QWidget):
@@ -42,6 +47,9 @@ class TF2DEditor(QWidget):
 
     selectionChanged = Signal(int)  #: index of the selected primitive, −1 for none
     primitiveMoved = Signal(int, object, object)  #: index, value range, gradient range
+    #: The stroke so far (paint/erase tools): a list of (value, gradient) points, data units
+    #: and data units per µm; emitted throttled during the drag and once at its end.
+    strokeMoved = Signal(object)
     editStarted = Signal()
     editFinished = Signal()
 
@@ -62,6 +70,11 @@ class TF2DEditor(QWidget):
         self._throttle.setSingleShot(True)
         self._throttle.setInterval(THROTTLE_MS)
         self._throttle.timeout.connect(self._flush)
+        self._tool = "regions"
+        self._brush_radius = 4.0  # layer pixels
+        self._stroke: list[tuple[float, float]] | None = None
+        self._stroke_dirty = False
+        self._pointer: QPointF | None = None
 
     def sizeHint(self) -> QSize:
         return QSize(420, 220)
@@ -78,6 +91,42 @@ class TF2DEditor(QWidget):
     @property
     def dragging(self) -> bool:
         return self._drag is not None
+
+    @property
+    def tool(self) -> str:
+        return self._tool
+
+    @property
+    def stroking(self) -> bool:
+        return self._stroke is not None
+
+    def set_tool(self, tool: str) -> None:
+        """``"regions"`` (move and resize primitives), ``"paint"`` or ``"erase"``."""
+        if tool not in TOOLS:
+            raise ValueError(f"unknown 2-D editor tool {tool!r} (one of {', '.join(TOOLS)})")
+        self._tool = tool
+        self.setCursor(Qt.CursorShape.CrossCursor if tool != "regions"
+                       else Qt.CursorShape.ArrowCursor)
+        self.update()
+
+    def set_brush_radius(self, radius: float) -> None:
+        """Brush radius in pixels of the painted layer (drawn as the pointer's circle)."""
+        self._brush_radius = float(radius)
+        self.update()
+
+    def brush_radii_px(self) -> tuple[float, float]:
+        """The brush's half-width and half-height on screen (px): layer pixels over the
+        layer's box (or, before anything is painted, the box a first stroke creates)."""
+        r = self.plot_rect()
+        paint = self._tf.paint
+        (v0, v1), (g0, g1) = self._values, self._gradients
+        if paint is not None:
+            (pv0, pv1), (pg0, pg1) = paint.value_range, paint.gradient_range
+            h, w = paint.shape
+        else:
+            (pv0, pv1), (pg0, pg1), (h, w) = (v0, v1), (g0, g1), PAINT_SHAPE
+        return (self._brush_radius * (pv1 - pv0) / w / (v1 - v0) * r.width(),
+                self._brush_radius * (pg1 - pg0) / h / (g1 - g0) * r.height())
 
     def set_axes(self, values: Range, gradients: Range) -> None:
         """Data units along x, data units per µm along y."""
@@ -119,7 +168,7 @@ class TF2DEditor(QWidget):
             self.update()
 
     def _render_overlay(self) -> None:
-        if not self._tf.primitives:
+        if not self._tf.primitives and self._tf.paint is None:
             self._overlay = None
             return
         table = self._tf.table(self._values, self._gradients, _OVERLAY_SHAPE)
@@ -199,6 +248,18 @@ class TF2DEditor(QWidget):
             painter.setPen(pen)
             painter.setBrush(Qt.BrushStyle.NoBrush)
             painter.drawPolygon(self.primitive_polygon(prim))
+        if self._tf.paint is not None:  # the painted layer's box: strokes reach no further
+            (pv0, pv1), (pg0, pg1) = self._tf.paint.value_range, self._tf.paint.gradient_range
+            pen = QPen(QColor(200, 200, 200), 1.0)
+            pen.setStyle(Qt.PenStyle.DotLine)
+            painter.setPen(pen)
+            painter.setBrush(Qt.BrushStyle.NoBrush)
+            painter.drawRect(QRectF(self.to_pixel(pv0, pg1), self.to_pixel(pv1, pg0)))
+        if self._tool != "regions" and self._pointer is not None:
+            rx, ry = self.brush_radii_px()
+            painter.setPen(QPen(QColor(255, 255, 255), 1.0))
+            painter.setBrush(Qt.BrushStyle.NoBrush)
+            painter.drawEllipse(self._pointer, rx, ry)
         if 0 <= self._selected < len(self._tf.primitives):
             painter.setPen(QPen(QColor(255, 255, 255), 1.0))
             painter.setBrush(QColor(255, 255, 255, 200))
@@ -236,6 +297,12 @@ class TF2DEditor(QWidget):
         if event.button() != Qt.MouseButton.LeftButton:
             return
         pos = event.position()
+        if self._tool != "regions":
+            self._stroke = [self.from_pixel(pos)]
+            self._stroke_dirty = True
+            self.editStarted.emit()
+            self._flush()  # a click paints one dab at once
+            return
         kind, index = self._hit(pos)
         self.select(index)
         if index < 0:
@@ -245,6 +312,15 @@ class TF2DEditor(QWidget):
         self.editStarted.emit()
 
     def mouseMoveEvent(self, event: QMouseEvent) -> None:
+        if self._tool != "regions":
+            self._pointer = event.position()
+            self.update()
+            if self._stroke is not None:
+                self._stroke.append(self.from_pixel(event.position()))
+                self._stroke_dirty = True
+                if not self._throttle.isActive():
+                    self._throttle.start()
+            return
         if self._drag is None:
             kind, _ = self._hit(event.position())
             self.setCursor(Qt.CursorShape.SizeFDiagCursor if kind.startswith("handle")
@@ -273,7 +349,19 @@ class TF2DEditor(QWidget):
         if not self._throttle.isActive():
             self._throttle.start()
 
+    def leaveEvent(self, event) -> None:
+        self._pointer = None
+        self.update()
+        super().leaveEvent(event)
+
     def mouseReleaseEvent(self, event: QMouseEvent) -> None:
+        if event.button() == Qt.MouseButton.LeftButton and self._stroke is not None:
+            self.mouseMoveEvent(event)
+            self._throttle.stop()
+            self._flush()
+            self._stroke = None
+            self.editFinished.emit()
+            return
         if event.button() != Qt.MouseButton.LeftButton or self._drag is None:
             return
         self.mouseMoveEvent(event)
@@ -285,6 +373,9 @@ class TF2DEditor(QWidget):
         self.editFinished.emit()
 
     def _flush(self) -> None:
+        if self._stroke is not None and self._stroke_dirty:
+            self._stroke_dirty = False
+            self.strokeMoved.emit(list(self._stroke))
         if self._pending is not None:
             index, values, gradients = self._pending
             self._pending = None

@@ -63,6 +63,7 @@ from vtkvol.model.evented import touches
 from vtkvol.model.gradient import gradient_axis_max
 from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
 from vtkvol.model.scene import SceneModel
+from vtkvol.model.tf_paint import MAX_BRUSH_RADIUS, TFPaintLayer, apply_stroke, stroke_mask
 from vtkvol.model.transfer_function import TFPrimitive, TransferFunction, TransferFunction2D
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
@@ -198,6 +199,8 @@ class TransferFunctionDock(ModelDock):
         self._histograms = HistogramCache()
         self._features = FeatureCache()
         self._histogram_2d_key: tuple[Any, ...] | None = None
+        #: The painted layer as it was when the current brush stroke began (None between).
+        self._stroke_base: TFPaintLayer | None = None
         self._editing = False
         self._histogram_key: tuple[Any, ...] | None = None
         self._build()
@@ -391,6 +394,12 @@ class TransferFunctionDock(ModelDock):
         b.connect_qt(self.primitive_soft.valueChanged,
                      lambda v: self._set_selected(soft_edge=float(v)))
         b.connect_qt(self.propose_button.clicked, self.propose_classes)
+        b.connect_qt(self.tool_group.idClicked, self._on_tool)
+        b.connect_qt(self.editor_2d.strokeMoved, self._on_stroke)
+        b.connect_qt(self.brush_size.valueChanged,
+                     lambda v: self.editor_2d.set_brush_radius(float(v)))
+        b.connect_qt(self.brush_color.colorPicked, self.brush_color.set_rgb)
+        b.connect_qt(self.clear_paint.clicked, self._on_clear_paint)
         b.connect_qt(self.gradient_top.valueChanged, self._on_gradient_top)
         b.connect_qt(self.gradient_full.clicked, self._on_gradient_full)
 
@@ -403,9 +412,55 @@ class TransferFunctionDock(ModelDock):
         self.editor_2d.setObjectName("tf2d_editor")
         self.editor_2d.setToolTip(
             "Value × gradient-magnitude histogram (log counts) with the 2-D transfer "
-            "function over it. Press inside a region to select and move it; drag a corner "
-            "handle of the selected region to resize it.")
+            "function over it. Regions tool: press inside a region to select and move it; "
+            "drag a corner handle of the selected region to resize it. Paint / Erase: drag "
+            "to brush into the painted layer (dotted box).")
         layout.addWidget(self.editor_2d, 1)
+        tools = QHBoxLayout()
+        tools.setSpacing(4)
+        self.tool_group = QButtonGroup(page)
+        self.tool_group.setExclusive(True)
+        tips = {
+            "regions": "Select, move and resize rectangles and triangles",
+            "paint": "Paint into the channel's painted layer (128 × 128 pixels over the axes "
+                     "shown when you first paint) with the brush's colour and opacity",
+            "erase": "Erase the painted layer (the regions are not affected)",
+        }
+        for i, tool in enumerate(("regions", "paint", "erase")):
+            button = QToolButton()
+            button.setText(tool.capitalize())
+            button.setCheckable(True)
+            button.setChecked(i == 0)
+            button.setObjectName(f"tf2d_tool_{tool}")
+            button.setToolTip(tips[tool])
+            self.tool_group.addButton(button, i)
+            tools.addWidget(button)
+        tools.addSpacing(6)
+        self.brush_size = number_box(
+            minimum=0.5, maximum=MAX_BRUSH_RADIUS, decimals=1, step=0.5,
+            object_name="tf2d_brush_size",
+            tooltip="Brush radius in pixels of the painted layer (128 across each axis)")
+        self.brush_size.setValue(4.0)
+        self.brush_color = ColorButton("Brush colour")
+        self.brush_color.setObjectName("tf2d_brush_color")
+        self.brush_color.set_rgb((1.0, 1.0, 1.0))
+        self.brush_opacity = number_box(
+            minimum=0.0, maximum=1.0, decimals=3, step=0.05, object_name="tf2d_brush_opacity",
+            tooltip="Opacity the brush paints (per opacity unit distance); a stroke moves "
+                    "each pixel to it, it does not pile up")
+        self.brush_opacity.setValue(0.5)
+        self.clear_paint = QPushButton("Clear paint")
+        self.clear_paint.setObjectName("tf2d_clear_paint")
+        self.clear_paint.setToolTip(
+            "Remove the painted layer; the next stroke starts a new one over the axes shown")
+        tools.addWidget(QLabel("size"))
+        tools.addWidget(self.brush_size)
+        tools.addWidget(self.brush_color)
+        tools.addWidget(QLabel("α"))
+        tools.addWidget(self.brush_opacity)
+        tools.addWidget(self.clear_paint)
+        tools.addStretch(1)
+        layout.addLayout(tools)
         row = QHBoxLayout()
         row.setSpacing(4)
         self.add_rectangle = QPushButton("+ Rectangle")
@@ -636,6 +691,7 @@ class TransferFunctionDock(ModelDock):
         with signals_blocked(self.gradient_top):
             self.gradient_top.setValue(gradients[1])
         self.gradient_full.setEnabled(channel.tf2d.gradient_max is not None)
+        self.clear_paint.setEnabled(channel.tf2d.paint is not None)
         self.editor_2d.set_function(channel.tf2d)
         self._update_histogram_2d()
         self._show_selected()
@@ -673,6 +729,36 @@ class TransferFunctionDock(ModelDock):
 
     def _on_gradient_full(self) -> None:
         self.current_tf2d().gradient_max = None
+
+    def _on_tool(self, index: int) -> None:
+        self.editor_2d.set_tool(("regions", "paint", "erase")[index])
+
+    def _on_stroke(self, points: list[tuple[float, float]]) -> None:
+        """Write the stroke so far into the painted layer. Every write starts from the layer
+        as it was when the stroke began, so a throttled stroke ends exactly as one write of
+        all its points (and the drag is one undo step: editStarted/editFinished)."""
+        tf2d = self.current_tf2d()
+        erase = self.editor_2d.tool == "erase"
+        if self._stroke_base is None:
+            if tf2d.paint is None and erase:
+                return  # nothing painted: nothing to erase
+            values, gradients = self.axes_2d()
+            self._stroke_base = tf2d.paint or TFPaintLayer.blank(values, gradients)
+        base = self._stroke_base
+        xs, ys = base.pixel_coords(np.array([p[0] for p in points]),
+                                   np.array([p[1] for p in points]))
+        try:
+            mask = stroke_mask(base.shape, zip(xs.tolist(), ys.tolist(), strict=True),
+                               self.brush_size.value())
+            pixels = apply_stroke(base.pixels(), mask, self.brush_color.rgb(),
+                                  self.brush_opacity.value(), erase=erase)
+            tf2d.paint = base.with_pixels(pixels)
+        except ValueError as exc:
+            errors.show_error(self, exc, action="Could not paint")
+
+    def _on_clear_paint(self) -> None:
+        with self._step():
+            self.current_tf2d().paint = None
 
     def _on_dimension(self, index: int) -> None:
         self.current_channel().tf_mode = _DIMENSIONS[index][0]
@@ -724,6 +810,7 @@ class TransferFunctionDock(ModelDock):
                 self._show_2d()
 
     def _on_2d_edit_finished(self) -> None:
+        self._stroke_base = None
         self._editing = False
         self.gestureFinished.emit()
         self._show_2d()

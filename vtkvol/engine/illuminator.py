@@ -777,6 +777,34 @@ class Illuminator:
         self._opacity_cache = (key, opacity)
         return opacity
 
+    def classify_2d(self, c: int, what: Literal["alpha", "rgb"] = "alpha") -> np.ndarray | None:
+        """Component ``c``'s 2-D table read at every voxel as VTK's shader reads it (its
+        gradient, its texture coordinates, bilinear): ``"alpha"`` per ``unit_distance`` of the
+        component, float32 ``[z, y, x]``, or ``"rgb"`` in 0…1, ``[z, y, x, 3]``. ``None`` when
+        the property is not in 2-D mode or holds no table for ``c``. The opacity volume (slab by
+        slab) and every technique that needs the colour (translucency's tint) read the tables
+        at the same cached coordinates (``_table_coords``), so they agree voxel for voxel
+        (docs/transfer-functions-2d.md)."""
+        prop = self.volume.GetProperty()
+        image = prop.GetTransferFunction2D(c)
+        if prop.GetTransferFunctionMode() != vtk.vtkVolumeProperty.TF_2D or image is None:
+            return None
+        img = self.image
+        nx, ny, nz = img.GetDimensions()
+        scalars = img.GetPointData().GetScalars()
+        values = vtk_to_numpy(scalars).reshape(nz, ny, nx, -1)[..., c]
+        if what == "rgb":
+            table = tf2d.rgb_table(image)
+        else:
+            step = float(self.volume.GetMapper().GetSampleDistance())
+            table = tf2d.unit_alpha_table(image, step, prop.GetScalarOpacityUnitDistance(c))
+        return self._lookup_2d(table, c, values, scalars.GetRange(c))
+
+    def _lookup_2d(self, table: np.ndarray, c: int, values: np.ndarray,
+                   value_range: tuple[float, float]) -> np.ndarray:
+        """``table`` ``(h, w[, k])`` read bilinearly at component ``c``'s VTK coordinates."""
+        return tf2d.lookup(table, *self._table_coords(c, values, self.spacing, value_range))
+
     def _table_coords(self, c: int, values: np.ndarray, spacing: tuple[float, float, float],
                       value_range: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
         """VTK's 2-D table coordinates (s, t) of component ``c``'s voxels, cached per data."""

@@ -41,7 +41,8 @@ from vtkvol.model.gradient import (  # re-exported: the engine's view of VTK's g
 
 __all__ = ["GRADIENT_RANGE_FRACTION", "TABLE_SHAPE", "UNIT_ALPHA_ARRAY", "TableImage",
            "gradient_axis_max", "lookup", "multi_component_fixes", "normalised_gradient",
-           "normalised_values", "per_sample_alpha", "per_unit_alpha", "unit_alpha_mtime",
+           "normalised_values", "per_sample_alpha", "per_unit_alpha", "rgb_table",
+           "unit_alpha_mtime",
            "unit_alpha_table", "vtk_gradient"]
 
 #: (height = gradient rows, width = value columns) of the tables the engine uploads: VTK's
@@ -151,6 +152,16 @@ def unit_alpha_table(image: vtk.vtkImageData, step: float, unit: float) -> np.nd
         raise RuntimeError("a 2-D transfer function must be an RGBA image")
     alpha = vtk_to_numpy(scalars).reshape(h, w, -1)[..., 3]
     return per_unit_alpha(alpha, step, unit)
+
+
+def rgb_table(image: vtk.vtkImageData) -> np.ndarray:
+    """Colour (r, g, b in 0…1) of a component's 2-D table, ``(h, w, 3)`` float32: what VTK's
+    shader reads for a sample's colour (the step conversion touches alpha only)."""
+    w, h, _ = image.GetDimensions()
+    scalars = image.GetPointData().GetScalars()
+    if scalars is None or scalars.GetNumberOfComponents() < 3:
+        raise RuntimeError("a 2-D transfer function must be an RGBA image")
+    return vtk_to_numpy(scalars).reshape(h, w, -1)[..., :3].astype(np.float32)
 
 
 def unit_alpha_mtime(image: vtk.vtkImageData) -> int:

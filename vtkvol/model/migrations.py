@@ -155,7 +155,8 @@ def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
     * the scene gained the slice views' ``cursor`` (world µm; ``null``: the data's centre) and
       the overlays ``slice_planes`` (off: v5 had no slice views);
     * each channel gained ``tf_mode`` and ``tf2d``, the 2-D transfer function over value ×
-      gradient magnitude (``"1d"`` and an empty 2-D TF: v5 classified by the 1-D ``tf``);
+      gradient magnitude with its painted layer ``paint`` (``"1d"`` and an empty 2-D TF, nothing
+      painted: v5 classified by the 1-D ``tf``);
     * ``volume`` gained ``level`` and ``region_um``, the pyramid level and refined region
       shown (``null``: the level the budget chooses, the whole image);
     * ``illumination`` gained ``auto`` and ``auto_budget_ssim``, the app's Auto quality (off:
@@ -175,7 +176,8 @@ def _v5_to_v6(raw: dict[str, Any]) -> dict[str, Any]:
         for channel in scene["channels"]:
             if isinstance(channel, dict):
                 channel.setdefault("tf_mode", "1d")
-                channel.setdefault("tf2d", {"primitives": [], "gradient_max": None})
+                channel.setdefault("tf2d", {"primitives": [], "gradient_max": None,
+                                          "paint": None})
     if isinstance(scene.get("volume"), dict):
         scene["volume"].setdefault("level", None)
         scene["volume"].setdefault("region_um", None)

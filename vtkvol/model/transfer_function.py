@@ -15,6 +15,7 @@ import numpy as np
 from pydantic import Field, field_validator, model_validator
 
 from vtkvol.model.evented import EventedModel
+from vtkvol.model.tf_paint import TFPaintLayer, check_range
 
 RGB = tuple[float, float, float]
 
@@ -169,15 +170,7 @@ class TFPrimitive(EventedModel):
     @field_validator("value_range", "gradient_range")
     @classmethod
     def _increasing(cls, v: tuple[float, float], info):
-        lo, hi = v
-        what = info.field_name.replace("_", " ")
-        if not (math.isfinite(lo) and math.isfinite(hi)):
-            raise ValueError(f"{what} {v} must be finite")
-        if not lo < hi:
-            raise ValueError(f"{what} {v} must be increasing (low < high)")
-        if abs(lo) > 1e30 or abs(hi) > 1e30:
-            raise ValueError(f"{what} {v} is out of range (|x| ≤ 1e30)")
-        return (float(lo), float(hi))
+        return check_range(v, info.field_name.replace("_", " "))
 
     @field_validator("color")
     @classmethod
@@ -217,10 +210,12 @@ class TFPrimitive(EventedModel):
 
 class TransferFunction2D(EventedModel):
     """A 2-D transfer function over (value, gradient magnitude): RGBA from a list of
-    :class:`TFPrimitive` regions (seed 001 eq. 2.45).
+    :class:`TFPrimitive` regions (seed 001 eq. 2.45) and an optional painted raster ``paint``
+    (:class:`~vtkvol.model.tf_paint.TFPaintLayer`, ``None`` until the user paints).
 
-    Overlapping primitives combine as independent absorbers, α = 1 − Π(1 − αᵢ), with the
-    opacity-weighted mean colour; outside every primitive α = 0. ``gradient_max`` is the top of
+    Overlapping primitives, and the paint, combine as independent absorbers,
+    α = 1 − Π(1 − αᵢ), with the opacity-weighted mean colour; outside every primitive and the
+    paint α = 0. ``gradient_max`` is the top of
     the editor's gradient axis in data units per µm (``None``: the renderer's own axis, which
     VTK fixes at a quarter of the channel's value range per mean voxel edge, see
     docs/transfer-functions-2d.md).
@@ -228,6 +223,7 @@ class TransferFunction2D(EventedModel):
 
     primitives: list[TFPrimitive] = Field(default_factory=list)
     gradient_max: float | None = Field(None, gt=0.0)
+    paint: TFPaintLayer | None = None
 
     @field_validator("primitives")
     @classmethod
@@ -258,6 +254,11 @@ class TransferFunction2D(EventedModel):
             alpha = prim.opacity * prim.coverage(v, g)
             transparency *= 1.0 - alpha
             weighted += alpha[..., None] * np.asarray(prim.color, dtype=np.float64)
+            total += alpha
+        if self.paint is not None:
+            alpha, premult = self.paint.sample(v, g)
+            transparency *= 1.0 - alpha
+            weighted += premult
             total += alpha
         out = np.zeros((*shape, 4), np.float32)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -290,6 +291,18 @@ class TransferFunction2D(EventedModel):
             transparency[box] *= 1.0 - alpha
             weighted[box] += alpha[..., None] * np.asarray(prim.color, dtype=np.float64)
             total[box] += alpha
+        if self.paint is not None:
+            # The paint's box only (outside it the layer is transparent).
+            (pv0, pv1), (pg0, pg1) = self.paint.value_range, self.paint.gradient_range
+            i0, i1 = np.searchsorted(values, pv0, "left"), np.searchsorted(values, pv1, "right")
+            j0 = np.searchsorted(gradients, pg0, "left")
+            j1 = np.searchsorted(gradients, pg1, "right")
+            if i0 < i1 and j0 < j1:
+                box = (slice(j0, j1), slice(i0, i1))
+                alpha, premult = self.paint.sample_grid(values[i0:i1], gradients[j0:j1])
+                transparency[box] *= 1.0 - alpha
+                weighted[box] += premult
+                total[box] += alpha
         out = np.zeros((h, w, 4), np.float32)
         with np.errstate(divide="ignore", invalid="ignore"):
             out[..., :3] = np.where(total[..., None] > 0, weighted / total[..., None], 0.0)
