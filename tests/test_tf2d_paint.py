@@ -17,6 +17,7 @@ from test_tf2d_engine import BACKGROUND, View, sphere_and_slab
 
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.gradient import gradient_magnitude
+from vtkvol.model.migrations import VERSION
 from vtkvol.model.session import SessionError, read_session
 from vtkvol.model.tf_paint import (
     MAX_PAINT_SIZE,
@@ -178,7 +179,7 @@ def test_a_zip_bomb_is_not_inflated_past_the_stated_size() -> None:
 def test_hostile_paint_in_a_session_gives_one_line_with_its_path(tmp_path: Path) -> None:
     path = tmp_path / "bad.vtkvol.json"
     path.write_text(json.dumps({
-        "format": "vtkvol-session", "version": 8, "data": {"path": None},
+        "format": "vtkvol-session", "version": VERSION, "data": {"path": None},
         "scene": {"channels": [{"name": "a", "tf_mode": "2d", "tf2d": {
             "primitives": [], "paint": {"value_range": [0, 255], "gradient_range": [0, 9],
                                         "shape": [128, 128], "rgba": "%%%"}}}]},
