@@ -317,7 +317,10 @@ class MainWindow(QMainWindow):
         self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
-        self.edit_watcher = DockEditWatcher(self.docks, self.viewport, self)
+        # The slice views are navigation, not an edit of what the 3-D view shows: they run
+        # their own interaction (only while the 3-D view outlines their planes).
+        self.edit_watcher = DockEditWatcher(
+            [d for d in self.docks if d is not self.slice_views_dock], self.viewport, self)
         app = QApplication.instance()
         if app is not None:
             app.installEventFilter(self.edit_watcher)
