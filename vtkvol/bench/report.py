@@ -170,40 +170,33 @@ _LISTS = ("runs", "records", "stability", "scattering_runs", "scattering", "empt
           "empty_space")
 
 
+def _replace_run(doc: dict[str, Any], run: Mapping[str, Any], run_list: str,
+                 lists: Mapping[str, Iterable[Mapping[str, Any]]]) -> dict[str, Any]:
+    """``doc`` with ``run`` in ``doc[run_list]`` and the entries of each of ``lists`` replacing
+    those of ``run``'s (renderer, mode); everything else, other runs included, kept."""
+    key = (run["renderer"], run["mode"])
+
+    def kept(name: str) -> list[Any]:
+        return [e for e in doc.get(name, [])
+                if (e.get("renderer"), e.get("mode")) != key]
+
+    out = {**doc, "format": FORMAT, "version": VERSION,
+           run_list: [*kept(run_list), _clean(dict(run))]}
+    for name, entries in lists.items():
+        out[name] = kept(name) + [_clean(dict(e)) for e in entries]
+    return out
+
+
 def merge(doc: dict[str, Any], run: Mapping[str, Any], records: Iterable[Mapping[str, Any]],
           stability: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
     """``doc`` with the entries of ``run``'s (renderer, mode) replaced by the new ones."""
-    key = (run["renderer"], run["mode"])
-
-    def other(entry: Mapping[str, Any]) -> bool:
-        return (entry.get("renderer"), entry.get("mode")) != key
-
-    return {
-        **doc,
-        "format": FORMAT,
-        "version": VERSION,
-        "runs": [r for r in doc["runs"] if other(r)] + [_clean(dict(run))],
-        "records": [r for r in doc["records"] if other(r)] + [_clean(dict(r)) for r in records],
-        "stability": [s for s in doc["stability"] if other(s)]
-        + [_clean(dict(s)) for s in stability],
-    }
+    return _replace_run(doc, run, "runs", {"records": records, "stability": stability})
 
 
 def merge_scattering(doc: dict[str, Any], run: Mapping[str, Any],
                      records: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
     """``doc`` with the convergence study of ``run``'s (renderer, mode) replaced."""
-    key = (run["renderer"], run["mode"])
-
-    def other(entry: Mapping[str, Any]) -> bool:
-        return (entry.get("renderer"), entry.get("mode")) != key
-
-    return {
-        **doc,
-        "scattering_runs": [r for r in doc.get("scattering_runs", []) if other(r)]
-        + [_clean(dict(run))],
-        "scattering": [r for r in doc.get("scattering", []) if other(r)]
-        + [_clean(dict(r)) for r in records],
-    }
+    return _replace_run(doc, run, "scattering_runs", {"scattering": records})
 
 
 # ------------------------------------------------------------------------------------------
@@ -595,20 +588,7 @@ def write_all(out_dir: Path, run: Mapping[str, Any], records: Sequence[Mapping[s
 def merge_empty_space(doc: dict[str, Any], run: Mapping[str, Any],
                       records: Iterable[Mapping[str, Any]]) -> dict[str, Any]:
     """``doc`` with the empty-space measurement of ``run``'s (renderer, mode) replaced."""
-    key = (run["renderer"], run["mode"])
-
-    def other(entry: Mapping[str, Any]) -> bool:
-        return (entry.get("renderer"), entry.get("mode")) != key
-
-    return {
-        **doc,
-        "format": FORMAT,
-        "version": VERSION,
-        "empty_space_runs": [r for r in doc["empty_space_runs"] if other(r)]
-        + [_clean(dict(run))],
-        "empty_space": [r for r in doc["empty_space"] if other(r)]
-        + [_clean(dict(r)) for r in records],
-    }
+    return _replace_run(doc, run, "empty_space_runs", {"empty_space": records})
 
 
 def write_empty_space(out_dir: Path, run: Mapping[str, Any],

@@ -505,13 +505,7 @@ class Illuminator:
                 self._lights = self._renderer_lights()
             self._frame_specs = self._compute_light_specs()
             try:
-                if self._detach_requested and self._technique is not None:
-                    self._release_technique()
-                self._detach_requested = False
-                self._detect_changes()
-                if self._technique is None:
-                    self._technique = self._technique_cls(self)
-                    self._changes.first = True
+                self._ensure_technique()
                 if not self._needs_prepare(self._changes):
                     return True
                 self._upload_weights()
@@ -526,6 +520,17 @@ class Illuminator:
         """Whether changes wait for a prepare (deferred ones included) that may recompute."""
         return self._needs_prepare(self._changes) or (
             self._signature is not None and self._opacity_signature() != self._signature)
+
+    def _ensure_technique(self) -> None:
+        """Release a technique whose detach was asked for, take in what changed since the last
+        frame, and create the method's technique when there is none (its first preparation)."""
+        if self._detach_requested and self._technique is not None:
+            self._release_technique()
+        self._detach_requested = False
+        self._detect_changes()
+        if self._technique is None:
+            self._technique = self._technique_cls(self)
+            self._changes.first = True
 
     def _needs_prepare(self, changes: Changes) -> bool:
         """Whether ``changes`` may make a (non-progressive) technique recompute."""
@@ -973,13 +978,7 @@ class Illuminator:
             # frame keeps what was installed and bound before (changes wait for later).
             self._on_draw_end()
             return
-        if self._detach_requested and self._technique is not None:
-            self._release_technique()
-        self._detach_requested = False
-        self._detect_changes()
-        if self._technique is None:
-            self._technique = self._technique_cls(self)
-            self._changes.first = True
+        self._ensure_technique()
         self._upload_weights()
         self._update_empty_space()
         changes, self._changes = self._changes, Changes()

@@ -374,6 +374,8 @@ def _time_interval_s(axes: list[tuple[str, str | None]], pos: dict[str, int],
         return None
     value = scale[pos["t"]] * factor
     return value if math.isfinite(value) and value > 0 else None
+
+
 def read_ome_zarr(
     path: Path,
     *,
