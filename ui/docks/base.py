@@ -73,6 +73,15 @@ class ColorButton(QPushButton):
             self.colorPicked.emit(tuple(float(c) for c in chosen))
 
 
+def push_button(text: str, object_name: str, tooltip: str) -> QPushButton:
+    """A ``QPushButton`` with its object name (what tests and style sheets find it by) and
+    tooltip."""
+    button = QPushButton(text)
+    button.setObjectName(object_name)
+    button.setToolTip(tooltip)
+    return button
+
+
 def number_box(
     *,
     minimum: float,

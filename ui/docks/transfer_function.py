@@ -37,7 +37,6 @@ from PySide6.QtWidgets import (
     QInputDialog,
     QLabel,
     QMenu,
-    QPushButton,
     QRadioButton,
     QSizePolicy,
     QStackedWidget,
@@ -68,7 +67,7 @@ from vtkvol.model.transfer_function import TFPrimitive, TransferFunction, Transf
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks import base as dock_base
-from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
+from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box, push_button
 from vtkvol.ui.docks.function_editor import ColorBar, Curve, FunctionEditor, format_value
 from vtkvol.ui.docks.tf2d_editor import TF2DEditor
 
@@ -240,9 +239,8 @@ class TransferFunctionDock(ModelDock):
         for box in (self.window_min, self.window_max):
             box.setMinimumWidth(80)
             box.setSizePolicy(QSizePolicy.Policy.Fixed, QSizePolicy.Policy.Fixed)
-        self.window_full = QPushButton("Full range")
-        self.window_full.setObjectName("tf_window_full")
-        self.window_full.setToolTip("Show the data's whole value range")
+        self.window_full = push_button(
+            "Full range", "tf_window_full", "Show the data's whole value range")
         window_row.addWidget(self.window_min)
         window_row.addWidget(self.window_slider, 1)
         window_row.addWidget(self.window_max)
@@ -339,12 +337,10 @@ class TransferFunctionDock(ModelDock):
         self.preset_button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
         self.preset_menu = self._preset_menu()
         self.preset_button.setMenu(self.preset_menu)
-        self.load_button = QPushButton("Load…")
-        self.load_button.setObjectName("tf_load")
-        self.load_button.setToolTip("Load a transfer function saved with Save…")
-        self.save_button = QPushButton("Save…")
-        self.save_button.setObjectName("tf_save")
-        self.save_button.setToolTip("Save this channel's transfer function to a file")
+        self.load_button = push_button(
+            "Load…", "tf_load", "Load a transfer function saved with Save…")
+        self.save_button = push_button(
+            "Save…", "tf_save", "Save this channel's transfer function to a file")
         buttons = QHBoxLayout()
         buttons.setSpacing(4)
         buttons.addWidget(self.preset_button)
@@ -449,9 +445,8 @@ class TransferFunctionDock(ModelDock):
             tooltip="Opacity the brush paints (per opacity unit distance); a stroke moves "
                     "each pixel to it, it does not pile up")
         self.brush_opacity.setValue(0.5)
-        self.clear_paint = QPushButton("Clear paint")
-        self.clear_paint.setObjectName("tf2d_clear_paint")
-        self.clear_paint.setToolTip(
+        self.clear_paint = push_button(
+            "Clear paint", "tf2d_clear_paint",
             "Remove the painted layer; the next stroke starts a new one over the axes shown")
         tools.addWidget(QLabel("size"))
         tools.addWidget(self.brush_size)
@@ -463,17 +458,13 @@ class TransferFunctionDock(ModelDock):
         layout.addLayout(tools)
         row = QHBoxLayout()
         row.setSpacing(4)
-        self.add_rectangle = QPushButton("+ Rectangle")
-        self.add_rectangle.setObjectName("tf2d_add_rectangle")
-        self.add_rectangle.setToolTip("Add a rectangle: a range of values and gradients")
-        self.add_triangle = QPushButton("+ Triangle")
-        self.add_triangle.setObjectName("tf2d_add_triangle")
-        self.add_triangle.setToolTip(
+        self.add_rectangle = push_button(
+            "+ Rectangle", "tf2d_add_rectangle", "Add a rectangle: a range of values and gradients")
+        self.add_triangle = push_button(
+            "+ Triangle", "tf2d_add_triangle",
             "Add a triangle rising from |∇I| = 0: Kniss's widget for the boundary arcs "
             "between two materials")
-        self.delete_primitive = QPushButton("Delete")
-        self.delete_primitive.setObjectName("tf2d_delete")
-        self.delete_primitive.setToolTip("Remove the selected region")
+        self.delete_primitive = push_button("Delete", "tf2d_delete", "Remove the selected region")
         self.primitive_color = ColorButton("Region colour")
         self.primitive_color.setObjectName("tf2d_color")
         self.primitive_opacity = number_box(
@@ -495,9 +486,8 @@ class TransferFunctionDock(ModelDock):
         layout.addLayout(row)
         stf = QHBoxLayout()
         stf.setSpacing(4)
-        self.propose_button = QPushButton("Propose classes")
-        self.propose_button.setObjectName("tf2d_propose")
-        self.propose_button.setToolTip(
+        self.propose_button = push_button(
+            "Propose classes", "tf2d_propose",
             "Spatialized transfer function (Roettger et al.): group histogram bins whose "
             "voxels lie in the same place, colour each group, opacity growing with the "
             "gradient. Replaces this channel's regions; edit the result.")
@@ -518,9 +508,8 @@ class TransferFunctionDock(ModelDock):
             tooltip="Top of the editor's gradient axis (data units per µm): zoom into the "
                     "low gradients where most voxels lie. The renderer's own axis ends at "
                     "¼ of the value range per mean voxel edge.")
-        self.gradient_full = QPushButton("Full")
-        self.gradient_full.setObjectName("tf2d_gradient_full")
-        self.gradient_full.setToolTip("Show the renderer's whole gradient axis again")
+        self.gradient_full = push_button(
+            "Full", "tf2d_gradient_full", "Show the renderer's whole gradient axis again")
         stf.addWidget(self.propose_button)
         stf.addWidget(QLabel("r"))
         stf.addWidget(self.stf_radius)

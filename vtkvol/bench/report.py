@@ -15,7 +15,7 @@ import math
 import os
 import re
 import tempfile
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -578,8 +578,15 @@ def write_all(out_dir: Path, run: Mapping[str, Any], records: Sequence[Mapping[s
 
     Returns the paths written, by kind.
     """
+    return _merge_into(out_dir, lambda doc: merge(doc, run, records, stability))
+
+
+def _merge_into(out_dir: str | Path, merged: Callable[[dict[str, Any]], dict[str, Any]],
+                ) -> dict[str, Path]:
+    """Apply ``merged`` to ``out_dir/benchmarks.json`` (empty when missing), write the result
+    atomically and regenerate the outputs from it; returns the paths written, by kind."""
     out_dir = Path(out_dir)
-    doc = merge(load(out_dir / "benchmarks.json"), run, records, stability)
+    doc = merged(load(out_dir / "benchmarks.json"))
     _atomic_write(out_dir / "benchmarks.json", json.dumps(doc, indent=1, ensure_ascii=False)
                   + "\n")
     return regenerate(out_dir, doc)
@@ -594,11 +601,7 @@ def merge_empty_space(doc: dict[str, Any], run: Mapping[str, Any],
 def write_empty_space(out_dir: Path, run: Mapping[str, Any],
                       records: Sequence[Mapping[str, Any]]) -> dict[str, Path]:
     """Merge an empty-space measurement into ``out_dir/benchmarks.json`` and regenerate."""
-    out_dir = Path(out_dir)
-    doc = merge_empty_space(load(out_dir / "benchmarks.json"), run, records)
-    _atomic_write(out_dir / "benchmarks.json", json.dumps(doc, indent=1, ensure_ascii=False)
-                  + "\n")
-    return regenerate(out_dir, doc)
+    return _merge_into(out_dir, lambda doc: merge_empty_space(doc, run, records))
 
 
 def empty_space_markdown(doc: Mapping[str, Any]) -> list[str]:
@@ -646,11 +649,7 @@ def empty_space_markdown(doc: Mapping[str, Any]) -> list[str]:
 def write_scattering(out_dir: Path, run: Mapping[str, Any],
                      records: Sequence[Mapping[str, Any]]) -> dict[str, Path]:
     """Merge a convergence study into ``out_dir/benchmarks.json`` and regenerate the outputs."""
-    out_dir = Path(out_dir)
-    doc = merge_scattering(load(out_dir / "benchmarks.json"), run, records)
-    _atomic_write(out_dir / "benchmarks.json", json.dumps(doc, indent=1, ensure_ascii=False)
-                  + "\n")
-    return regenerate(out_dir, doc)
+    return _merge_into(out_dir, lambda doc: merge_scattering(doc, run, records))
 
 
 #: In ``benchmarks.md``, everything from this line on is written by hand (measurements of other
