@@ -47,7 +47,9 @@ def _nonblank(path: Path) -> float:
     return float(bits.reshape(height, -1)[:, :width].std())
 
 
-def test_write_docs_screenshots(qapp, qtbot, tmp_path):
+def _shown_window(qapp, qtbot, tmp_path) -> MainWindow:
+    """The app window the screenshots are taken of: 1240 × 800, its own settings file, a
+    sample distance of one voxel (frames that a software GL draws in seconds)."""
     configure_gl_platform(qapp)
     window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
     qtbot.addWidget(window)
@@ -55,6 +57,11 @@ def test_write_docs_screenshots(qapp, qtbot, tmp_path):
     window.show()
     qtbot.waitExposed(window)
     window.model.render.sample_distance = 1.0
+    return window
+
+
+def test_write_docs_screenshots(qapp, qtbot, tmp_path):
+    window = _shown_window(qapp, qtbot, tmp_path)
     window.model.illumination.method = "shadow_volume" if "shadow_volume" in (
         window.lights_dock.techniques) else "local"
     with qtbot.waitSignal(window.dataShown, timeout=60_000):
@@ -123,13 +130,7 @@ def test_write_slice_view_and_overlay_screenshots(qapp, qtbot, tmp_path):
     from vtkvol.model.labels import apply_labels, detect_labels
     from vtkvol.ui.docks.slice_views import SliceViewsDock
 
-    configure_gl_platform(qapp)
-    window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
-    qtbot.addWidget(window)
-    window.resize(1240, 800)
-    window.show()
-    qtbot.waitExposed(window)
-    window.model.render.sample_distance = 1.0
+    window = _shown_window(qapp, qtbot, tmp_path)
     window.model.illumination.method = "shadow_volume" if "shadow_volume" in (
         window.lights_dock.techniques) else "local"
     with qtbot.waitSignal(window.dataShown, timeout=60_000):
@@ -201,13 +202,7 @@ def test_write_time_slider_screenshot(qapp, qtbot, tmp_path):
     (docs/app.md, README)."""
     from tests_support_time import write_time_lapse
 
-    configure_gl_platform(qapp)
-    window = MainWindow(settings=QSettings(str(tmp_path / "s.ini"), QSettings.Format.IniFormat))
-    qtbot.addWidget(window)
-    window.resize(1240, 800)
-    window.show()
-    qtbot.waitExposed(window)
-    window.model.render.sample_distance = 1.0
+    window = _shown_window(qapp, qtbot, tmp_path)
     path = tmp_path / "lapse.tif"
     write_time_lapse(path)
     with qtbot.waitSignal(window.dataShown, timeout=60_000):
