@@ -166,6 +166,18 @@ def _gib(n: float) -> str:
     return f"{n / 2 ** 30:.2f} GiB"
 
 
+def _measure_in_child(mode: str, path: Path, budget: str) -> dict | None:
+    """Run this script's ``mode`` (``--open`` or ``--region``) in a fresh process, so that its
+    peak RSS is that measurement's alone; its last stdout line is the JSON result. None (the
+    child's stderr printed) when it failed."""
+    out = subprocess.run([sys.executable, __file__, mode, str(path), "--budget", budget],
+                         capture_output=True, text=True, check=False)
+    if out.returncode != 0:
+        print(out.stderr, file=sys.stderr)
+        return None
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--folder", default=tempfile.gettempdir())
@@ -198,12 +210,9 @@ def main(argv: list[str] | None = None) -> int:
               f"stored in {_gib(made['stored_bytes'])}, written in {made['write_s']:.0f} s, "
               f"peak RSS {_gib(made['peak_rss_bytes'])}", flush=True)
         for budget in budgets:
-            out = subprocess.run([sys.executable, __file__, "--open", str(path), "--budget",
-                                  budget], capture_output=True, text=True, check=False)
-            if out.returncode != 0:
-                print(out.stderr, file=sys.stderr)
+            r = _measure_in_child("--open", path, budget)
+            if r is None:
                 return 1
-            r = json.loads(out.stdout.strip().splitlines()[-1])
             _, z, y, x = r["shape_czyx"]
             print(f"budget {budget}: level {r['level']} ({x}×{y}×{z}, {_gib(r['data_bytes'])}); "
                   f"read {r['read_s']:.1f} s, scene {r['scene_model_s']:.1f} s, first frame "
@@ -213,12 +222,9 @@ def main(argv: list[str] | None = None) -> int:
                   f"{_gib(r['peak_rss_bytes'])}; {r['foreground_fraction']:.0%} of the frame lit;"
                   f" {r['renderer']}", flush=True)
         for budget in budgets[:1]:
-            out = subprocess.run([sys.executable, __file__, "--region", str(path), "--budget",
-                                  budget], capture_output=True, text=True, check=False)
-            if out.returncode != 0:
-                print(out.stderr, file=sys.stderr)
+            r = _measure_in_child("--region", path, budget)
+            if r is None:
                 return 1
-            r = json.loads(out.stdout.strip().splitlines()[-1])
             _, z, y, x = r["shape_czyx"]
             print(f"refine the central quarter, budget {budget}: level {r['level']} "
                   f"({x}×{y}×{z}, {_gib(r['data_bytes'])}) read in {r['read_s']:.1f} s; peak "
