@@ -1,37 +1,24 @@
-"""The shadow volume's per-sample lookup (shadow_volume.glsl): its once-per-fragment affine map
-and per-light offsets give the image of the per-sample formula they replace.
+"""The shadow volume's lookup (shadow_volume.glsl): its once-per-fragment affine map and
+per-light offsets give the image of the per-sample formula they replace.
 
-The reference below is the lookup as first written (docs/shadow-volume.md): per sample and
-light, the direction towards the light converted to texture units, the offset of h0 light-grid
-cells along it, then VTK's texture coordinate → 0..1 over the point bounds → the light grid.
-Both are rendered in the same scene and compared pixel by pixel (8-bit levels)."""
+The reference, shaders/per_sample_lookup.glsl, is the lookup as first written
+(docs/shadow-volume.md, "Frame time"): per sample and light, the direction towards the light
+converted to texture units, the offset of h0 light-grid cells along it, then VTK's texture
+coordinate → 0..1 over the point bounds → the light grid. Both are rendered in the same scene
+and compared pixel by pixel (8-bit levels)."""
 
 from __future__ import annotations
-
-import dataclasses
 
 import numpy as np
 import pytest
 
-from vtkvol.engine import shaders
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.model import Light
 from vtkvol.reference import phantom_sphere_over_slab
 
-#: The per-sample lookup the shader had before the affine map (the reference formula).
-PER_SAMPLE_LOOKUP = """//@inject //VTK::ComputeLighting::Dec pre before
-float vv_light_visibility(int light, vec3 texPos, vec3 dirDS)
-{
-  vec3 dirTex = vv_datasetDirToTex(dirDS);
-  float cellsPerUm = length(dirTex / vv_shadow_volume_cellTex);
-  vec3 p = texPos + dirTex * (vv_shadow_volume_offset / max(cellsPerUm, 1e-30));
-  vec3 tc = vv_unitToGrid(vv_texToUnit(p), vv_shadow_volume_dims);
-  float v = texture(vv_shadow_volume_tex, tc)[light];
-  return 1.0 - vv_shadow_volume_strength * (1.0 - v);
-}
-float vv_ambient_visibility(vec3 texPos, vec3 normalDS) { return 1.0; }
-"""
+#: The per-sample reference formula (the lookup as first written), a shader of the plugin.
+PER_SAMPLE = "per_sample_lookup.glsl"
 
 CASES = {
     "directional": ({}, [Light(direction=(0.35, 0.2, 1.0))], (1.0, 1.0, 1.0)),
@@ -66,10 +53,7 @@ def _render_pair(params, lights, spacing, origin=(0.0, 0.0, 0.0)):
         shipped = grab(rw)
         grab(rw)  # the build is captured on the frame after it
         source = il.fragment_source
-        tech = il.technique
-        reference_sections = shaders.parse(PER_SAMPLE_LOOKUP, "shadow_volume.glsl",
-                                           tech.shader_package())
-        tech.sections = lambda values: [dataclasses.replace(s) for s in reference_sections]
+        il.technique.SHADER = PER_SAMPLE  # the instance's shader from the next frame on
         reference = grab(rw)
         grab(rw)
         assert "vv_sv_setup" not in il.fragment_source  # the reference really was built
