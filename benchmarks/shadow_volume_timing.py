@@ -399,8 +399,9 @@ def _markdown(rows: Sequence[Row], columns: Sequence[str]) -> str:
 
 
 def main_lookup(argv: Sequence[str]) -> None:
-    """``lookup [--size N] [--frames F] [--lights L] [--data FILE]…``: :func:`lookup_frame_ratios`
-    on the bench phantoms at N³ (default 128) and the given files (resampled to ≤ N)."""
+    """``lookup [--size N] [--frames F] [--lights L] [--phantom NAME]… [--data FILE]…``:
+    :func:`lookup_frame_ratios` on the bench phantoms at N³ (default 128: all three) and the
+    given files (resampled to ≤ N)."""
     import argparse
 
     from vtkvol.bench.scenes import file_scenes, phantom_scenes
@@ -410,10 +411,13 @@ def main_lookup(argv: Sequence[str]) -> None:
     parser.add_argument("--frames", type=int, default=8)
     parser.add_argument("--lights", type=int, default=1)
     parser.add_argument("--data", action="append", default=[])
-    parser.add_argument("--no-phantoms", action="store_true")
+    parser.add_argument("--phantom", action="append", default=None,
+                        help="only these phantoms (sphere_over_slab, hollow_sphere, cells); "
+                             "'none' for none")
     args = parser.parse_args(argv)
-    scenes = ([] if args.no_phantoms else phantom_scenes(args.size)) + file_scenes(
-        args.data, args.size)
+    scenes = [s for s in phantom_scenes(args.size)
+              if args.phantom is None or s.name in args.phantom]
+    scenes += file_scenes(args.data, args.size)
     for scene in scenes:
         print(f"\n### {scene.name} ({scene.description})\n", flush=True)
         rows = lookup_frame_ratios([scene], frames=args.frames, lights=args.lights)
