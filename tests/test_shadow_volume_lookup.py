@@ -77,3 +77,32 @@ def test_lookup_matches_the_per_sample_formula(name):
     # Not vacuous: the shadow is there (darker than local shading, visibly).
     darkening = local.astype(float).mean() - shipped.astype(float).mean()
     assert darkening > 1.0, darkening
+
+
+@pytest.mark.gl
+def test_changing_a_light_to_a_point_light_rebuilds_the_lookup():
+    # The point-light code is compiled in only while a light is one (VV_SV_POINT_LIGHTS): a
+    # light changed in place must switch it, and the image must then match the reference.
+    data = phantom_sphere_over_slab(32, sphere_opacity=0.9, slab_opacity=0.7)
+    rw, ren, volume = simple_volume_scene(data, size=(64, 64), elevation=35,
+                                          opacity=[(0.0, 0.0), (1.0, 1.0)])
+    il = Illuminator(volume, ren, method="shadow_volume", lights=[Light(direction=(0.3, 0, 1))])
+    try:
+        grab(rw)
+        grab(rw)
+        assert "#define VV_SV_POINT_LIGHTS 0" in il.fragment_source
+        il.set_lights([Light(kind="point", position=(20.0, 8.0, 45.0))])
+        shipped = grab(rw)
+        grab(rw)
+        assert "#define VV_SV_POINT_LIGHTS 1" in il.fragment_source
+        il.technique.SHADER = PER_SAMPLE
+        reference = grab(rw)
+        il.set_lights([Light(direction=(0.3, 0, 1))])
+        il.technique.SHADER = type(il.technique).SHADER
+        grab(rw)
+        grab(rw)
+        assert "#define VV_SV_POINT_LIGHTS 0" in il.fragment_source
+    finally:
+        il.release()
+        rw.Finalize()
+    assert np.abs(shipped.astype(int) - reference.astype(int)).max() <= 1
