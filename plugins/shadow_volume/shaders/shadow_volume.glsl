@@ -18,8 +18,8 @@
 // multiply-add from VTK's texture coordinate to the light grid's, then one trilinear fetch. The
 // map and each directional light's offset depend only on uniforms, so they are computed once per
 // fragment (vv_sv_setup, at the start of the ray) instead of per sample: on llvmpipe that
-// arithmetic (a matrix product, a length and two divisions per sample) was a third of the
-// technique's cost. Point lights (VV_SV_POINT_LIGHTS, set by the host when any light is one)
+// arithmetic (a matrix product, a length and two divisions per sample and light) was more than
+// half of the technique's cost. Point lights (VV_SV_POINT_LIGHTS, set by the host when any light is one)
 // take their offset direction per sample, in light-grid cells.
 //
 // Shading (host_lighting.glsl): V multiplies the diffuse and specular terms of its light;
@@ -48,7 +48,8 @@ void vv_sv_setup()
   {
     vv_sv_gridBias[i] = origin;
 #if VV_SV_POINT_LIGHTS
-    vv_sv_lightGrid[i] = (in_inverseTextureDatasetMatrix[0] * vec4(vv_lightVector(i), 1.0)).xyz * vv_sv_texToGrid + origin;
+    vec3 lightTex = (in_inverseTextureDatasetMatrix[0] * vec4(vv_lightVector(i), 1.0)).xyz;
+    vv_sv_lightGrid[i] = lightTex * vv_sv_texToGrid + origin;
     if (vv_lightIsPoint(i)) continue;
 #endif
     vec3 dirTex = vv_datasetDirToTex(normalize(vv_lightVector(i)));  // texture units per µm
