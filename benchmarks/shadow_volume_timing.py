@@ -250,23 +250,16 @@ def frame_ratios(
 #: The lookup's per-sample reference formula (plugins/shadow_volume/shaders/): "before" in
 #: :func:`lookup_frame_ratios`.
 PER_SAMPLE_SHADER = "per_sample_lookup.glsl"
-#: :func:`lookup_frame_ratios`' configurations: label, method, parameters, and whether it is
-#: "before": the shadow volume with its per-sample lookup, the cone tracer with its per-sample
-#: cone set-up (``ConeTraced.per_sample_setup``).
+#: :func:`lookup_frame_ratios`' configurations: label, method, parameters, per-sample lookup.
 LOOKUP_CONFIGS: tuple[tuple[str, str, dict[str, Any], bool], ...] = (
     ("local", "local", {}, False),
     ("shadow_volume full, per-sample lookup (before)", "shadow_volume", {}, True),
     ("shadow_volume full", "shadow_volume", {}, False),
     ("shadow_volume ½, per-sample lookup (before)", "shadow_volume", {"resolution": "half"}, True),
     ("shadow_volume ½", "shadow_volume", {"resolution": "half"}, False),
-    ("cone_traced shadows, per-sample set-up (before)", "cone_traced", {"ao_mode": "off"}, True),
     ("cone_traced shadows", "cone_traced", {"ao_mode": "off"}, False),
-    ("cone_traced shadows + baked AO 6 (default), per-sample set-up (before)", "cone_traced", {},
-     True),
     ("cone_traced shadows + baked AO 6 (default)", "cone_traced", {}, False),
 )
-#: What "before" means per technique in :data:`LOOKUP_CONFIGS`.
-_BEFORE = (", per-sample lookup (before)", ", per-sample set-up (before)")
 
 
 def lookup_frame_ratios(
@@ -275,8 +268,7 @@ def lookup_frame_ratios(
 ) -> list[Row]:
     """Frame time ÷ local shading per bench scene (:mod:`vtkvol.bench.scenes`) for the shadow
     volume with the per-sample lookup (before) and the shipped one (after), at full and ½
-    light-grid resolution, and for the cone tracer (shadows; shadows + baked AO) with its
-    per-sample cone set-up (before) and the shipped one.
+    light-grid resolution, and for the cone tracer (shadows; shadows + baked AO).
 
     Each configuration has its own window (:class:`vtkvol.bench.measure.Rig`: the scene's
     light, view, sample distance); after ``warmup`` frames each, one frame of each in turn,
@@ -304,10 +296,8 @@ def lookup_frame_ratios(
                         for d in dirs[:lights]])
                 rig.set_method(method, params)
                 rig.rw.Render()
-                if per_sample and method == "shadow_volume":
+                if per_sample:
                     rig.illuminator.technique.SHADER = PER_SAMPLE_SHADER
-                elif per_sample:
-                    rig.illuminator.technique.per_sample_setup = True
                 rig.reset_view()
                 for _ in range(warmup):
                     _frame_ms(rig.rw)
@@ -326,9 +316,7 @@ def lookup_frame_ratios(
         load.append(os.getloadavg()[0])
         local_w, local_c = statistics.median(wall["local"]), statistics.median(cpu["local"])
         for label, method, _params, per_sample in LOOKUP_CONFIGS:
-            after = label
-            for before in _BEFORE:
-                after = after.replace(before, "")
+            after = label.replace(", per-sample lookup (before)", "")
             diff = (int(np.abs(images[label] - images[after]).max())
                     if per_sample else None)
             rows.append({
