@@ -7,7 +7,6 @@ shaders (:mod:`.gpu`) or numpy (:mod:`.cpu`) build it.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -15,7 +14,6 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from vtk import vtkTextureObject
 
-from vtkvol.engine import shaders
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
 from vtkvol.engine.illuminator import scale_steps
 from vtkvol.engine.technique import Technique, finish_gl
@@ -53,24 +51,6 @@ CHUNK_S = 0.08
 #: Voxels per part of a chunked upload of the opacity.
 UPLOAD_SLAB_VOXELS = 1 << 22
 
-#: The shadow cone's per-sample set-up, as it was before cone_traced.glsl computed each
-#: directional light's cone axis and sine once per fragment: substitutions that turn the shipped
-#: shader back into it. A reference only (:attr:`ConeTraced.per_sample_setup`): the tests render
-#: with it beside the shipped shader, benchmarks/shadow_volume_timing.py times both.
-PER_SAMPLE_SETUP: dict[str, tuple[tuple[str, str], ...]] = {
-    "light size": (
-        ("vec3 dVox = vv_ct_lightVox[light];",
-         "vec3 dVox = vv_datasetDirToTex(dirDS) * vv_cone_traced_dims;"),
-        ("float sinAngle = vv_ct_lightSin[light];", "float sinAngle = sin(vv_lightSize(light));"),
-    ),
-    "custom": (
-        ("vec3 dVox = vv_ct_lightVox[light];",
-         "vec3 dVox = vv_datasetDirToTex(dirDS) * vv_cone_traced_dims;"),
-        ("float sinAngle = vv_ct_lightSin[light];", "float sinAngle = vv_cone_traced_shadowSin;"),
-    ),
-}
-
-
 class ConeTraced(Technique):
     """Cone-traced soft shadows and ambient occlusion through a filtered-opacity mip chain."""
 
@@ -98,26 +78,6 @@ class ConeTraced(Technique):
         self._pending_textures: list[Texture3D] = []
 
     # -- shader ---------------------------------------------------------------------------------
-    #: Render with :data:`PER_SAMPLE_SETUP` (verification and timing only).
-    per_sample_setup: bool = False
-
-    def sections(self, values: Mapping[str, Any]) -> list[shaders.Section]:
-        own = super().sections(values)
-        if not self.per_sample_setup:
-            return own
-        pairs = PER_SAMPLE_SETUP[values["shadow_cone"]]
-        text = "".join(section.code for section in own)
-        missing = [shipped for shipped, _ in pairs if shipped not in text]
-        if missing:
-            raise ValueError(f"cone_traced.glsl no longer has {missing[0]!r}")
-        out = []
-        for section in own:
-            code = section.code
-            for shipped, per_sample in pairs:
-                code = code.replace(shipped, per_sample)
-            out.append(dataclasses.replace(section, code=code))
-        return out
-
     def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
         mode = AO_MODES.index(values["ao_mode"])
         cones = int(values["ao_cones"])
@@ -126,8 +86,6 @@ class ConeTraced(Technique):
         return {
             "VV_CT_SHADOWS": "1" if values["shadows"] else "0",
             "VV_CT_CONE_FROM_LIGHT": "1" if values["shadow_cone"] == "light size" else "0",
-            # Point lights' cones are set up per sample; without them that code is left out.
-            "VV_CT_POINT_LIGHTS": "1" if _has_point_light(self.host) else "0",
             "VV_CT_AO": str(mode),
             "VV_CT_AO_CONES": str(cones),
             "VV_CT_AO_DIRS": f"vec3[{cones}]({dirs})",
@@ -422,8 +380,3 @@ class ConeTraced(Technique):
                 unit_distance=self.host.unit_distance,
             )
         return t.reshape(opacity.shape).astype(np.float32)
-
-
-def _has_point_light(host: Illuminator | None) -> bool:
-    """Whether any of the host's lights is a point light (False without a host)."""
-    return host is not None and any(spec.is_point for spec in host.light_specs())

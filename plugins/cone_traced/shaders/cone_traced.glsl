@@ -26,8 +26,7 @@
 //   vec3  vv_cone_traced_aoDims         baked-AO grid points (x, y, z)
 //   float vv_cone_traced_shadow_strength, _ao_strength, _opacity_threshold
 // Compile-time variants (llvmpipe: a branch on a uniform costs as much as all its branches):
-//   VV_CT_SHADOWS 0|1, VV_CT_POINT_LIGHTS 0|1 (any light a point light: per-sample cone
-//   set-up compiled in), VV_CT_AO 0 off | 1 view cone | 2 hemisphere | 3 baked hemisphere,
+//   VV_CT_SHADOWS 0|1, VV_CT_AO 0 off | 1 view cone | 2 hemisphere | 3 baked hemisphere,
 //   VV_CT_AO_CONES,
 //   VV_CT_AO_DIRS (cone axes in the normal's frame), VV_CT_AO_SIN, and for the march
 //   (cone_march.glsl) VV_CONE_MAX_STEPS, VV_CONE_TAU_EXIT.
@@ -67,49 +66,23 @@ bool vv_ct_active(vec3 texPos)
   return vv_ct_gateOpen;
 }
 
-#if VV_CT_SHADOWS
-// Once per fragment (vv_ct_setup, at the start of the ray): each directional light's cone axis in
-// voxels per µm and the sine of its cone, which depend on uniforms only (per sample they were a
-// matrix product and a sine per light). Point lights (VV_CT_POINT_LIGHTS) take both per sample.
-vec3 vv_ct_lightVox[4];
-float vv_ct_lightSin[4];
-
-void vv_ct_setup()
-{
-  for (int i = 0; i < vv_numLights; ++i)
-  {
-    vv_ct_lightVox[i] = vv_datasetDirToTex(normalize(vv_lightVector(i))) * vv_cone_traced_dims;
-#if VV_CT_CONE_FROM_LIGHT
-    vv_ct_lightSin[i] = sin(vv_lightSize(i));  // the light's angular radius
-#else
-    vv_ct_lightSin[i] = vv_cone_traced_shadowSin;
-#endif
-  }
-}
-#endif
-
 float vv_light_visibility(int light, vec3 texPos, vec3 dirDS)
 {
 #if VV_CT_SHADOWS
   if (!vv_ct_active(texPos)) return 1.0;
   float maxUm = 1e30;  // directional light: until the cone leaves the volume
-  vec3 dVox = vv_ct_lightVox[light];
-  float sinAngle = vv_ct_lightSin[light];
-#if VV_CT_POINT_LIGHTS
   if (vv_lightIsPoint(light))
   {
     maxUm = length(vv_lightVector(light) - vv_texToDataset(texPos));
-    dVox = vv_datasetDirToTex(dirDS) * vv_cone_traced_dims;
-#if VV_CT_CONE_FROM_LIGHT
-    // The cone the light subtends: radius / distance.
-    sinAngle = min(vv_lightSize(light) / max(maxUm, 1e-6), 1.0);
-#endif
   }
+#if VV_CT_CONE_FROM_LIGHT
+  // The cone the light subtends: its angular radius (directional) or radius / distance (point).
+  float size = vv_lightSize(light);
+  float sinAngle = vv_lightIsPoint(light) ? min(size / max(maxUm, 1e-6), 1.0) : sin(size);
+#else
+  float sinAngle = vv_cone_traced_shadowSin;
 #endif
-  float t = vv_cone_march(vv_cone_traced_filtered, texPos, dVox, vv_cone_traced_dims,
-                          vv_cone_traced_unit, maxUm, sinAngle,
-                          vv_cone_traced_lod_width * vv_cone_traced_sigma, vv_cone_traced_h,
-                          vv_cone_traced_h0, vv_cone_traced_maxLod);
+  float t = vv_ct_trace(texPos, dirDS, sinAngle, maxUm);
   return 1.0 - vv_cone_traced_shadow_strength * (1.0 - t);
 #else
   return 1.0;
@@ -150,8 +123,3 @@ float vv_ambient_visibility(vec3 texPos, vec3 normalDS)
   return 1.0 - vv_cone_traced_ao_strength * occlusion;
 #endif
 }
-
-//@inject //VTK::Base::Init pre after
-#if VV_CT_SHADOWS
-  vv_ct_setup();
-#endif
