@@ -22,6 +22,7 @@ float phantom directly.
 from __future__ import annotations
 
 import math
+import os
 import statistics
 import time
 from collections.abc import Iterable, Sequence
@@ -246,6 +247,90 @@ def frame_ratios(
     return rows
 
 
+#: The lookup's per-sample reference formula (plugins/shadow_volume/shaders/): "before" in
+#: :func:`lookup_frame_ratios`.
+PER_SAMPLE_SHADER = "per_sample_lookup.glsl"
+#: :func:`lookup_frame_ratios`' configurations: label, method, parameters, per-sample lookup.
+LOOKUP_CONFIGS: tuple[tuple[str, str, dict[str, Any], bool], ...] = (
+    ("local", "local", {}, False),
+    ("shadow_volume full, per-sample lookup (before)", "shadow_volume", {}, True),
+    ("shadow_volume full", "shadow_volume", {}, False),
+    ("shadow_volume ½, per-sample lookup (before)", "shadow_volume", {"resolution": "half"}, True),
+    ("shadow_volume ½", "shadow_volume", {"resolution": "half"}, False),
+    ("cone_traced shadows", "cone_traced", {"ao_mode": "off"}, False),
+    ("cone_traced shadows + baked AO 6 (default)", "cone_traced", {}, False),
+)
+
+
+def lookup_frame_ratios(
+    scenes: Sequence[Any], *, image: int = 256, frames: int = 8, warmup: int = 2,
+    lights: int = 1,
+) -> list[Row]:
+    """Frame time ÷ local shading per bench scene (:mod:`vtkvol.bench.scenes`) for the shadow
+    volume with the per-sample lookup (before) and the shipped one (after), at full and ½
+    light-grid resolution, and for the cone tracer (shadows; shadows + baked AO).
+
+    Each configuration has its own window (:class:`vtkvol.bench.measure.Rig`: the scene's
+    light, view, sample distance); after ``warmup`` frames each, one frame of each in turn,
+    ``frames`` times, 2° camera azimuth per frame, ``glFinish`` inside the interval; medians
+    of wall and process CPU time. ``lights`` > 1 adds the extra directions of
+    :func:`frame_ratios` (intensity 1/lights each). ``max_diff_levels``: the largest pixel
+    difference (8-bit) between before and after at the scene's view.
+    """
+    from vtkvol.bench.measure import Rig, _frame_ms
+    from vtkvol.model import Light
+
+    rows: list[Row] = []
+    for scene in scenes:
+        rigs: dict[str, Any] = {}
+        load = [os.getloadavg()[0]]
+        try:
+            for label, method, params, per_sample in LOOKUP_CONFIGS:
+                rig = Rig(image)
+                rigs[label] = rig
+                rig.load(scene)
+                if lights > 1:
+                    dirs = [scene.lights[0], (-0.6, 0.3, 0.8), (0.2, -0.7, 0.7), (0.8, 0.5, 0.3)]
+                    rig.illuminator.set_lights([
+                        Light(direction=d, intensity=1.0 / lights, size=scene.light_size_deg)
+                        for d in dirs[:lights]])
+                rig.set_method(method, params)
+                rig.rw.Render()
+                if per_sample:
+                    rig.illuminator.technique.SHADER = PER_SAMPLE_SHADER
+                rig.reset_view()
+                for _ in range(warmup):
+                    _frame_ms(rig.rw)
+            wall: dict[str, list[float]] = {label: [] for label in rigs}
+            cpu: dict[str, list[float]] = {label: [] for label in rigs}
+            for _ in range(frames):
+                for label, rig in rigs.items():
+                    rig.renderer.GetActiveCamera().Azimuth(AZIMUTH_STEP)
+                    w, c = _frame_ms(rig.rw)
+                    wall[label].append(w)
+                    cpu[label].append(c)
+            images = {label: rig.image().astype(int) for label, rig in rigs.items()}
+        finally:
+            for rig in rigs.values():
+                rig.close()
+        load.append(os.getloadavg()[0])
+        local_w, local_c = statistics.median(wall["local"]), statistics.median(cpu["local"])
+        for label, method, _params, per_sample in LOOKUP_CONFIGS:
+            after = label.replace(", per-sample lookup (before)", "")
+            diff = (int(np.abs(images[label] - images[after]).max())
+                    if per_sample else None)
+            rows.append({
+                "scene": scene.name, "shape": "×".join(str(d) for d in scene.data.shape[::-1]),
+                "lights": lights, "config": label, "method": method,
+                "frame_ms": statistics.median(wall[label]),
+                "frame_cpu_ms": statistics.median(cpu[label]),
+                "ratio_vs_local": statistics.median(wall[label]) / local_w,
+                "cpu_ratio_vs_local": statistics.median(cpu[label]) / local_c,
+                "max_diff_levels": diff, "load": f"{load[0]:.1f}–{load[1]:.1f}",
+            })
+    return rows
+
+
 # ------------------------------------------------------------------------------------------------
 # Accuracy
 # ------------------------------------------------------------------------------------------------
@@ -313,7 +398,46 @@ def _markdown(rows: Sequence[Row], columns: Sequence[str]) -> str:
     return "\n".join(lines)
 
 
+def main_lookup(argv: Sequence[str]) -> None:
+    """``lookup [--size N] [--frames F] [--lights L] [--phantom NAME]… [--data FILE]…``:
+    :func:`lookup_frame_ratios` on the bench phantoms at N³ (default 128: all three) and the
+    given files (resampled to ≤ N)."""
+    import argparse
+
+    from vtkvol.bench.scenes import file_scenes, phantom_scenes
+
+    parser = argparse.ArgumentParser(prog="shadow_volume_timing.py lookup")
+    parser.add_argument("--size", type=int, default=128)
+    parser.add_argument("--frames", type=int, default=8)
+    parser.add_argument("--lights", type=int, default=1)
+    parser.add_argument("--data", action="append", default=[])
+    parser.add_argument("--phantom", action="append", default=None,
+                        help="only these phantoms (sphere_over_slab, hollow_sphere, cells); "
+                             "'none' for none")
+    args = parser.parse_args(argv)
+    scenes = [s for s in phantom_scenes(args.size)
+              if args.phantom is None or s.name in args.phantom]
+    scenes += file_scenes(args.data, args.size)
+    for scene in scenes:
+        print(f"\n### {scene.name} ({scene.description})\n", flush=True)
+        rows = lookup_frame_ratios([scene], frames=args.frames, lights=args.lights)
+        shown = [{
+            "config": r["config"], "frame ms": f"{r['frame_ms']:.0f}",
+            "× local": f"{r['ratio_vs_local']:.2f}", "CPU ms": f"{r['frame_cpu_ms']:.0f}",
+            "× local (CPU)": f"{r['cpu_ratio_vs_local']:.2f}",
+            "max Δ before/after (8-bit)": "" if r["max_diff_levels"] is None
+            else str(r["max_diff_levels"]),
+            "load": r["load"],
+        } for r in rows]
+        print(_markdown(shown, list(shown[0])), flush=True)
+
+
 def main() -> None:
+    import sys
+
+    if sys.argv[1:2] == ["lookup"]:
+        main_lookup(sys.argv[2:])
+        return
     print("## Accuracy (phantom_sphere_over_slab(64), CPU path)\n")
     print(_markdown(accuracy(64), ["degrees", "model", "softness", "rmse", "max_abs",
                                    "rmse_shaded", "max_abs_shaded", "bias"]))

@@ -127,6 +127,12 @@ class ShadowVolume(Technique):
             "texture_bytes": sum(t.nbytes for t in textures if t is not None),
         }
 
+    def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
+        """``VV_SV_POINT_LIGHTS``: whether any light is a point light (their offset direction
+        is taken per sample; without them the shader has no such code)."""
+        points = any(spec.is_point for spec in self.host.light_specs())
+        return {"VV_SV_POINT_LIGHTS": "1" if points else "0"}
+
     def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
         grid = self.grid
         if grid is None:

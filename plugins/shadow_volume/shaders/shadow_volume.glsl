@@ -14,20 +14,70 @@
 //   float vv_shadow_volume_strength      0..1: visibility = 1 - strength * (1 - V)
 //   float vv_shadow_volume_offset        h0: lookup offset towards the light, light-grid cells
 //
+// Cost per shaded sample and light (docs/shadow-volume.md, "Frame time"): one fused
+// multiply-add from VTK's texture coordinate to the light grid's, then one trilinear fetch. The
+// map and each directional light's offset depend only on uniforms, so they are computed once per
+// fragment (vv_sv_setup, at the start of the ray) instead of per sample: on llvmpipe that
+// arithmetic (a matrix product, a length and two divisions per sample and light) was more than
+// half of the technique's cost. Point lights (VV_SV_POINT_LIGHTS, set by the host when any light is one)
+// take their offset direction per sample, in light-grid cells.
+//
 // Shading (host_lighting.glsl): V multiplies the diffuse and specular terms of its light;
 // ambient is kept (vv_ambient_visibility = 1: this technique computes no occlusion).
 
 //@inject //VTK::ComputeLighting::Dec pre before
+// Light-grid texture coordinate = VTK's texture coordinate * vv_sv_texToGrid + vv_sv_gridBias[i]
+// (bias: the grid's own origin, plus for directional light i its offset towards the light).
+vec3 vv_sv_texToGrid;
+vec3 vv_sv_gridBias[4];
+#if VV_SV_POINT_LIGHTS
+vec3 vv_sv_lightGrid[4];  // point light i in light-grid texture coordinates
+#endif
+
+// Once per fragment: the affine map from VTK's texture coordinates (0..1 over the data texture)
+// to the light grid's (the same point bounds, vv_shadow_volume_dims cells), and the offset of h0
+// light-grid cells towards each directional light. A cell is measured in the light grid's own
+// (possibly anisotropic) units, so the offset is h0 cells whatever the direction.
+void vv_sv_setup()
+{
+  vec3 dims = vv_shadow_volume_dims;
+  vec3 unitPerTex = 1.0 / (in_texMax[0] - in_texMin[0]);
+  vv_sv_texToGrid = unitPerTex * (dims - 1.0) / dims;
+  vec3 origin = (0.5 - in_texMin[0] * unitPerTex * (dims - 1.0)) / dims;
+  for (int i = 0; i < vv_numLights; ++i)
+  {
+    vv_sv_gridBias[i] = origin;
+#if VV_SV_POINT_LIGHTS
+    vec3 lightTex = (in_inverseTextureDatasetMatrix[0] * vec4(vv_lightVector(i), 1.0)).xyz;
+    vv_sv_lightGrid[i] = lightTex * vv_sv_texToGrid + origin;
+    if (vv_lightIsPoint(i)) continue;
+#endif
+    vec3 dirTex = vv_datasetDirToTex(normalize(vv_lightVector(i)));  // texture units per µm
+    float cellsPerUm = length(dirTex / vv_shadow_volume_cellTex);
+    vec3 offsetTex = dirTex * (vv_shadow_volume_offset / max(cellsPerUm, 1e-30));
+    vv_sv_gridBias[i] += offsetTex * vv_sv_texToGrid;
+  }
+}
+
 float vv_light_visibility(int light, vec3 texPos, vec3 dirDS)
 {
-  // Offset h0 cells towards the light: a cell is measured in the light grid's own (possibly
-  // anisotropic) units, so the offset is h0 cells whatever the direction.
-  vec3 dirTex = vv_datasetDirToTex(dirDS);                          // texture units per µm
-  float cellsPerUm = length(dirTex / vv_shadow_volume_cellTex);
-  vec3 p = texPos + dirTex * (vv_shadow_volume_offset / max(cellsPerUm, 1e-30));
-  vec3 tc = vv_unitToGrid(vv_texToUnit(p), vv_shadow_volume_dims);
+  vec3 tc = texPos * vv_sv_texToGrid + vv_sv_gridBias[light];
+#if VV_SV_POINT_LIGHTS
+  if (vv_lightIsPoint(light))
+  {
+    // h0 cells along the direction to the light, measured in cells (an affine map keeps the
+    // direction, so this is dirDS's direction).
+    vec3 toLightCells = (vv_sv_lightGrid[light] - tc) * vv_shadow_volume_dims;
+    float len = length(toLightCells);
+    tc += len > 0.0 ? toLightCells * (vv_shadow_volume_offset / (len * vv_shadow_volume_dims))
+                    : vec3(0.0);
+  }
+#endif
   float v = texture(vv_shadow_volume_tex, tc)[light];
   return 1.0 - vv_shadow_volume_strength * (1.0 - v);
 }
 
 float vv_ambient_visibility(vec3 texPos, vec3 normalDS) { return 1.0; }
+
+//@inject //VTK::Base::Init pre after
+  vv_sv_setup();
