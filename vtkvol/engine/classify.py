@@ -1,0 +1,384 @@
+"""Classification on the GPU: the opacity volume techniques read, computed by a compute shader
+(``resources/shaders/host_classify.comp.glsl``) from the scalars on the GPU and the transfer
+functions' tables, so that a transfer-function, crop or weight edit costs no pass of numpy over
+the voxels and no upload of a volume (docs/architecture.md, "Classification on the GPU").
+
+The numpy definition stays :meth:`vtkvol.engine.illuminator.Illuminator.opacity_volume`; this
+module reproduces it:
+
+* **Scalars**: uploaded once per data set into a host-owned 3-D texture in their own type
+  where GL has an exact normalised format (uint8 → r8, uint16 → r16; the shader rounds
+  ``fetch · 255`` / ``fetch · 65535`` back to the integer), as float32 otherwise (int8/int16
+  exactly, int32/float64 rounded to float32). GPU memory: one more copy of the scalars (1, 2
+  or 4 bytes per voxel and component). VTK's own scalar texture is not used: it is uploaded
+  inside the mapper's draw, after the renderer's ``StartEvent`` where techniques prepare, so on
+  the first frame and after every data change it does not exist yet or holds the previous
+  data, and its format, scale and bias are VTK internals.
+* **1-D tables** (scalar opacity, gradient opacity): integer data get one entry per integer of
+  the component's range (≤ :data:`MAX_EXACT_ENTRIES`), read at integral positions, so they are
+  numpy's values exactly; float data (and wider integer ranges) a table of
+  :data:`FLOAT_TABLE_ENTRIES` samples of the piecewise-linear function over the range, read
+  linearly (the difference to numpy is at most |Δslope|·h/4 at a node, h the table step;
+  gradient-opacity tables likewise over t = |∇I| / (¼ range) in 0…1).
+* **2-D tables**: the component's alpha-per-unit-distance table as an r32f 2-D texture, read
+  bilinearly by hand as :func:`vtkvol.engine.tf2d.lookup` does.
+* **Crop, clipping planes, slice weights**: the per-axis crop region and weight of every voxel
+  index and each plane's side as a linear function of the voxel index are computed in float64
+  here (a few thousand numbers), the shader combines them.
+
+Dependent components (RGB/RGBA colour data) stay on the numpy path (:func:`unsupported_reason`).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+import vtk
+from vtk.util.numpy_support import vtk_to_numpy
+
+from vtkvol.engine import tf2d
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture2D, Texture3D, gl
+from vtkvol.engine.shaders import compute_source
+
+COMPUTE_SOURCE = "host_classify.comp.glsl"
+#: Entries of a float component's 1-D table (and of every gradient-opacity table).
+FLOAT_TABLE_ENTRIES = 16384
+#: Integer components whose range has at most this many values get one entry per integer.
+MAX_EXACT_ENTRIES = 65536
+#: Width (entries per row) of the 2-D texture holding every 1-D table.
+LUT_WIDTH = 4096
+#: Most clipping planes the shader takes (VTK's mapper supports six).
+MAX_CLIP_PLANES = 6
+#: Invocations per work group along x (the shader's local_size_x).
+GROUP_X = 16
+#: Voxels per dispatch of a chunked classification (about 0.1 s on llvmpipe at 2 cores).
+SLAB_VOXELS = 1 << 22
+#: Normalised formats the shader reads back exactly (value = round(fetch · scale)).
+_NORMALISED = {np.dtype(np.uint8): (vtk.VTK_UNSIGNED_CHAR, 255.0),
+               np.dtype(np.uint16): (vtk.VTK_UNSIGNED_SHORT, 65535.0)}
+
+
+def unsupported_reason(volume: vtk.vtkVolume, image: vtk.vtkImageData) -> str:
+    """Why this volume's classification cannot run on the GPU ("" when it can)."""
+    scalars = image.GetPointData().GetScalars()
+    if scalars is None:
+        return "the image has no point scalars"
+    ncomp = scalars.GetNumberOfComponents()
+    prop = volume.GetProperty()
+    if ncomp > 1 and not prop.GetIndependentComponents():
+        return "dependent components (colour data) are classified by numpy"
+    if ncomp > 4:
+        return f"{ncomp} components (at most 4)"
+    clipping = volume.GetMapper().GetClippingPlanes()
+    if clipping is not None and clipping.GetNumberOfItems() > MAX_CLIP_PLANES:
+        return f"more than {MAX_CLIP_PLANES} clipping planes"
+    return ""
+
+
+@dataclass
+class Plan:
+    """What one classification needs besides the scalars: defines (the program variant),
+    uniforms, the packed 1-D tables, the 2-D tables and the per-axis crop/weight rows."""
+
+    defines: dict[str, str]
+    ints: dict[str, list[int]] = field(default_factory=dict)
+    floats: dict[str, list[float]] = field(default_factory=dict)
+    lut: np.ndarray = field(default_factory=lambda: np.zeros((1, 1), np.float32))
+    tables_2d: dict[int, np.ndarray] = field(default_factory=dict)
+    axes: np.ndarray | None = None
+
+
+def _nodes(function: vtk.vtkPiecewiseFunction) -> tuple[np.ndarray, np.ndarray]:
+    n = function.GetSize()
+    if n == 0:
+        return np.zeros(1), np.zeros(1)
+    nodes = np.empty((n, 2))
+    node = [0.0] * 4
+    for i in range(n):
+        function.GetNodeValue(i, node)
+        nodes[i] = node[:2]
+    return nodes[:, 0], nodes[:, 1]
+
+
+def _integral(dtype: np.dtype) -> bool:
+    return dtype.kind in "ui"
+
+
+def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
+               weights: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+               crop_regions: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
+               crop_flags: int, clip: list[tuple[float, float, float, float]]) -> Plan:
+    """The classification of ``volume``'s current transfer functions (cheap: tables only).
+
+    ``weights``: per-axis slice weights at voxel centres (wX, wY, wZ) or None;
+    ``crop_regions``: per-axis crop region 0/1/2 of every voxel index or None; ``clip``: each
+    clipping plane's side ``a·i + b·j + c·k + d`` (voxel indices; < 0 is cut)."""
+    prop = volume.GetProperty()
+    mapper = volume.GetMapper()
+    scalars = image.GetPointData().GetScalars()
+    ncomp = scalars.GetNumberOfComponents()
+    dtype = np.dtype(vtk_to_numpy(scalars).dtype)
+    two_d = prop.GetTransferFunctionMode() == vtk.vtkVolumeProperty.TF_2D
+    step = float(mapper.GetSampleDistance())
+    u0 = prop.GetScalarOpacityUnitDistance(0)
+    spacing = image.GetSpacing()
+    mean = sum(spacing) / 3.0
+    defines = {"VV_COMPONENTS": str(ncomp), "VV_ROUND": "1" if dtype in _NORMALISED else "0"}
+    ints: dict[str, list[int]] = {k: [0] * 4 for k in
+                                  ("vv_opOffset", "vv_opLength", "vv_goOffset", "vv_goLength")}
+    floats: dict[str, list[float]] = {k: [0.0] * 4 for k in (
+        "vv_opLo", "vv_opScale", "vv_nanAlpha", "vv_weight", "vv_unitExponent", "vv_rangeLo",
+        "vv_rangeSpan", "vv_gradSpan")}
+    floats["vv_gradDivisor"] = [float(np.float32(2.0 * s / mean)) for s in spacing]
+    decode = _NORMALISED.get(dtype, (None, 1.0))[1]
+    floats["vv_decode"] = [decode] * 4
+    pieces: list[np.ndarray] = []
+    offset = 0
+
+    def add(table: np.ndarray) -> tuple[int, int]:
+        nonlocal offset
+        pieces.append(np.asarray(table, np.float32))
+        start, offset = offset, offset + len(table)
+        return start, len(table)
+
+    gradient = False
+    tables_2d: dict[int, np.ndarray] = {}
+    for c in range(4):
+        mode = 0
+        if c < ncomp:
+            weight = prop.GetComponentWeight(c) if ncomp > 1 else 1.0
+            lo, hi = (float(r) for r in scalars.GetRange(c))
+            span = hi - lo
+            valid = bool(np.isfinite(span) and span > 0.0)
+            floats["vv_weight"][c] = float(weight)
+            uc = prop.GetScalarOpacityUnitDistance(c)
+            floats["vv_unitExponent"][c] = 1.0 if uc == u0 else float(u0 / uc)
+            floats["vv_rangeLo"][c] = lo if np.isfinite(lo) else 0.0
+            floats["vv_rangeSpan"][c] = span if valid else 0.0
+            floats["vv_gradSpan"][c] = float(np.float32(
+                tf2d.GRADIENT_RANGE_FRACTION * (span if valid else 1.0)))
+            if weight > 0:
+                if two_d and prop.GetTransferFunction2D(c) is not None:
+                    mode = 3
+                    tables_2d[c] = np.ascontiguousarray(tf2d.unit_alpha_table(
+                        prop.GetTransferFunction2D(c), step, uc), np.float32)
+                else:
+                    mode = 1
+                    xs, ys = _nodes(prop.GetScalarOpacity(c))
+                    floats["vv_nanAlpha"][c] = float(np.float32(ys[0]))
+                    exact = (_integral(dtype) and np.isfinite(lo)
+                             and 0 <= hi - lo < MAX_EXACT_ENTRIES)
+                    if exact:
+                        table = np.interp(np.arange(lo, hi + 1, dtype=np.float64), xs, ys)
+                        scale, start_value = 1.0, lo
+                    elif valid:
+                        n = FLOAT_TABLE_ENTRIES
+                        table = np.interp(np.linspace(lo, hi, n), xs, ys)
+                        scale, start_value = (n - 1) / span, lo
+                    else:  # one value (or no finite range): its opacity
+                        table = np.interp(np.array([lo if np.isfinite(lo) else xs[0]]), xs, ys)
+                        scale, start_value = 0.0, 0.0
+                    ints["vv_opOffset"][c], ints["vv_opLength"][c] = add(table)
+                    floats["vv_opLo"][c] = float(start_value)
+                    floats["vv_opScale"][c] = float(scale)
+                    if (not two_d and prop.HasGradientOpacity(c)
+                            and not prop.GetDisableGradientOpacity(c)):
+                        mode = 2
+                        gxs, gys = _nodes(prop.GetGradientOpacity(c))
+                        top = float(np.float32(floats["vv_gradSpan"][c]))
+                        t = np.linspace(0.0, 1.0, FLOAT_TABLE_ENTRIES)
+                        ints["vv_goOffset"][c], ints["vv_goLength"][c] = add(
+                            np.interp(t * top, gxs, gys))
+            gradient = gradient or mode in (2, 3)
+        defines[f"VV_MODE_{c}"] = str(mode)
+    defines["VV_GRADIENT"] = "1" if gradient else "0"
+    flat = np.concatenate(pieces) if pieces else np.zeros(1, np.float32)
+    rows = -(-len(flat) // LUT_WIDTH)
+    lut = np.zeros(rows * LUT_WIDTH, np.float32)
+    lut[:len(flat)] = flat
+    lut = lut.reshape(rows, LUT_WIDTH) if rows > 1 else lut[:max(1, len(flat))].reshape(1, -1)
+    axes = None
+    defines["VV_CROP"] = "1" if crop_regions is not None else "0"
+    defines["VV_WEIGHTS"] = "1" if weights is not None else "0"
+    if crop_regions is not None or weights is not None:
+        nx, ny, nz = image.GetDimensions()
+        axes = np.zeros((6, max(nx, ny, nz)), np.float32)
+        axes[:3] = 1.0
+        if weights is not None:
+            for a, w in enumerate(weights):
+                axes[a, :len(w)] = w
+        if crop_regions is not None:
+            for a, r in enumerate(crop_regions):
+                axes[3 + a, :len(r)] = r
+            ints["vv_cropFlags"] = [int(crop_flags)]
+    defines["VV_CLIP_PLANES"] = str(len(clip))
+    if clip:
+        floats["vv_clip"] = [float(v) for plane in clip for v in plane]
+    return Plan(defines, ints, floats, lut, tables_2d, axes)
+
+
+class GpuClassifier:
+    """The host's classification resources in VTK's context (context current): the scalar
+    texture (uploaded once per data set), the table textures and one compute program per
+    variant (kept until :meth:`release`)."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[tuple, ComputeProgram] = {}
+        self._scalars: vtk.vtkTextureObject | None = None
+        self._scalars_key: tuple | None = None
+        self.scalar_bytes = 0
+        self._lut: Texture2D | None = None
+        self._axes: Texture2D | None = None
+        self._tables: dict[int, Texture2D] = {}
+        self.scalar_uploads = 0
+        self.upload_ms = 0.0
+
+    # -- resources ------------------------------------------------------------------------------
+    def program(self, defines: dict[str, str]) -> ComputeProgram:
+        key = tuple(sorted(defines.items()))
+        prog = self._programs.get(key)
+        if prog is None:
+            prog = ComputeProgram(self.render_window, compute_source(COMPUTE_SOURCE, defines),
+                                  "host classification")
+            self._programs[key] = prog
+        return prog
+
+    def ensure_scalars(self, image: vtk.vtkImageData) -> None:
+        """Upload the image's point scalars unless this data set is there already."""
+        scalars = image.GetPointData().GetScalars()
+        dims = tuple(int(d) for d in image.GetDimensions())
+        key = (image.GetMTime(), scalars.GetMTime(), dims, scalars.GetNumberOfComponents(),
+               scalars.GetDataType())
+        if key == self._scalars_key and self._scalars is not None:
+            return
+        t0 = time.perf_counter()
+        values = vtk_to_numpy(scalars)
+        ncomp = scalars.GetNumberOfComponents()
+        if np.dtype(values.dtype) in _NORMALISED:
+            vtk_type = _NORMALISED[np.dtype(values.dtype)][0]
+            data = np.ascontiguousarray(values)
+        else:  # exact for (u)int8/16, float32; rounded to float32 for wider types
+            vtk_type = vtk.VTK_FLOAT
+            data = np.ascontiguousarray(values, np.float32)
+        self._release_scalars()
+        tex = vtk.vtkTextureObject()
+        tex.SetContext(self.render_window)
+        tex.SetMinificationFilter(vtk.vtkTextureObject.Nearest)
+        tex.SetMagnificationFilter(vtk.vtkTextureObject.Nearest)
+        for wrap in (tex.SetWrapS, tex.SetWrapT, tex.SetWrapR):
+            wrap(vtk.vtkTextureObject.ClampToEdge)
+        nx, ny, nz = dims
+        self.render_window.GetState().vtkglPixelStorei(gl(self.render_window).GL_UNPACK_ALIGNMENT,
+                                                       1)
+        if not tex.Create3DFromRaw(nx, ny, nz, ncomp, vtk_type, data):
+            raise GLUnavailableError(
+                f"could not allocate the {nx}×{ny}×{nz}×{ncomp} scalar texture")
+        tex.Deactivate()
+        self._scalars = tex
+        self._scalars_key = key
+        self.scalar_bytes = int(data.nbytes)
+        self.scalar_uploads += 1
+        self.upload_ms = (time.perf_counter() - t0) * 1e3
+
+    def _texture2d(self, current: Texture2D | None, data: np.ndarray) -> Texture2D:
+        if current is not None and current.shape == data.shape:
+            current.upload(data)
+            return current
+        if current is not None:
+            current.release()
+        return Texture2D(self.render_window, data)
+
+    # -- classification -------------------------------------------------------------------------
+    def run_steps(self, plan: Plan, image: vtk.vtkImageData, out: Texture3D, *,
+                  chunked: bool) -> Iterator[float]:
+        """Classify into ``out`` (r32f, the data's shape), yielding the fraction done; with
+        ``chunked`` in slabs of z slices, each waited for (``glFinish``)."""
+        GL = gl(self.render_window)
+        self.ensure_scalars(image)
+        prog = self.program(plan.defines)  # compiled before any table is touched
+        self._lut = self._texture2d(self._lut, plan.lut)
+        if plan.axes is not None:
+            self._axes = self._texture2d(self._axes, plan.axes)
+        for c in list(self._tables):
+            if c not in plan.tables_2d:
+                self._tables.pop(c).release()
+        for c, table in plan.tables_2d.items():
+            self._tables[c] = self._texture2d(self._tables.get(c), table)
+        nx, ny, nz = (int(d) for d in image.GetDimensions())
+        slab = nz if not chunked else max(1, SLAB_VOXELS // max(1, nx * ny))
+        for z0 in range(0, nz, slab):
+            z1 = min(nz, z0 + slab)
+            program = prog.use()
+            assert self._scalars is not None
+            self._scalars.Activate()
+            program.SetUniformi("vv_scalars", int(self._scalars.GetTextureUnit()))
+            program.SetUniformi("vv_lut", self._lut.activate())
+            if plan.axes is not None and self._axes is not None:
+                program.SetUniformi("vv_axes", self._axes.activate())
+            for c, table in self._tables.items():
+                program.SetUniformi(f"vv_tf2d_{c}", table.activate())
+            program.SetUniformi("vv_lutWidth", int(plan.lut.shape[1]))
+            GL.glUniform3i(GL.glGetUniformLocation(int(program.GetHandle()), "vv_dims"),
+                           nx, ny, nz)
+            program.SetUniformi("vv_z0", z0)
+            program.SetUniformi("vv_z1", z1)
+            for name, values in plan.ints.items():
+                if len(values) == 1:
+                    program.SetUniformi(name, values[0])
+                else:
+                    program.SetUniform1iv(name, len(values), values)
+            for name, values in plan.floats.items():
+                if name == "vv_clip":
+                    program.SetUniform4fv(name, len(values) // 4, values)
+                elif name == "vv_gradDivisor":
+                    program.SetUniform3f(name, values)
+                elif name == "vv_decode":
+                    program.SetUniform4f(name, values)
+                else:
+                    program.SetUniform1fv(name, len(values), values)
+            out.bind_image(0, "write")
+            prog.dispatch((-(-nx // GROUP_X), ny, 1))
+            GL.glBindImageTexture(0, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
+            self._deactivate()
+            prog.done()
+            if chunked:
+                GL.glFinish()
+            yield z1 / nz
+
+    def _deactivate(self) -> None:
+        if self._scalars is not None:
+            self._scalars.Deactivate()
+        for tex in (self._lut, self._axes, *self._tables.values()):
+            if tex is not None and tex.tex is not None:
+                tex.tex.Deactivate()
+
+    def _release_scalars(self) -> None:
+        if self._scalars is not None:
+            self._scalars.Deactivate()
+            self._scalars.ReleaseGraphicsResources(self.render_window)
+            self._scalars = None
+            self._scalars_key = None
+            self.scalar_bytes = 0
+
+    def release(self) -> None:
+        self._release_scalars()
+        for tex in (self._lut, self._axes, *self._tables.values()):
+            if tex is not None:
+                tex.release()
+        self._lut = self._axes = None
+        self._tables.clear()
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+
+
+def stats_template() -> dict[str, Any]:
+    """The keys of :meth:`Illuminator.classification_stats`, before any classification."""
+    return {"backend": "", "reason": "", "gpu_classifications": 0, "cpu_classifications": 0,
+            "scalar_uploads": 0, "opacity_uploads": 0, "classify_ms": 0.0,
+            "scalar_upload_ms": 0.0, "scalar_texture_bytes": 0}
