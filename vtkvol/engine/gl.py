@@ -175,6 +175,20 @@ class Texture3D:
         GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, z0, nx, ny, nz, self._pixel_format,
                            GL.GL_FLOAT, arr)
 
+    def copy_to(self, dst: Texture3D, level: int = 0) -> None:
+        """Copy level 0 into level ``level`` of ``dst`` (same size there, same channels) on
+        the GPU (``glCopyImageSubData``: no binding, no read-back); shader writes issued
+        before are made visible first."""
+        nz, ny, nx = self.shape
+        dz, dy, dx = (max(1, s >> level) for s in dst.shape)
+        if (dz, dy, dx) != (nz, ny, nx) or dst.channels != self.channels:
+            raise ValueError(f"cannot copy a {self.shape} texture into level {level} of "
+                             f"{dst.shape}")
+        GL = gl(self.render_window)
+        GL.glMemoryBarrier(GL.GL_ALL_BARRIER_BITS)
+        GL.glCopyImageSubData(self.handle, GL.GL_TEXTURE_3D, 0, 0, 0, 0, dst.handle,
+                              GL.GL_TEXTURE_3D, level, 0, 0, 0, nx, ny, nz)
+
     def generate_mipmaps(self) -> None:
         """Fill levels 1… from level 0 with the driver's box filter (``mip_levels`` > 1)."""
         if self.mip_levels <= 1:
