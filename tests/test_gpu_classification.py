@@ -195,7 +195,7 @@ def test_a_tf_edit_classifies_on_the_gpu_and_uploads_no_volume(made):
     rw.Render()
     before = il.classification_stats()
     assert before["backend"] == "gpu" and before["scalar_uploads"] == 1
-    assert before["scalar_texture_bytes"] == arr.nbytes  # uint8 stays one byte a voxel
+    assert before["scalar_bytes"] == arr.nbytes  # uint8 stays one byte a voxel
     otf = volume.GetProperty().GetScalarOpacity()
     otf.AddPoint(120.0, 0.05)
     rw.Render()

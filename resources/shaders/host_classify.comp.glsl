@@ -14,35 +14,41 @@
 //   VV_COMPONENTS       1..4 independent components of the scalar texture
 //   VV_MODE_0..3        per component: 0 = skipped (weight 0), 1 = 1-D table,
 //                       2 = 1-D table x gradient-opacity table, 3 = 2-D table
+//   VV_EXACT_0..3       1: the 1-D table has one entry per integer value (read one entry)
+//   VV_UNIT_0..3        1: convert alpha per the component's unit distance to component 0's
+//   VV_FLOAT_DATA       1: the data may hold NaN/inf (float types): they read vv_nanAlpha
 //   VV_GRADIENT         1 when any component needs VTK's gradient (modes 2 and 3)
-//   VV_ROUND            1: the scalar texture is unsigned-normalised integer data (r8/r16):
-//                       value = round(fetch * vv_decode), exactly the stored integer
+//   VV_TYPE             how the scalars are packed in vv_words: 0 = uint8 (4 per word),
+//                       1 = uint16 (2 per word), 2 = float32
 //   VV_CROP             1: test the 27 cropping regions
 //   VV_CLIP_PLANES      number of clipping planes (0..6)
 //   VV_WEIGHTS          1: multiply by the slice weights
 //
-// Spaces: integer voxel indices (x, y, z) of the data, texelFetch everywhere (no filtering).
-// Each invocation walks one column (x, y) along z, keeping the z-neighbours of the gradient
-// in registers (on llvmpipe the cost is per invocation and per load).
+// Spaces: integer voxel indices (x, y, z) of the data. Storage: shader storage buffers (plain
+// memory loads and stores; on llvmpipe several times cheaper than texel fetches and image
+// stores): the scalars as uploaded (interleaved components, x fastest), the tables, and the
+// output: one slab of z slices vv_z0 .. vv_z1 (x fastest), copied into the host's r32f
+// texture by the driver. Each invocation classifies VV_BLOCK consecutive voxels along x.
 //
-// Tables (vv_lut, one r32f 2-D texture holding every 1-D table, row-major in rows of
-// vv_lutWidth entries): table of component c starts at entry vv_opOffset[c], has
+// Tables (vv_lut, every 1-D table one after the other, then the per-axis rows): table of
+// component c starts at entry vv_opOffset[c], has
 // vv_opLength[c] entries; a value v reads position p = (v - vv_opLo[c]) * vv_opScale[c],
 // clamped to the table, linearly between its two entries. Integer data get one entry per
 // integer (scale 1, p integral: the exact value); float data a dense sampling of the
 // piecewise-linear function over the component's range. Gradient-opacity tables (vv_go*) are
 // read the same way at t = |grad| / (0.25 range), 0..1.
 
-layout(local_size_x = 16, local_size_y = 1, local_size_z = 1) in;
-layout(binding = 0, r32f) uniform writeonly image3D vv_out;
+#ifndef VV_BLOCK
+#define VV_BLOCK 4
+#endif
+layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
+layout(std430, binding = 0) readonly buffer VvScalars { uint vv_words[]; };
+layout(std430, binding = 1) readonly buffer VvTables { float vv_lut[]; };
+layout(std430, binding = 2) writeonly buffer VvOut { float vv_out[]; };
 
-uniform sampler3D vv_scalars;       // the data, VV_COMPONENTS channels
-uniform sampler2D vv_lut;           // every 1-D table
-uniform int vv_lutWidth;
 uniform ivec3 vv_dims;              // data voxels (x, y, z)
-uniform int vv_z0;                  // first and end z slice of this dispatch
-uniform int vv_z1;
-uniform vec4 vv_decode;             // per component: VV_ROUND scale (255, 65535) or 1
+uniform int vv_z0;                  // first z slice of this dispatch (the output slab's)
+uniform int vv_z1;                  // end of the slab
 uniform int vv_opOffset[4];
 uniform int vv_opLength[4];
 uniform float vv_opLo[4];
@@ -58,7 +64,8 @@ uniform float vv_gradSpan[4];       // 0.25 * span (1 for a degenerate range)
 uniform vec3 vv_gradDivisor;        // 2 s_i / mean(s), per axis
 
 #if VV_CROP || VV_WEIGHTS
-uniform sampler2D vv_axes;          // rows 0..2: wX, wY, wZ; rows 3..5: crop region 0/1/2
+uniform int vv_axesOffset;          // in vv_lut: rows 0..2 wX, wY, wZ; rows 3..5 crop region
+uniform int vv_axesWidth;           // entries per row
 #endif
 #if VV_CROP
 uniform int vv_cropFlags;           // VTK's 27-bit region flags
@@ -79,30 +86,55 @@ uniform sampler2D vv_tf2d_2;
 uniform sampler2D vv_tf2d_3;
 #endif
 
-const int C = VV_COMPONENTS;
+// Element e of the scalars (component-interleaved, x fastest), as a float.
+float element(int e)
+{
+#if VV_TYPE == 0
+  return float((vv_words[e >> 2] >> uint(8 * (e & 3))) & 255u);
+#elif VV_TYPE == 1
+  return float((vv_words[e >> 1] >> uint(16 * (e & 1))) & 65535u);
+#else
+  return uintBitsToFloat(vv_words[e]);
+#endif
+}
 
+// All components of voxel p (clamped to the volume: the edge repeats, as VTK's texture).
 vec4 valueAt(ivec3 p)
 {
-  vec4 v = texelFetch(vv_scalars, clamp(p, ivec3(0), vv_dims - 1), 0) * vv_decode;
-#if VV_ROUND
-  v = floor(v + 0.5);
+  p = clamp(p, ivec3(0), vv_dims - 1);
+  int e = (p.x + vv_dims.x * (p.y + vv_dims.y * p.z)) * VV_COMPONENTS;
+  vec4 v = vec4(0.0);
+  v[0] = element(e);
+#if VV_COMPONENTS > 1
+  v[1] = element(e + 1);
+#endif
+#if VV_COMPONENTS > 2
+  v[2] = element(e + 2);
+#endif
+#if VV_COMPONENTS > 3
+  v[3] = element(e + 3);
 #endif
   return v;
 }
 
 float lutEntry(int i)
 {
-  return texelFetch(vv_lut, ivec2(i % vv_lutWidth, i / vv_lutWidth), 0).r;
+  return vv_lut[i];
 }
 
-// Linear read of the table at offset, length n, position p (entries).
-float table(int offset, int n, float p)
+// The table at offset, length n, position p (entries): integral positions (VV_EXACT_c: one
+// entry per integer value) read one entry, others interpolate linearly between two.
+float table(int offset, int n, float p, bool exact)
 {
   p = clamp(p, 0.0, float(n - 1));
+  if (exact)
+  {
+    return lutEntry(offset + int(p));
+  }
   int i0 = min(int(p), max(n - 2, 0));
   float f = p - float(i0);
   float a = lutEntry(offset + i0);
-  float b = n > 1 ? lutEntry(offset + i0 + 1) : a;
+  float b = lutEntry(offset + min(i0 + 1, n - 1));
   return a * (1.0 - f) + b * f;
 }
 
@@ -125,14 +157,33 @@ float lookup2d(sampler2D tf, float s, float t)
 }
 
 // Component c's opacity per its own unit distance, from its value v and its gradient
-// coordinate t (0..1, VTK's normalised |grad I|).
-float classify(int c, int mode, float v, float t)
+// coordinate t (0..1, VTK's normalised |grad I|). Called with literal c, so the per-component
+// defines and uniform indices fold at compile time (llvmpipe runs every branch otherwise).
+int modeOf(const int c)
 {
-  float alpha;
+  return c == 0 ? VV_MODE_0 : (c == 1 ? VV_MODE_1 : (c == 2 ? VV_MODE_2 : VV_MODE_3));
+}
+
+bool exactOf(const int c)
+{
+  return (c == 0 ? VV_EXACT_0 : (c == 1 ? VV_EXACT_1 : (c == 2 ? VV_EXACT_2 : VV_EXACT_3))) == 1;
+}
+
+bool unitOf(const int c)
+{
+  return (c == 0 ? VV_UNIT_0 : (c == 1 ? VV_UNIT_1 : (c == 2 ? VV_UNIT_2 : VV_UNIT_3))) == 1;
+}
+
+float classify(const int c, float v, float t)
+{
+  const int mode = modeOf(c);
+  float alpha = 0.0;
   if (mode == 3)
   {
     float s = vv_rangeSpan[c] > 0.0 ? clamp((v - vv_rangeLo[c]) / vv_rangeSpan[c], 0.0, 1.0) : 0.0;
+#if VV_FLOAT_DATA
     if (isnan(v)) s = 0.0;
+#endif
 #if VV_MODE_0 == 3
     if (c == 0) alpha = lookup2d(vv_tf2d_0, s, t);
 #endif
@@ -148,88 +199,99 @@ float classify(int c, int mode, float v, float t)
   }
   else
   {
-    bool finite = !isnan(v) && !isinf(v);
-    alpha = finite ? table(vv_opOffset[c], vv_opLength[c], (v - vv_opLo[c]) * vv_opScale[c])
-                   : vv_nanAlpha[c];
+    alpha = table(vv_opOffset[c], vv_opLength[c], (v - vv_opLo[c]) * vv_opScale[c], exactOf(c));
+#if VV_FLOAT_DATA
+    if (isnan(v) || isinf(v)) alpha = vv_nanAlpha[c];
+#endif
     if (mode == 2)
     {
-      alpha *= table(vv_goOffset[c], vv_goLength[c], t * float(vv_goLength[c] - 1));
+      alpha *= table(vv_goOffset[c], vv_goLength[c], t * float(vv_goLength[c] - 1), false);
     }
   }
   alpha = clamp(alpha * vv_weight[c], 0.0, 1.0);
-  if (vv_unitExponent[c] != 1.0)
+  if (unitOf(c))
   {
-    alpha = 1.0 - pow(1.0 - alpha, vv_unitExponent[c]);
+    alpha = clamp(1.0 - pow(1.0 - alpha, vv_unitExponent[c]), 0.0, 1.0);
   }
-  return clamp(alpha, 0.0, 1.0);
+  return alpha;
 }
 
-int modeOf(int c)
+// Transparency 1 - alpha_c of component c (literal) at value v with gradient magnitude m.
+float transparencyOf(const int c, float v, float m)
 {
-  return c == 0 ? VV_MODE_0 : (c == 1 ? VV_MODE_1 : (c == 2 ? VV_MODE_2 : VV_MODE_3));
+  if (modeOf(c) == 0)
+  {
+    return 1.0;
+  }
+  float t = 0.0;
+  if (modeOf(c) >= 2)
+  {
+    t = clamp(m / vv_gradSpan[c], 0.0, 1.0);
+    if (isnan(t)) t = 0.0;
+  }
+  return 1.0 - classify(c, v, t);
 }
 
 void main()
 {
-  ivec2 xy = ivec2(gl_GlobalInvocationID.xy);
-  if (xy.x >= vv_dims.x || xy.y >= vv_dims.y)
+  int x0 = int(gl_GlobalInvocationID.x) * VV_BLOCK;
+  int y = int(gl_GlobalInvocationID.y);
+  int z = vv_z0 + int(gl_GlobalInvocationID.z);
+  if (x0 >= vv_dims.x || z >= vv_z1)
   {
     return;
   }
-  float keepXY = 1.0;
-  float wXY = 1.0;
+  float keepYZ = 1.0;
 #if VV_WEIGHTS
-  wXY = texelFetch(vv_axes, ivec2(xy.x, 0), 0).r * texelFetch(vv_axes, ivec2(xy.y, 1), 0).r;
+  keepYZ = vv_lut[vv_axesOffset + vv_axesWidth + y] * vv_lut[vv_axesOffset + 2 * vv_axesWidth + z];
 #endif
 #if VV_CROP
-  int regionXY = int(texelFetch(vv_axes, ivec2(xy.x, 3), 0).r)
-               + 3 * int(texelFetch(vv_axes, ivec2(xy.y, 4), 0).r);
+  int regionYZ = 3 * int(vv_lut[vv_axesOffset + 4 * vv_axesWidth + y])
+               + 9 * int(vv_lut[vv_axesOffset + 5 * vv_axesWidth + z]);
 #endif
-#if VV_GRADIENT
-  vec4 below = valueAt(ivec3(xy, vv_z0 - 1));
-  vec4 here = valueAt(ivec3(xy, vv_z0));
-#endif
-  for (int z = vv_z0; z < vv_z1; ++z)
+  int base = (z - vv_z0) * vv_dims.x * vv_dims.y + y * vv_dims.x;
+  for (int k = 0; k < VV_BLOCK; ++k)
   {
+    int x = x0 + k;
+    if (x >= vv_dims.x)
+    {
+      break;
+    }
+    ivec3 p = ivec3(x, y, z);
+    vec4 v = valueAt(p);
 #if VV_GRADIENT
-    vec4 above = valueAt(ivec3(xy, z + 1));
-    vec4 v = here;
     // VTK's central differences (the edge voxel repeats outside), per component.
-    vec4 gx = (valueAt(ivec3(xy.x + 1, xy.y, z)) - valueAt(ivec3(xy.x - 1, xy.y, z))) / vv_gradDivisor.x;
-    vec4 gy = (valueAt(ivec3(xy.x, xy.y + 1, z)) - valueAt(ivec3(xy.x, xy.y - 1, z))) / vv_gradDivisor.y;
-    vec4 gz = (above - below) / vv_gradDivisor.z;
+    vec4 gx = (valueAt(p + ivec3(1, 0, 0)) - valueAt(p - ivec3(1, 0, 0))) / vv_gradDivisor.x;
+    vec4 gy = (valueAt(p + ivec3(0, 1, 0)) - valueAt(p - ivec3(0, 1, 0))) / vv_gradDivisor.y;
+    vec4 gz = (valueAt(p + ivec3(0, 0, 1)) - valueAt(p - ivec3(0, 0, 1))) / vv_gradDivisor.z;
     vec4 magnitude = sqrt(gx * gx + gy * gy + gz * gz);
 #else
-    vec4 v = valueAt(ivec3(xy, z));
     vec4 magnitude = vec4(0.0);
 #endif
-    float transparency = 1.0;
-    for (int c = 0; c < C; ++c)
-    {
-      int mode = modeOf(c);
-      if (mode == 0) continue;
-      float t = clamp(magnitude[c] / vv_gradSpan[c], 0.0, 1.0);
-      if (isnan(t)) t = 0.0;
-      transparency *= 1.0 - classify(c, mode, v[c], t);
-    }
+    float transparency = transparencyOf(0, v[0], magnitude[0]);
+#if VV_COMPONENTS > 1
+    transparency *= transparencyOf(1, v[1], magnitude[1]);
+#endif
+#if VV_COMPONENTS > 2
+    transparency *= transparencyOf(2, v[2], magnitude[2]);
+#endif
+#if VV_COMPONENTS > 3
+    transparency *= transparencyOf(3, v[3], magnitude[3]);
+#endif
     float alpha = 1.0 - transparency;
 #if VV_CROP
-    int region = regionXY + 9 * int(texelFetch(vv_axes, ivec2(z, 5), 0).r);
+    int region = regionYZ + int(vv_lut[vv_axesOffset + 3 * vv_axesWidth + x]);
     if (((vv_cropFlags >> region) & 1) == 0) alpha = 0.0;
 #endif
 #if VV_CLIP_PLANES > 0
-    for (int k = 0; k < VV_CLIP_PLANES; ++k)
+    for (int j = 0; j < VV_CLIP_PLANES; ++j)
     {
-      if (dot(vv_clip[k].xyz, vec3(xy, z)) + vv_clip[k].w < 0.0) alpha = 0.0;
+      if (dot(vv_clip[j].xyz, vec3(p)) + vv_clip[j].w < 0.0) alpha = 0.0;
     }
 #endif
 #if VV_WEIGHTS
-    alpha *= wXY * texelFetch(vv_axes, ivec2(z, 2), 0).r;
+    alpha *= keepYZ * vv_lut[vv_axesOffset + x];
 #endif
-    imageStore(vv_out, ivec3(xy, z), vec4(alpha));
-#if VV_GRADIENT
-    below = here;
-    here = above;
-#endif
+    vv_out[base + x] = alpha;
   }
 }

@@ -41,7 +41,13 @@ import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
 from vtkvol.engine import tf2d
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture2D, Texture3D, gl
+from vtkvol.engine.gl import (
+    ComputeProgram,
+    StorageBuffer,
+    Texture2D,
+    Texture3D,
+    gl,
+)
 from vtkvol.engine.shaders import compute_source
 
 COMPUTE_SOURCE = "host_classify.comp.glsl"
@@ -49,17 +55,15 @@ COMPUTE_SOURCE = "host_classify.comp.glsl"
 FLOAT_TABLE_ENTRIES = 16384
 #: Integer components whose range has at most this many values get one entry per integer.
 MAX_EXACT_ENTRIES = 65536
-#: Width (entries per row) of the 2-D texture holding every 1-D table.
-LUT_WIDTH = 4096
 #: Most clipping planes the shader takes (VTK's mapper supports six).
 MAX_CLIP_PLANES = 6
-#: Invocations per work group along x (the shader's local_size_x).
-GROUP_X = 16
-#: Voxels per dispatch of a chunked classification (about 0.1 s on llvmpipe at 2 cores).
+#: Invocations per work group along x (the shader's local_size_x) and voxels per invocation.
+GROUP_X = 64
+BLOCK = 4
+#: Voxels per dispatch (the output slab buffer: 16 MiB); a chunk of a chunked classification.
 SLAB_VOXELS = 1 << 22
-#: Normalised formats the shader reads back exactly (value = round(fetch · scale)).
-_NORMALISED = {np.dtype(np.uint8): (vtk.VTK_UNSIGNED_CHAR, 255.0),
-               np.dtype(np.uint16): (vtk.VTK_UNSIGNED_SHORT, 65535.0)}
+#: How the shader unpacks the scalars (``VV_TYPE``); other types are uploaded as float32.
+_PACKED = {np.dtype(np.uint8): 0, np.dtype(np.uint16): 1}
 
 
 def unsupported_reason(volume: vtk.vtkVolume, image: vtk.vtkImageData) -> str:
@@ -82,14 +86,14 @@ def unsupported_reason(volume: vtk.vtkVolume, image: vtk.vtkImageData) -> str:
 @dataclass
 class Plan:
     """What one classification needs besides the scalars: defines (the program variant),
-    uniforms, the packed 1-D tables, the 2-D tables and the per-axis crop/weight rows."""
+    uniforms, the 1-D tables and per-axis crop/weight rows (one float array) and the 2-D
+    tables."""
 
     defines: dict[str, str]
     ints: dict[str, list[int]] = field(default_factory=dict)
     floats: dict[str, list[float]] = field(default_factory=dict)
-    lut: np.ndarray = field(default_factory=lambda: np.zeros((1, 1), np.float32))
+    lut: np.ndarray = field(default_factory=lambda: np.zeros(1, np.float32))
     tables_2d: dict[int, np.ndarray] = field(default_factory=dict)
-    axes: np.ndarray | None = None
 
 
 def _nodes(function: vtk.vtkPiecewiseFunction) -> tuple[np.ndarray, np.ndarray]:
@@ -127,15 +131,14 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
     u0 = prop.GetScalarOpacityUnitDistance(0)
     spacing = image.GetSpacing()
     mean = sum(spacing) / 3.0
-    defines = {"VV_COMPONENTS": str(ncomp), "VV_ROUND": "1" if dtype in _NORMALISED else "0"}
+    defines = {"VV_COMPONENTS": str(ncomp), "VV_TYPE": str(_PACKED.get(dtype, 2)),
+               "VV_FLOAT_DATA": "0" if _integral(dtype) else "1", "VV_BLOCK": str(BLOCK)}
     ints: dict[str, list[int]] = {k: [0] * 4 for k in
                                   ("vv_opOffset", "vv_opLength", "vv_goOffset", "vv_goLength")}
     floats: dict[str, list[float]] = {k: [0.0] * 4 for k in (
         "vv_opLo", "vv_opScale", "vv_nanAlpha", "vv_weight", "vv_unitExponent", "vv_rangeLo",
         "vv_rangeSpan", "vv_gradSpan")}
     floats["vv_gradDivisor"] = [float(np.float32(2.0 * s / mean)) for s in spacing]
-    decode = _NORMALISED.get(dtype, (None, 1.0))[1]
-    floats["vv_decode"] = [decode] * 4
     pieces: list[np.ndarray] = []
     offset = 0
 
@@ -148,7 +151,7 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
     gradient = False
     tables_2d: dict[int, np.ndarray] = {}
     for c in range(4):
-        mode = 0
+        mode = exact = unit = 0
         if c < ncomp:
             weight = prop.GetComponentWeight(c) if ncomp > 1 else 1.0
             lo, hi = (float(r) for r in scalars.GetRange(c))
@@ -157,6 +160,7 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
             floats["vv_weight"][c] = float(weight)
             uc = prop.GetScalarOpacityUnitDistance(c)
             floats["vv_unitExponent"][c] = 1.0 if uc == u0 else float(u0 / uc)
+            unit = int(uc != u0)
             floats["vv_rangeLo"][c] = lo if np.isfinite(lo) else 0.0
             floats["vv_rangeSpan"][c] = span if valid else 0.0
             floats["vv_gradSpan"][c] = float(np.float32(
@@ -173,6 +177,7 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
                     exact = (_integral(dtype) and np.isfinite(lo)
                              and 0 <= hi - lo < MAX_EXACT_ENTRIES)
                     if exact:
+                        exact = 1
                         table = np.interp(np.arange(lo, hi + 1, dtype=np.float64), xs, ys)
                         scale, start_value = 1.0, lo
                     elif valid:
@@ -195,18 +200,15 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
                             np.interp(t * top, gxs, gys))
             gradient = gradient or mode in (2, 3)
         defines[f"VV_MODE_{c}"] = str(mode)
+        defines[f"VV_EXACT_{c}"] = str(int(exact))
+        defines[f"VV_UNIT_{c}"] = str(unit)
     defines["VV_GRADIENT"] = "1" if gradient else "0"
-    flat = np.concatenate(pieces) if pieces else np.zeros(1, np.float32)
-    rows = -(-len(flat) // LUT_WIDTH)
-    lut = np.zeros(rows * LUT_WIDTH, np.float32)
-    lut[:len(flat)] = flat
-    lut = lut.reshape(rows, LUT_WIDTH) if rows > 1 else lut[:max(1, len(flat))].reshape(1, -1)
-    axes = None
     defines["VV_CROP"] = "1" if crop_regions is not None else "0"
     defines["VV_WEIGHTS"] = "1" if weights is not None else "0"
     if crop_regions is not None or weights is not None:
         nx, ny, nz = image.GetDimensions()
-        axes = np.zeros((6, max(nx, ny, nz)), np.float32)
+        width = max(nx, ny, nz)
+        axes = np.zeros((6, width), np.float32)
         axes[:3] = 1.0
         if weights is not None:
             for a, w in enumerate(weights):
@@ -215,28 +217,54 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
             for a, r in enumerate(crop_regions):
                 axes[3 + a, :len(r)] = r
             ints["vv_cropFlags"] = [int(crop_flags)]
+        ints["vv_axesOffset"], ints["vv_axesWidth"] = [add(axes.ravel())[0]], [width]
+    lut = np.concatenate(pieces) if pieces else np.zeros(1, np.float32)
     defines["VV_CLIP_PLANES"] = str(len(clip))
     if clip:
         floats["vv_clip"] = [float(v) for plane in clip for v in plane]
-    return Plan(defines, ints, floats, lut, tables_2d, axes)
+    return Plan(defines, ints, floats, lut, tables_2d)
 
 
 class GpuClassifier:
-    """The host's classification resources in VTK's context (context current): the scalar
-    texture (uploaded once per data set), the table textures and one compute program per
-    variant (kept until :meth:`release`)."""
+    """The host's classification resources in VTK's context (context current): the scalars
+    (a storage buffer, uploaded once per data set), the tables, the output slab and one
+    compute program per variant (kept until :meth:`release`)."""
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
         self._programs: dict[tuple, ComputeProgram] = {}
-        self._scalars: vtk.vtkTextureObject | None = None
+        self._scalars: StorageBuffer | None = None
         self._scalars_key: tuple | None = None
+        self._tables: StorageBuffer | None = None
+        self._out: StorageBuffer | None = None
+        self._tables_2d: dict[int, Texture2D] = {}
+        self.max_buffer_bytes = int(np.asarray(gl(render_window).glGetIntegerv(
+            gl(render_window).GL_MAX_SHADER_STORAGE_BLOCK_SIZE)).ravel()[0])
         self.scalar_bytes = 0
-        self._lut: Texture2D | None = None
-        self._axes: Texture2D | None = None
-        self._tables: dict[int, Texture2D] = {}
         self.scalar_uploads = 0
         self.upload_ms = 0.0
+
+    @staticmethod
+    def _packed(image: vtk.vtkImageData) -> np.ndarray:
+        """The point scalars as the shader reads them (component-interleaved, x fastest):
+        uint8/uint16 as they are, anything else as float32."""
+        values = vtk_to_numpy(image.GetPointData().GetScalars()).reshape(-1)
+        if np.dtype(values.dtype) not in _PACKED:
+            return np.ascontiguousarray(values, np.float32)
+        pad = (-values.nbytes) % 4  # whole 32-bit words
+        if pad:
+            values = np.concatenate([values, np.zeros(pad // values.itemsize, values.dtype)])
+        return np.ascontiguousarray(values)
+
+    def unsupported(self, image: vtk.vtkImageData) -> str:
+        """Why this data set does not fit (the driver's storage-buffer limit), or ""."""
+        scalars = image.GetPointData().GetScalars()
+        itemsize = np.dtype(vtk_to_numpy(scalars).dtype).itemsize
+        nbytes = scalars.GetNumberOfValues() * (itemsize if itemsize <= 2 else 4)
+        if nbytes > self.max_buffer_bytes:
+            return (f"the scalars ({nbytes / 2**20:.0f} MiB) exceed this driver's "
+                    f"storage-buffer limit ({self.max_buffer_bytes / 2**20:.0f} MiB)")
+        return ""
 
     # -- resources ------------------------------------------------------------------------------
     def program(self, defines: dict[str, str]) -> ComputeProgram:
@@ -251,35 +279,15 @@ class GpuClassifier:
     def ensure_scalars(self, image: vtk.vtkImageData) -> None:
         """Upload the image's point scalars unless this data set is there already."""
         scalars = image.GetPointData().GetScalars()
-        dims = tuple(int(d) for d in image.GetDimensions())
-        key = (image.GetMTime(), scalars.GetMTime(), dims, scalars.GetNumberOfComponents(),
-               scalars.GetDataType())
+        key = (image.GetMTime(), scalars.GetMTime(), tuple(image.GetDimensions()),
+               scalars.GetNumberOfComponents(), scalars.GetDataType())
         if key == self._scalars_key and self._scalars is not None:
             return
         t0 = time.perf_counter()
-        values = vtk_to_numpy(scalars)
-        ncomp = scalars.GetNumberOfComponents()
-        if np.dtype(values.dtype) in _NORMALISED:
-            vtk_type = _NORMALISED[np.dtype(values.dtype)][0]
-            data = np.ascontiguousarray(values)
-        else:  # exact for (u)int8/16, float32; rounded to float32 for wider types
-            vtk_type = vtk.VTK_FLOAT
-            data = np.ascontiguousarray(values, np.float32)
-        self._release_scalars()
-        tex = vtk.vtkTextureObject()
-        tex.SetContext(self.render_window)
-        tex.SetMinificationFilter(vtk.vtkTextureObject.Nearest)
-        tex.SetMagnificationFilter(vtk.vtkTextureObject.Nearest)
-        for wrap in (tex.SetWrapS, tex.SetWrapT, tex.SetWrapR):
-            wrap(vtk.vtkTextureObject.ClampToEdge)
-        nx, ny, nz = dims
-        self.render_window.GetState().vtkglPixelStorei(gl(self.render_window).GL_UNPACK_ALIGNMENT,
-                                                       1)
-        if not tex.Create3DFromRaw(nx, ny, nz, ncomp, vtk_type, data):
-            raise GLUnavailableError(
-                f"could not allocate the {nx}×{ny}×{nz}×{ncomp} scalar texture")
-        tex.Deactivate()
-        self._scalars = tex
+        data = self._packed(image)
+        if self._scalars is None:
+            self._scalars = StorageBuffer(self.render_window)
+        self._scalars.upload(data)
         self._scalars_key = key
         self.scalar_bytes = int(data.nbytes)
         self.scalar_uploads += 1
@@ -296,33 +304,32 @@ class GpuClassifier:
     # -- classification -------------------------------------------------------------------------
     def run_steps(self, plan: Plan, image: vtk.vtkImageData, out: Texture3D, *,
                   chunked: bool) -> Iterator[float]:
-        """Classify into ``out`` (r32f, the data's shape), yielding the fraction done; with
-        ``chunked`` in slabs of z slices, each waited for (``glFinish``)."""
+        """Classify into ``out`` (r32f, the data's shape), yielding the fraction done after
+        each slab of about :data:`SLAB_VOXELS` voxels (dispatch, then a copy of the slab into
+        ``out`` on the GPU); with ``chunked`` each slab is waited for (``glFinish``)."""
         GL = gl(self.render_window)
+        prog = self.program(plan.defines)  # compiled before anything is touched
         self.ensure_scalars(image)
-        prog = self.program(plan.defines)  # compiled before any table is touched
-        self._lut = self._texture2d(self._lut, plan.lut)
-        if plan.axes is not None:
-            self._axes = self._texture2d(self._axes, plan.axes)
-        for c in list(self._tables):
+        if self._tables is None:
+            self._tables = StorageBuffer(self.render_window)
+        self._tables.upload(plan.lut)
+        for c in list(self._tables_2d):
             if c not in plan.tables_2d:
-                self._tables.pop(c).release()
+                self._tables_2d.pop(c).release()
         for c, table in plan.tables_2d.items():
-            self._tables[c] = self._texture2d(self._tables.get(c), table)
+            self._tables_2d[c] = self._texture2d(self._tables_2d.get(c), table)
         nx, ny, nz = (int(d) for d in image.GetDimensions())
-        slab = nz if not chunked else max(1, SLAB_VOXELS // max(1, nx * ny))
+        slab = max(1, min(nz, SLAB_VOXELS // max(1, nx * ny)))
+        if self._out is None:
+            self._out = StorageBuffer(self.render_window)
+        if self._out.nbytes < nx * ny * slab * 4:
+            self._out.allocate(nx * ny * slab * 4)
+        assert self._scalars is not None
         for z0 in range(0, nz, slab):
             z1 = min(nz, z0 + slab)
             program = prog.use()
-            assert self._scalars is not None
-            self._scalars.Activate()
-            program.SetUniformi("vv_scalars", int(self._scalars.GetTextureUnit()))
-            program.SetUniformi("vv_lut", self._lut.activate())
-            if plan.axes is not None and self._axes is not None:
-                program.SetUniformi("vv_axes", self._axes.activate())
-            for c, table in self._tables.items():
+            for c, table in self._tables_2d.items():
                 program.SetUniformi(f"vv_tf2d_{c}", table.activate())
-            program.SetUniformi("vv_lutWidth", int(plan.lut.shape[1]))
             GL.glUniform3i(GL.glGetUniformLocation(int(program.GetHandle()), "vv_dims"),
                            nx, ny, nz)
             program.SetUniformi("vv_z0", z0)
@@ -337,41 +344,33 @@ class GpuClassifier:
                     program.SetUniform4fv(name, len(values) // 4, values)
                 elif name == "vv_gradDivisor":
                     program.SetUniform3f(name, values)
-                elif name == "vv_decode":
-                    program.SetUniform4f(name, values)
                 else:
                     program.SetUniform1fv(name, len(values), values)
-            out.bind_image(0, "write")
-            prog.dispatch((-(-nx // GROUP_X), ny, 1))
-            GL.glBindImageTexture(0, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
-            self._deactivate()
+            self._scalars.bind(0)
+            self._tables.bind(1)
+            self._out.bind(2)
+            GL.glDispatchCompute(-(-nx // (GROUP_X * BLOCK)), ny, z1 - z0)
+            StorageBuffer.unbind(self.render_window, 3)
+            for table in self._tables_2d.values():
+                if table.tex is not None:
+                    table.tex.Deactivate()
             prog.done()
+            self._out.copy_to_texture(out, z0, z1 - z0)
+            out.tex.Deactivate()
             if chunked:
                 GL.glFinish()
             yield z1 / nz
 
-    def _deactivate(self) -> None:
-        if self._scalars is not None:
-            self._scalars.Deactivate()
-        for tex in (self._lut, self._axes, *self._tables.values()):
-            if tex is not None and tex.tex is not None:
-                tex.tex.Deactivate()
-
-    def _release_scalars(self) -> None:
-        if self._scalars is not None:
-            self._scalars.Deactivate()
-            self._scalars.ReleaseGraphicsResources(self.render_window)
-            self._scalars = None
-            self._scalars_key = None
-            self.scalar_bytes = 0
-
     def release(self) -> None:
-        self._release_scalars()
-        for tex in (self._lut, self._axes, *self._tables.values()):
-            if tex is not None:
-                tex.release()
-        self._lut = self._axes = None
-        self._tables.clear()
+        for buffer in (self._scalars, self._tables, self._out):
+            if buffer is not None:
+                buffer.release()
+        self._scalars = self._tables = self._out = None
+        self._scalars_key = None
+        self.scalar_bytes = 0
+        for tex in self._tables_2d.values():
+            tex.release()
+        self._tables_2d.clear()
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
@@ -381,4 +380,4 @@ def stats_template() -> dict[str, Any]:
     """The keys of :meth:`Illuminator.classification_stats`, before any classification."""
     return {"backend": "", "reason": "", "gpu_classifications": 0, "cpu_classifications": 0,
             "scalar_uploads": 0, "opacity_uploads": 0, "classify_ms": 0.0,
-            "scalar_upload_ms": 0.0, "scalar_texture_bytes": 0}
+            "scalar_upload_ms": 0.0, "scalar_bytes": 0}

@@ -812,7 +812,7 @@ class Illuminator:
         ``cpu_classifications``, ``scalar_uploads`` (data sets uploaded for the shader),
         ``opacity_uploads`` (numpy volumes uploaded), ``classify_ms`` (wall time of the last
         classification, issuing only unless chunked), ``scalar_upload_ms`` and
-        ``scalar_texture_bytes`` (GPU memory of the scalar copy)."""
+        ``scalar_bytes`` (GPU memory of the scalar copy)."""
         return dict(self._classify_stats)
 
     def opacity_texture(self) -> Texture3D:
@@ -858,7 +858,7 @@ class Illuminator:
                              gpu_classifications=stats["gpu_classifications"] + 1,
                              scalar_uploads=classifier.scalar_uploads,
                              scalar_upload_ms=classifier.upload_ms,
-                             scalar_texture_bytes=classifier.scalar_bytes)
+                             scalar_bytes=classifier.scalar_bytes)
         if classifier is None:
             opacity = yield from self.opacity_volume_steps()
             if chunked:
@@ -898,6 +898,14 @@ class Illuminator:
                 self._disable_gpu_classification("this OpenGL context has no compute shaders")
                 return self._gpu_classifier()
             self._classifier = classify.GpuClassifier(window)
+        too_large = self._classifier.unsupported(self.image)
+        if too_large:
+            if self._classification == "gpu":
+                raise GLUnavailableError(f"GPU classification is not possible: {too_large}")
+            if stats["reason"] != too_large:
+                logger.warning("vtkvol: classification on the CPU (numpy): %s", too_large)
+            stats["reason"] = too_large
+            return None
         return self._classifier
 
     def _disable_gpu_classification(self, why: str) -> None:
