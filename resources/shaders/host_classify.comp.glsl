@@ -38,10 +38,13 @@
 // piecewise-linear function over the component's range. Gradient-opacity tables (vv_go*) are
 // read the same way at t = |grad| / (0.25 range), 0..1.
 
+#ifndef VV_GROUP_X
+#define VV_GROUP_X 64
+#endif
 #ifndef VV_BLOCK
 #define VV_BLOCK 4
 #endif
-layout(local_size_x = 64, local_size_y = 1, local_size_z = 1) in;
+layout(local_size_x = VV_GROUP_X, local_size_y = 1, local_size_z = 1) in;
 layout(std430, binding = 0) readonly buffer VvScalars { uint vv_words[]; };
 layout(std430, binding = 1) readonly buffer VvTables { float vv_lut[]; };
 layout(std430, binding = 2) writeonly buffer VvOut { float vv_out[]; };
