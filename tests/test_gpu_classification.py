@@ -276,3 +276,36 @@ def test_dependent_components_stay_on_numpy_and_gpu_forced_says_why(made):
         il.opacity_texture()
     with pytest.raises(ValueError, match="'auto', 'gpu' or 'cpu'"):
         il.classification = "fast"
+
+
+def test_slabs_and_chunked_precompute_classify_the_same(made, monkeypatch):
+    arr = blob(n=20)
+    rw, _ren, volume, il = scene(arr, spacing=(1.0, 1.0, 1.3))
+    made.append((rw, il))
+    gof = vtk.vtkPiecewiseFunction()  # the gradient reads across slab boundaries
+    gof.AddPoint(0.0, 0.2)
+    gof.AddPoint(30.0, 1.0)
+    volume.GetProperty().SetGradientOpacity(gof)
+    monkeypatch.setattr(classify, "SLAB_VOXELS", 3 * 22 * 24)  # three z slices per slab
+    il.set_method("shadow_volume")
+    rw.Render()
+    volume.GetProperty().GetScalarOpacity().AddPoint(90.0, 0.6)
+    chunks: list[float] = []
+    steps = il.opacity_texture_steps
+
+    def counted():
+        inner = steps()
+        while True:
+            try:
+                chunks.append(next(inner))
+            except StopIteration as stop:
+                return stop.value
+            yield chunks[-1]
+
+    monkeypatch.setattr(il, "opacity_texture_steps", counted)
+    assert il.precompute(lambda f: True)
+    assert chunks == pytest.approx([3 * k / 20 for k in range(1, 7)] + [1.0])  # one a slab
+    rw.MakeCurrent()
+    np.testing.assert_allclose(il.opacity_texture().download(), il.opacity_volume(),
+                               atol=INTEGER_ATOL)
+    assert il.classification_stats()["backend"] == "gpu"

@@ -132,7 +132,8 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
     spacing = image.GetSpacing()
     mean = sum(spacing) / 3.0
     defines = {"VV_COMPONENTS": str(ncomp), "VV_TYPE": str(_PACKED.get(dtype, 2)),
-               "VV_FLOAT_DATA": "0" if _integral(dtype) else "1", "VV_BLOCK": str(BLOCK), "VV_GROUP_X": str(GROUP_X)}
+               "VV_FLOAT_DATA": "0" if _integral(dtype) else "1", "VV_BLOCK": str(BLOCK),
+               "VV_GROUP_X": str(GROUP_X)}
     ints: dict[str, list[int]] = {k: [0] * 4 for k in
                                   ("vv_opOffset", "vv_opLength", "vv_goOffset", "vv_goLength")}
     floats: dict[str, list[float]] = {k: [0.0] * 4 for k in (

@@ -805,6 +805,7 @@ class Illuminator:
         if backend != self._classification:
             self._classification = backend
             self._opacity_texture_key = None  # the next request classifies anew
+            self._changes.opacity = True  # and the technique recomputes from it
 
     def classification_stats(self) -> dict[str, Any]:
         """The opacity texture's classification: ``backend`` of the last one ("gpu"/"cpu"),
@@ -818,8 +819,8 @@ class Illuminator:
     def opacity_texture(self) -> Texture3D:
         """:meth:`opacity_volume` as a host-owned r32f 3-D texture of the data's shape (voxel
         centres at texel centres; context current), classified on the GPU
-        (:attr:`classification`). Cached until an input changes; valid until the next call
-        or :meth:`release`. Techniques read it, never release it."""
+        (:attr:`classification`). Cached until an input changes; valid until the next call,
+        the technique's release or :meth:`release`. Techniques read it, never release it."""
         return run_steps(self.opacity_texture_steps())
 
     def opacity_texture_steps(self) -> Generator[float, None, Texture3D]:
@@ -845,6 +846,7 @@ class Illuminator:
         t0 = time.perf_counter()
         classifier = self._gpu_classifier()
         if classifier is not None:
+            uploads = classifier.scalar_uploads
             try:
                 plan = self._classification_plan()
                 yield from classifier.run_steps(plan, self.image, tex, chunked=chunked)
@@ -856,7 +858,8 @@ class Illuminator:
             else:
                 stats.update(backend="gpu", reason="",
                              gpu_classifications=stats["gpu_classifications"] + 1,
-                             scalar_uploads=classifier.scalar_uploads,
+                             scalar_uploads=stats["scalar_uploads"]
+                             + classifier.scalar_uploads - uploads,
                              scalar_upload_ms=classifier.upload_ms,
                              scalar_bytes=classifier.scalar_bytes)
         if classifier is None:
@@ -875,6 +878,17 @@ class Illuminator:
         stats["classify_ms"] = (time.perf_counter() - t0) * 1e3
         self._opacity_texture_key = key
         return tex
+
+    def _release_classification(self) -> None:
+        """Free the opacity texture and the classifier's scalars, tables and programs (with the
+        technique that used them: local shading holds no data-sized GPU memory of ours)."""
+        if self._opacity_texture is not None:
+            self._opacity_texture.release()
+            self._opacity_texture = None
+        self._opacity_texture_key = None
+        if self._classifier is not None:
+            self._classifier.release()
+            self._classifier = None
 
     def _gpu_classifier(self) -> classify.GpuClassifier | None:
         """The GPU classifier when :attr:`classification` and this volume allow it (else None,
@@ -1535,6 +1549,7 @@ class Illuminator:
         if self._technique is not None:
             self._technique.release()
             self._technique = None
+        self._release_classification()
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name in self._uniforms:
             fu.RemoveUniform(name)
@@ -1600,12 +1615,6 @@ class Illuminator:
             self._weights_texture.release()
             self._weights_texture = None
         self._drop_occupancy()
-        if self._opacity_texture is not None:
-            self._opacity_texture.release()
-            self._opacity_texture = None
-        if self._classifier is not None:
-            self._classifier.release()
-            self._classifier = None
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name in list(self._textures):
             self.unbind_texture(name)

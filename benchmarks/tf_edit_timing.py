@@ -1,0 +1,169 @@
+"""Transfer-function edit time with classification on the CPU (numpy, then uploaded) and on
+the GPU (``Illuminator.classification``), measured side by side in one run, for the techniques
+that read the opacity texture: shadow_volume (full and half light grid) and cone_traced.
+Results go to docs/shadow-volume.md ("Recompute time") and docs/benchmarks.md.
+
+Run from the checkout::
+
+    python benchmarks/tf_edit_timing.py                       # 256³ and 512×512×128
+    python benchmarks/tf_edit_timing.py --shapes 128,128,128 --repeats 2
+
+Per shape, method and backend (interleaved: cpu, gpu, cpu, gpu …, so both see the same load):
+
+* ``edit_ms``: edit the opacity function → the next frame rendered with the recomputed light,
+  ``glFinish`` (end to end, what the user waits for);
+* ``frame_ms``: the same frame without an edit (a camera-free re-render, ``glFinish``);
+* ``recompute_ms`` = edit_ms − frame_ms: what the edit adds to a frame.
+
+And the classification alone: ``Illuminator.opacity_texture()`` after an edit, ``glFinish``
+(cpu: numpy over every voxel + upload; gpu: the compute shader), and numpy's
+``opacity_volume()`` by itself.
+
+Data: uint8 Gaussian blobs (``blobs``), 1 µm voxels, opacity ramp 20 → 0, 200 → 0.8; one
+directional light; jitter off, empty-space skipping on (the default).
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import time
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+Row = dict[str, Any]
+
+METHODS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("shadow_volume full", "shadow_volume", {"resolution": "full"}),
+    ("shadow_volume half", "shadow_volume", {"resolution": "half"}),
+    ("cone_traced", "cone_traced", {}),
+)
+
+
+def blobs(shape_zyx: Sequence[int], count: int = 12, seed: int = 1) -> np.ndarray:
+    """uint8 sum of ``count`` Gaussian blobs (radii 4–12 % of the smallest edge), clipped."""
+    rng = np.random.default_rng(seed)
+    nz, ny, nx = shape_zyx
+    out = np.zeros((nz, ny, nx), np.float32)
+    axes = [np.arange(n, dtype=np.float32) for n in (nz, ny, nx)]
+    for _ in range(count):
+        c = rng.random(3) * np.array([nz, ny, nx])
+        r = (0.04 + 0.08 * rng.random()) * min(nz, ny, nx)
+        gz, gy, gx = (np.exp(-((a - ci) ** 2) / (2 * r * r)) for a, ci in zip(axes, c,
+                                                                                 strict=True))
+        out += 230.0 * gz[:, None, None] * gy[None, :, None] * gx[None, None, :]
+    return np.clip(out, 0, 255).astype(np.uint8)
+
+
+def _finish(rw: Any) -> None:
+    from vtkvol.engine.gl import gl
+
+    rw.MakeCurrent()
+    gl(rw).glFinish()
+
+
+def _timed_render(rw: Any) -> float:
+    t0 = time.perf_counter()
+    rw.Render()
+    _finish(rw)
+    return (time.perf_counter() - t0) * 1e3
+
+
+def measure(shape_zyx: Sequence[int], *, window: int = 256, repeats: int = 3) -> list[Row]:
+    """Rows per method × backend for one data shape (see the module docstring)."""
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.engine.offscreen import simple_volume_scene
+    from vtkvol.model import Light
+
+    data = blobs(shape_zyx)
+    rw, ren, volume = simple_volume_scene(data, size=(window, window), elevation=20.0,
+                                          opacity=[(0.0, 0.0), (20.0, 0.0), (200.0, 0.8)])
+    otf = volume.GetProperty().GetScalarOpacity()
+    il = Illuminator(volume, ren, method="local", lights=[Light(direction=(0.35, 0.2, 1.0))])
+    rows: list[Row] = []
+    shape = "×".join(str(n) for n in shape_zyx[::-1])
+    edits = 0
+
+    def edit() -> None:
+        nonlocal edits
+        edits += 1
+        otf.AddPoint(120.0, 0.3 + 0.01 * (edits % 7))  # a real edit: a node moves
+
+    try:
+        rw.Render()
+        for label, method, params in METHODS:
+            il.set_method(method, params)
+            samples: dict[str, dict[str, list[float]]] = {
+                b: {"edit": [], "frame": []} for b in ("cpu", "gpu")}
+            for backend in ("cpu", "gpu"):  # warm up both (compile, allocate)
+                il.classification = backend
+                edit()
+                _timed_render(rw)
+            for _ in range(repeats):
+                for backend in ("cpu", "gpu"):
+                    il.classification = backend
+                    _timed_render(rw)  # settle: the backend switch itself reclassifies
+                    edit()
+                    samples[backend]["edit"].append(_timed_render(rw))
+                    samples[backend]["frame"].append(_timed_render(rw))
+                    assert il.classification_stats()["backend"] == backend
+                    assert il.failed_method is None, il.last_error
+            for backend in ("cpu", "gpu"):
+                e = statistics.median(samples[backend]["edit"])
+                f = statistics.median(samples[backend]["frame"])
+                rows.append({"shape": shape, "method": label, "classification": backend,
+                             "edit_ms": e, "frame_ms": f, "recompute_ms": e - f,
+                             "edit_min_ms": min(samples[backend]["edit"])})
+        # The classification step alone.
+        alone: dict[str, list[float]] = {"cpu": [], "gpu": [], "numpy": []}
+        for _ in range(repeats):
+            for backend in ("cpu", "gpu"):
+                il.classification = backend
+                edit()
+                rw.MakeCurrent()
+                t0 = time.perf_counter()
+                il.opacity_texture()
+                _finish(rw)
+                alone[backend].append((time.perf_counter() - t0) * 1e3)
+            edit()
+            t0 = time.perf_counter()
+            il.opacity_volume()
+            alone["numpy"].append((time.perf_counter() - t0) * 1e3)
+        for what, values in alone.items():
+            rows.append({"shape": shape, "method": f"classification alone ({what})",
+                         "classification": what, "edit_ms": statistics.median(values),
+                         "edit_min_ms": min(values)})
+    finally:
+        il.release()
+        rw.Finalize()
+    return rows
+
+
+def _markdown(rows: Sequence[Row], columns: Sequence[str]) -> str:
+    def fmt(v: Any) -> str:
+        return f"{v:.0f}" if isinstance(v, float) else str(v)
+
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(fmt(r.get(c, "")) for c in columns) + " |" for r in rows]
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--shapes", default="256,256,256;128,512,512",
+                        help="z,y,x shapes separated by ';' (default: 256³ and 512×512×128)")
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--window", type=int, default=256, help="view size (pixels)")
+    args = parser.parse_args()
+    rows: list[Row] = []
+    for text in args.shapes.split(";"):
+        shape = tuple(int(v) for v in text.split(","))
+        rows += measure(shape, window=args.window, repeats=args.repeats)
+    print(_markdown(rows, ["shape", "method", "classification", "edit_ms", "edit_min_ms",
+                           "frame_ms", "recompute_ms"]))
+
+
+if __name__ == "__main__":
+    main()
