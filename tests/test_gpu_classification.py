@@ -293,8 +293,8 @@ def test_slabs_and_chunked_precompute_classify_the_same(made, monkeypatch):
     chunks: list[float] = []
     steps = il.opacity_texture_steps
 
-    def counted():
-        inner = steps()
+    def counted(quantity: str = "alpha"):
+        inner = steps(quantity)
         while True:
             try:
                 chunks.append(next(inner))
@@ -304,8 +304,28 @@ def test_slabs_and_chunked_precompute_classify_the_same(made, monkeypatch):
 
     monkeypatch.setattr(il, "opacity_texture_steps", counted)
     assert il.precompute(lambda f: True)
+    assert il.failed_method is None
     assert chunks == pytest.approx([3 * k / 20 for k in range(1, 7)] + [1.0])  # one a slab
     rw.MakeCurrent()
-    np.testing.assert_allclose(il.opacity_texture().download(), il.opacity_volume(),
-                               atol=INTEGER_ATOL)
+    np.testing.assert_allclose(il.opacity_texture("optical_depth").download(),
+                               classify.optical_depth(il.opacity_volume()), atol=1e-5)
     assert il.classification_stats()["backend"] == "gpu"
+
+
+def test_optical_depth_output_equals_the_converted_numpy_opacity(made):
+    arr = blob()
+    rw, _ren, _volume, il = scene(arr, opacity=[(0, 0), (100, 1.0), (255, 1.0)])  # α = 1 clamps
+    made.append((rw, il))
+    rw.Render()
+    rw.MakeCurrent()
+    alpha = il.opacity_volume()
+    assert (alpha == 1.0).any()
+    depth = il.opacity_texture("optical_depth").download()
+    expected = classify.optical_depth(alpha)
+    assert np.isfinite(depth).all() and depth.max() == pytest.approx(-np.log(1e-6), rel=1e-3)
+    np.testing.assert_allclose(depth, expected, rtol=1e-5, atol=1e-6)
+    il.classification = "cpu"
+    np.testing.assert_allclose(il.opacity_texture("optical_depth").download(), expected,
+                               rtol=1e-6)
+    with pytest.raises(ValueError, match="quantity must be one of"):
+        il.opacity_texture("sigma")

@@ -73,9 +73,9 @@ class GpuPropagator:
         prog = self._programs.get(key)
         if prog is None:
             if key[0] == "convert":
-                defines = {"VV_PASS": 0, "VV_FROM_OPACITY": int(key[1:] == ("texture",))}
+                defines = {"VV_PASS": 0}
             elif key[0] == "reduce":
-                defines = {"VV_PASS": 2, "VV_FROM_OPACITY": int(key[1:] == ("texture",))}
+                defines = {"VV_PASS": 2}
             else:
                 defines = {
                     "VV_PASS": 1, "VV_SEED000": int(key[1]), "VV_CHANNELS": key[2],
@@ -155,38 +155,29 @@ class GpuPropagator:
             if not full:
                 data.release()
 
-    def prefilter_texture_steps(self, opacity: Texture3D, sigma: Texture3D,
+    def prefilter_texture_steps(self, depth: Texture3D, sigma: Texture3D,
                                 grid: LightGrid, *, chunked: bool) -> Iterator[float]:
-        """The host's opacity texture (``Illuminator.opacity_texture``, data resolution) -> s
-        on the light grid, with no upload: converted into ``sigma`` at full resolution, or
-        reduced straight from the opacity (each voxel converted as it is read) on a coarser
-        grid. Yields 1.0 when done (``chunked``: waited for)."""
+        """The host's optical-depth texture (``Illuminator.opacity_texture("optical_depth")``:
+        s per data voxel, classified and converted on the GPU) -> s on the light grid, with no
+        upload and no conversion pass: copied into ``sigma`` at full resolution, reduced
+        (pass 2) on a coarser grid. Yields 1.0 when done (``chunked``: waited for)."""
         GL = gl(self.render_window)
-        full = grid.dims == grid.data_dims
-        if full:
-            prog = self.program(("convert", "texture"))
-            prog.use()
-            self._set(prog, "vv_opacity", 0)
-            self._set(prog, "vv_volume", 1)
-            self._set(prog, "vv_dataDims", *grid.data_dims)
-            opacity.bind_image(0, "read")
-            sigma.bind_image(1, "write")
-            nx, ny, nz = grid.data_dims
-            prog.dispatch((-(-nx // 8), -(-ny // 8), -(-nz // 4)))
+        if grid.dims == grid.data_dims:
+            depth.copy_to(sigma)
         else:
-            prog = self.program(("reduce", "texture"))
+            prog = self.program(("reduce",))
             prog.use()
             self._set(prog, "vv_sigmaData", 0)
             self._set(prog, "vv_sigmaOut", 1)
             self._set(prog, "vv_dataDims", *grid.data_dims)
             self._set(prog, "vv_gridDims", *grid.dims)
             self._set(prog, "vv_gridStep", *grid.step, integer=False)
-            opacity.bind_image(0, "read")
+            depth.bind_image(0, "read")
             sigma.bind_image(1, "write")
             mx, my, mz = grid.dims
             prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
-        self._unbind_images(GL, 2)
-        prog.done()
+            self._unbind_images(GL, 2)
+            prog.done()
         if chunked:
             GL.glFinish()
         yield 1.0

@@ -23,6 +23,9 @@
 //   VV_CROP             1: test the 27 cropping regions
 //   VV_CLIP_PLANES      number of clipping planes (0..6)
 //   VV_WEIGHTS          1: multiply by the slice weights
+//   VV_OPTICAL_DEPTH    1: store s = -ln(1 - alpha) (alpha clamped at VV_MAX_OPACITY), the
+//                       optical depth of one opacity unit distance, instead of alpha (the
+//                       shadow volume's extinction grid: its conversion pass fused in here)
 //
 // Spaces: integer voxel indices (x, y, z) of the data. Storage: shader storage buffers (plain
 // memory loads and stores; on llvmpipe several times cheaper than texel fetches and image
@@ -295,6 +298,10 @@ void main()
 #if VV_WEIGHTS
     alpha *= keepYZ * vv_lut[vv_axesOffset + x];
 #endif
+#if VV_OPTICAL_DEPTH
+    vv_out[base + x] = -log(1.0 - clamp(alpha, 0.0, VV_MAX_OPACITY));
+#else
     vv_out[base + x] = alpha;
+#endif
   }
 }

@@ -62,6 +62,10 @@ GROUP_X = 64
 BLOCK = 4
 #: Voxels per dispatch (the output slab buffer: 16 MiB); a chunk of a chunked classification.
 SLAB_VOXELS = 1 << 22
+#: Opacity clamp of the optical-depth output (``vtkvol.reference``'s and the techniques').
+MAX_OPACITY = 0.999999
+#: What :meth:`Illuminator.opacity_texture` holds.
+QUANTITIES = ("alpha", "optical_depth")
 #: How the shader unpacks the scalars (``VV_TYPE``); other types are uploaded as float32.
 _PACKED = {np.dtype(np.uint8): 0, np.dtype(np.uint16): 1}
 
@@ -112,15 +116,24 @@ def _integral(dtype: np.dtype) -> bool:
     return dtype.kind in "ui"
 
 
+def optical_depth(alpha: np.ndarray) -> np.ndarray:
+    """s = −ln(1 − α), α clamped at :data:`MAX_OPACITY` (the numpy twin of the shader's
+    ``VV_OPTICAL_DEPTH`` output), float32."""
+    a = np.clip(np.asarray(alpha, np.float32), 0.0, np.float32(MAX_OPACITY))
+    return (-np.log1p(-a)).astype(np.float32)
+
+
 def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
                weights: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
                crop_regions: tuple[np.ndarray, np.ndarray, np.ndarray] | None,
-               crop_flags: int, clip: list[tuple[float, float, float, float]]) -> Plan:
+               crop_flags: int, clip: list[tuple[float, float, float, float]],
+               quantity: str = "alpha") -> Plan:
     """The classification of ``volume``'s current transfer functions (cheap: tables only).
 
     ``weights``: per-axis slice weights at voxel centres (wX, wY, wZ) or None;
     ``crop_regions``: per-axis crop region 0/1/2 of every voxel index or None; ``clip``: each
-    clipping plane's side ``a·i + b·j + c·k + d`` (voxel indices; < 0 is cut)."""
+    clipping plane's side ``a·i + b·j + c·k + d`` (voxel indices; < 0 is cut); ``quantity``:
+    ``"alpha"`` or ``"optical_depth"`` (:func:`optical_depth` of it)."""
     prop = volume.GetProperty()
     mapper = volume.GetMapper()
     scalars = image.GetPointData().GetScalars()
@@ -133,7 +146,9 @@ def build_plan(volume: vtk.vtkVolume, image: vtk.vtkImageData,
     mean = sum(spacing) / 3.0
     defines = {"VV_COMPONENTS": str(ncomp), "VV_TYPE": str(_PACKED.get(dtype, 2)),
                "VV_FLOAT_DATA": "0" if _integral(dtype) else "1", "VV_BLOCK": str(BLOCK),
-               "VV_GROUP_X": str(GROUP_X)}
+               "VV_GROUP_X": str(GROUP_X),
+               "VV_OPTICAL_DEPTH": "1" if quantity == "optical_depth" else "0",
+               "VV_MAX_OPACITY": repr(MAX_OPACITY)}
     ints: dict[str, list[int]] = {k: [0] * 4 for k in
                                   ("vv_opOffset", "vv_opLength", "vv_goOffset", "vv_goLength")}
     floats: dict[str, list[float]] = {k: [0.0] * 4 for k in (

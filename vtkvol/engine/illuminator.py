@@ -816,17 +816,23 @@ class Illuminator:
         ``scalar_bytes`` (GPU memory of the scalar copy)."""
         return dict(self._classify_stats)
 
-    def opacity_texture(self) -> Texture3D:
+    def opacity_texture(self, quantity: str = "alpha") -> Texture3D:
         """:meth:`opacity_volume` as a host-owned r32f 3-D texture of the data's shape (voxel
         centres at texel centres; context current), classified on the GPU
-        (:attr:`classification`). Cached until an input changes; valid until the next call,
-        the technique's release or :meth:`release`. Techniques read it, never release it."""
-        return run_steps(self.opacity_texture_steps())
+        (:attr:`classification`). ``quantity``: ``"alpha"`` (the opacity per unit distance)
+        or ``"optical_depth"``, s = −ln(1 − α) with α clamped at 1 − 10⁻⁶ (the extinction
+        grid of the shadow volume, converted in the same pass). Cached until an input or
+        the quantity changes; valid until the next call, the technique's release or
+        :meth:`release`. Techniques read it, never release it."""
+        return run_steps(self.opacity_texture_steps(quantity))
 
-    def opacity_texture_steps(self) -> Generator[float, None, Texture3D]:
+    def opacity_texture_steps(self, quantity: str = "alpha"
+                              ) -> Generator[float, None, Texture3D]:
         """:meth:`opacity_texture` in chunks (for ``prepare_steps``; each chunk waited for
         while :attr:`precomputing`): ``tex = yield from host.opacity_texture_steps()``."""
-        key = (self._opacity_signature(), self._classification)
+        if quantity not in classify.QUANTITIES:
+            raise ValueError(f"quantity must be one of {classify.QUANTITIES}, not {quantity!r}")
+        key = (self._opacity_signature(), self._classification, quantity)
         tex = self._opacity_texture
         if tex is not None and tex.tex is not None and key == self._opacity_texture_key:
             return tex
@@ -848,7 +854,7 @@ class Illuminator:
         if classifier is not None:
             uploads = classifier.scalar_uploads
             try:
-                plan = self._classification_plan()
+                plan = self._classification_plan(quantity)
                 yield from classifier.run_steps(plan, self.image, tex, chunked=chunked)
             except GLUnavailableError as exc:
                 if self._classification == "gpu":
@@ -864,6 +870,8 @@ class Illuminator:
                              scalar_bytes=classifier.scalar_bytes)
         if classifier is None:
             opacity = yield from self.opacity_volume_steps()
+            if quantity == "optical_depth":
+                opacity = classify.optical_depth(opacity)
             if chunked:
                 slab = max(1, OPACITY_SLAB_VOXELS // max(1, nx * ny))
                 for z0 in range(0, nz, slab):
@@ -931,7 +939,7 @@ class Illuminator:
                        why)
         self._classify_stats["reason"] = why
 
-    def _classification_plan(self) -> classify.Plan:
+    def _classification_plan(self, quantity: str = "alpha") -> classify.Plan:
         """Tables and per-axis rows of the current transfer functions, crop and weights."""
         mapper = self.volume.GetMapper()
         img = self.image
@@ -945,7 +953,7 @@ class Illuminator:
                             for axis, n in enumerate((nx, ny, nz)))
             flags = int(mapper.GetCroppingRegionFlags())
         return classify.build_plan(self.volume, img, weights, regions, flags,
-                                   self._clip_coefficients())
+                                   self._clip_coefficients(), quantity)
 
     def _crop_regions(self, axis: int, n: int, first: int) -> np.ndarray:
         """Cropping region (0 below the first plane, 1 between, 2 above) of the voxel indices

@@ -6,9 +6,8 @@
 // llvmpipe (GL 4.5).
 //
 // The loader (shaders.compute_source) inserts #define lines after the #version line:
-//   VV_PASS      0 = TF opacity -> extinction (in place or from the host's opacity texture),
-//                2 = reduction to a coarser light grid, 1 = propagate
-//   VV_FROM_OPACITY  passes 0 and 2: 1 = read the host's opacity texture (classified on the GPU)
+//   VV_PASS      0 = TF opacity -> extinction in place, 2 = reduction to a coarser light grid,
+//                1 = propagate
 //   VV_SEED000   1 = the thesis's additive clamped opacity model, 0 = transmittance
 //   VV_CHANNELS  1, 2 or 4: channels of the light-volume texture (one light per channel)
 //   VV_RADIUS    R: the neighbourhood filter has (2R + 2)^2 taps (seed000: R = 3, 8 x 8)
@@ -33,32 +32,15 @@
 #define VV_CHANNELS 1
 #endif
 
-#ifndef VV_FROM_OPACITY
-#define VV_FROM_OPACITY 0
-#endif
-#if VV_PASS != 1
-const float MAX_OPACITY = 0.999999;
-
-// Optical depth of one opacity unit distance from a TF opacity.
-float extinction(float alpha)
-{
-  return -log(1.0 - clamp(alpha, 0.0, MAX_OPACITY));
-}
-#endif
-
 #if VV_PASS == 0
 // ---------------------------------------------------------------------------------------------
-// Conversion on the data grid: TF opacity alpha -> s = -ln(1 - alpha); in place, or
-// (VV_FROM_OPACITY 1) from the host's opacity texture vv_opacity into vv_volume.
+// Conversion in place, on the data grid: TF opacity alpha -> s = -ln(1 - alpha).
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 
-#if VV_FROM_OPACITY
-layout(r32f) uniform readonly image3D vv_opacity;
-layout(r32f) uniform writeonly image3D vv_volume;
-#else
 layout(r32f) uniform image3D vv_volume;
-#endif
 uniform ivec3 vv_dataDims;
+
+const float MAX_OPACITY = 0.999999;
 
 void main()
 {
@@ -67,11 +49,8 @@ void main()
   {
     return;
   }
-#if VV_FROM_OPACITY
-  imageStore(vv_volume, g, vec4(extinction(imageLoad(vv_opacity, g).r)));
-#else
-  imageStore(vv_volume, g, vec4(extinction(imageLoad(vv_volume, g).r)));
-#endif
+  float a = clamp(imageLoad(vv_volume, g).r, 0.0, MAX_OPACITY);
+  imageStore(vv_volume, g, vec4(-log(1.0 - a)));
 }
 
 #elif VV_PASS == 2
@@ -83,9 +62,7 @@ void main()
 // structures.
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 
-// s per data voxel: pass 0's output, or (VV_FROM_OPACITY 1) the host's opacity texture,
-// converted at each load (no data-resolution extinction texture).
-layout(r32f) uniform readonly image3D vv_sigmaData;
+layout(r32f) uniform readonly image3D vv_sigmaData;   // s per data voxel (pass 0's output)
 layout(r32f) uniform writeonly image3D vv_sigmaOut;
 uniform ivec3 vv_dataDims;
 uniform ivec3 vv_gridDims;
@@ -119,11 +96,7 @@ void main()
       for (int x = lo.x; x <= hi.x; ++x)
       {
         float w = wzy * overlap(x, X.x, halfW.x);
-#if VV_FROM_OPACITY
-        sum += w * extinction(imageLoad(vv_sigmaData, ivec3(x, y, z)).r);
-#else
         sum += w * imageLoad(vv_sigmaData, ivec3(x, y, z)).r;
-#endif
         wsum += w;
       }
     }
