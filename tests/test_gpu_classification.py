@@ -329,3 +329,57 @@ def test_optical_depth_output_equals_the_converted_numpy_opacity(made):
                                rtol=1e-6)
     with pytest.raises(ValueError, match="quantity must be one of"):
         il.opacity_texture("sigma")
+
+
+def test_two_channels_one_in_2d_mode_equal_numpy():
+    from test_tf2d_engine import View, ramp_1d
+
+    from vtkvol.io.volume_data import VolumeData
+    from vtkvol.model.defaults import scene_for
+    from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
+
+    arr = np.stack([blob(n=20, seed=1), blob(n=20, seed=2)[::-1]])
+    data = VolumeData.from_array(arr, (1.0, 1.0, 1.5), ["a", "b"])
+    model = scene_for(data)
+    model.illumination.method = "shadow_volume"
+    for channel, (lo, hi) in zip(model.channels, [(40.5, 140.5), (60.5, 90.5)], strict=True):
+        channel.tf = ramp_1d(lo, hi, 0.6)
+    view = View(data, model)
+    try:
+        model.channels[0].tf2d = TransferFunction2D(primitives=[TFPrimitive(
+            value_range=(80.0, 256.0), gradient_range=(2.0, 40.0), opacity=0.7)])
+        model.channels[0].tf_mode = "2d"
+        view.scene.property.SetComponentWeight(1, 0.5)
+        got, ref = compare(view.scene.illuminator, view.rw)
+        np.testing.assert_allclose(got, ref, atol=INTEGER_ATOL)
+    finally:
+        view.close()
+
+
+def test_local_shading_holds_none_of_the_classifications_gl_objects(made, monkeypatch):
+    from tests_support_gl import GlObjects
+
+    from vtkvol.engine import gl as vgl
+
+    objects = GlObjects(monkeypatch)
+    buffers: list[vgl.StorageBuffer] = []
+    buffer_init = vgl.StorageBuffer.__init__
+
+    def record_buffer(obj, *args, **kwargs):
+        buffer_init(obj, *args, **kwargs)
+        buffers.append(obj)
+
+    monkeypatch.setattr(vgl.StorageBuffer, "__init__", record_buffer)
+    rw, _ren, _volume, il = scene(blob())
+    made.append((rw, il))
+    il.set_method("shadow_volume")
+    rw.Render()
+    assert il.classification_stats()["backend"] == "gpu" and len(buffers) == 3
+    handles = [b.handle for b in buffers]
+    il.set_method("local")
+    rw.Render()
+    assert all(b.handle is None for b in buffers)  # scalars, tables, output slab
+    assert objects.held() == []  # the opacity texture and the programs too
+    GL = vgl.gl(rw)
+    rw.MakeCurrent()
+    assert not any(GL.glIsBuffer(h) for h in handles)
