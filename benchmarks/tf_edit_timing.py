@@ -15,9 +15,9 @@ Per shape, method and backend (interleaved: cpu, gpu, cpu, gpu …, so both see 
 * ``frame_ms``: the same frame without an edit (a camera-free re-render, ``glFinish``);
 * ``recompute_ms`` = edit_ms − frame_ms: what the edit adds to a frame.
 
-And the classification alone: ``Illuminator.opacity_texture()`` after an edit, ``glFinish``
-(cpu: numpy over every voxel + upload; gpu: the compute shader), and numpy's
-``opacity_volume()`` by itself.
+And the classification alone (1-D TF, with gradient opacity, a 2-D TF, two channels):
+``Illuminator.opacity_texture()`` after an edit, ``glFinish`` (cpu: numpy over every voxel +
+upload; gpu: the compute shader), and numpy's ``opacity_volume()`` by itself.
 
 Data: uint8 Gaussian blobs (``blobs``), 1 µm voxels, opacity ramp 20 → 0, 200 → 0.8; one
 directional light; jitter off, empty-space skipping on (the default).
@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 import vtk
+
+from vtkvol.engine import tf2d
 
 Row = dict[str, Any]
 
@@ -72,8 +74,10 @@ def _timed_render(rw: Any) -> float:
     return (time.perf_counter() - t0) * 1e3
 
 
-def measure(shape_zyx: Sequence[int], *, window: int = 256, repeats: int = 3) -> list[Row]:
-    """Rows per method × backend for one data shape (see the module docstring)."""
+def measure(shape_zyx: Sequence[int], *, window: int = 256, repeats: int = 3,
+            techniques: bool = True) -> list[Row]:
+    """Rows per method × backend for one data shape (see the module docstring); with
+    ``techniques`` False only the classification alone."""
     from vtkvol.engine.illuminator import Illuminator
     from vtkvol.engine.offscreen import simple_volume_scene
     from vtkvol.model import Light
@@ -94,7 +98,7 @@ def measure(shape_zyx: Sequence[int], *, window: int = 256, repeats: int = 3) ->
 
     try:
         rw.Render()
-        for label, method, params in METHODS:
+        for label, method, params in METHODS if techniques else ():
             il.set_method(method, params)
             samples: dict[str, dict[str, list[float]]] = {
                 b: {"edit": [], "frame": []} for b in ("cpu", "gpu")}
@@ -124,10 +128,67 @@ def measure(shape_zyx: Sequence[int], *, window: int = 256, repeats: int = 3) ->
         volume.GetProperty().SetGradientOpacity(gof)
         rows += _classification_alone(il, rw, edit, shape, "1-D TF × gradient opacity",
                                       2 * repeats)
+        prop = volume.GetProperty()
+        prop.DisableGradientOpacityOn()
+        table = tf2d.TableImage()
+        h, w = tf2d.TABLE_SHAPE
+        rgba = np.ones((h, w, 4), np.float32)
+        value = np.linspace(0.0, 1.0, w, dtype=np.float32)[None, :]
+        gradient = np.linspace(0.0, 1.0, h, dtype=np.float32)[:, None]
+        rgba[..., 3] = np.clip((value - 0.1) * 3, 0, 0.8) * (gradient < 0.3)
+        step = float(volume.GetMapper().GetSampleDistance())
+        unit = prop.GetScalarOpacityUnitDistance()
+        table.set_table(rgba, step, unit)
+        prop.SetTransferFunctionMode(vtk.vtkVolumeProperty.TF_2D)
+        prop.SetTransferFunction2D(0, table.image)
+
+        def edit_2d() -> None:
+            nonlocal edits
+            edits += 1
+            rgba[..., 3] *= 0.99 if edits % 2 else 1 / 0.99
+            table.set_table(rgba, step, unit)
+
+        rows += _classification_alone(il, rw, edit_2d, shape, "2-D TF", 2 * repeats)
     finally:
         il.release()
         rw.Finalize()
     return rows
+
+
+def measure_channels(shape_zyx: Sequence[int], *, repeats: int = 3) -> list[Row]:
+    """The classification alone for two independent uint8 channels with 1-D TFs."""
+    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.engine.offscreen import image_from_array, simple_volume_scene
+
+    data = np.stack([blobs(shape_zyx, seed=1), blobs(shape_zyx, seed=2)], axis=-1)
+    rw, ren, volume = simple_volume_scene(data[..., 0], size=(64, 64))
+    volume.GetMapper().SetInputData(image_from_array(data))
+    prop = volume.GetProperty()
+    prop.IndependentComponentsOn()
+    functions = []
+    for c in range(2):
+        otf = vtk.vtkPiecewiseFunction()
+        otf.AddPoint(20.0, 0.0)
+        otf.AddPoint(200.0, 0.8)
+        prop.SetScalarOpacity(c, otf)
+        ctf = vtk.vtkColorTransferFunction()
+        ctf.AddRGBPoint(0.0, 1.0, 1.0, 1.0)
+        prop.SetColor(c, ctf)
+        functions.append(otf)
+    il = Illuminator(volume, ren, method="local")
+    edits = 0
+
+    def edit() -> None:
+        nonlocal edits
+        edits += 1
+        functions[edits % 2].AddPoint(120.0, 0.3 + 0.01 * (edits % 7))
+
+    try:
+        return _classification_alone(il, rw, edit, "×".join(str(n) for n in shape_zyx[::-1]),
+                                     "2 channels, 1-D TFs", 2 * repeats)
+    finally:
+        il.release()
+        rw.Finalize()
 
 
 def _classification_alone(il: Any, rw: Any, edit: Any, shape: str, what: str,
@@ -175,11 +236,15 @@ def main() -> None:
                         help="z,y,x shapes separated by ';' (default: 256³ and 512×512×128)")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--window", type=int, default=256, help="view size (pixels)")
+    parser.add_argument("--classification-only", action="store_true",
+                        help="only the classification alone (no technique recomputes)")
     args = parser.parse_args()
     rows: list[Row] = []
     for text in args.shapes.split(";"):
         shape = tuple(int(v) for v in text.split(","))
-        rows += measure(shape, window=args.window, repeats=args.repeats)
+        rows += measure(shape, window=args.window, repeats=args.repeats,
+                        techniques=not args.classification_only)
+        rows += measure_channels(shape, repeats=args.repeats)
     print(_markdown(rows, ["shape", "method", "classification", "edit_ms", "edit_min_ms",
                            "frame_ms", "recompute_ms"]))
 
