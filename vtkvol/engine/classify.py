@@ -6,14 +6,18 @@ the voxels and no upload of a volume (docs/architecture.md, "Classification on t
 The numpy definition stays :meth:`vtkvol.engine.illuminator.Illuminator.opacity_volume`; this
 module reproduces it:
 
-* **Scalars**: uploaded once per data set into a host-owned 3-D texture in their own type
-  where GL has an exact normalised format (uint8 → r8, uint16 → r16; the shader rounds
-  ``fetch · 255`` / ``fetch · 65535`` back to the integer), as float32 otherwise (int8/int16
-  exactly, int32/float64 rounded to float32). GPU memory: one more copy of the scalars (1, 2
-  or 4 bytes per voxel and component). VTK's own scalar texture is not used: it is uploaded
-  inside the mapper's draw, after the renderer's ``StartEvent`` where techniques prepare, so on
-  the first frame and after every data change it does not exist yet or holds the previous
-  data, and its format, scale and bias are VTK internals.
+* **Scalars**: uploaded once per data set into a host-owned shader storage buffer, uint8 and
+  uint16 packed as they are (4 or 2 per 32-bit word, unpacked exactly in the shader), any other
+  type as float32 (int8/int16 exactly, int32/float64 rounded). GPU memory: one more copy of
+  the scalars (1, 2 or 4 bytes per voxel and component), up to the driver's storage-buffer
+  limit (128 MiB on llvmpipe; beyond it numpy classifies). Storage buffers, not textures: on
+  llvmpipe plain loads and stores cost 4–5× less than texel fetches and image stores. VTK's
+  own scalar texture is not used: it is uploaded inside the mapper's draw, after the
+  renderer's ``StartEvent`` where techniques prepare, so on the first frame and after every
+  data change it does not exist yet or holds the previous data, and its format, scale and bias
+  are VTK internals.
+* **Output**: α (or −ln(1 − α)) slab by slab (:data:`SLAB_VOXELS`) into a storage buffer that
+  is copied into the host's r32f 3-D texture on the GPU.
 * **1-D tables** (scalar opacity, gradient opacity): integer data get one entry per integer of
   the component's range (≤ :data:`MAX_EXACT_ENTRIES`), read at integral positions, so they are
   numpy's values exactly; float data (and wider integer ranges) a table of
@@ -41,13 +45,7 @@ import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
 from vtkvol.engine import tf2d
-from vtkvol.engine.gl import (
-    ComputeProgram,
-    StorageBuffer,
-    Texture2D,
-    Texture3D,
-    gl,
-)
+from vtkvol.engine.gl import ComputeProgram, StorageBuffer, Texture2D, Texture3D, gl
 from vtkvol.engine.shaders import compute_source
 
 COMPUTE_SOURCE = "host_classify.comp.glsl"
