@@ -1,7 +1,8 @@
 #version 430
 // vtkvol host: classification on the GPU. Writes the opacity volume every technique reads
 // (Illuminator.opacity_volume()'s definition, docs/architecture.md "Classification on the
-// GPU") into an r32f 3-D image: per voxel, every independent component classified by its
+// GPU"), slab by slab into a storage buffer the driver copies into an r32f 3-D texture: per
+// voxel, every independent component classified by its
 // 1-D opacity table (times its gradient-opacity table when one is on) or its 2-D
 // (value, |grad I|) table, weighted, expressed per the opacity unit distance of component 0
 // and combined as independent absorbers, alpha = 1 - prod(1 - alpha_c); then zeroed by the
@@ -11,7 +12,7 @@
 // and must be kept in step with this file. Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
 // Defines:
-//   VV_COMPONENTS       1..4 independent components of the scalar texture
+//   VV_COMPONENTS       1..4 independent components of the scalars
 //   VV_MODE_0..3        per component: 0 = skipped (weight 0), 1 = 1-D table,
 //                       2 = 1-D table x gradient-opacity table, 3 = 2-D table
 //   VV_EXACT_0..3       1: the 1-D table has one entry per integer value (read one entry)
@@ -23,6 +24,7 @@
 //   VV_CROP             1: test the 27 cropping regions
 //   VV_CLIP_PLANES      number of clipping planes (0..6)
 //   VV_WEIGHTS          1: multiply by the slice weights
+//   VV_GROUP_X, VV_BLOCK  work-group size along x, voxels per invocation
 //   VV_OPTICAL_DEPTH    1: store s = -ln(1 - alpha) (alpha clamped at VV_MAX_OPACITY), the
 //                       optical depth of one opacity unit distance, instead of alpha (the
 //                       shadow volume's extinction grid: its conversion pass fused in here)
@@ -34,8 +36,7 @@
 // texture by the driver. Each invocation classifies VV_BLOCK consecutive voxels along x.
 //
 // Tables (vv_lut, every 1-D table one after the other, then the per-axis rows): table of
-// component c starts at entry vv_opOffset[c], has
-// vv_opLength[c] entries; a value v reads position p = (v - vv_opLo[c]) * vv_opScale[c],
+// component c starts at entry vv_opOffset[c], has vv_opLength[c] entries; a value v reads position p = (v - vv_opLo[c]) * vv_opScale[c],
 // clamped to the table, linearly between its two entries. Integer data get one entry per
 // integer (scale 1, p integral: the exact value); float data a dense sampling of the
 // piecewise-linear function over the component's range. Gradient-opacity tables (vv_go*) are
