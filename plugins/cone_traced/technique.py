@@ -160,20 +160,28 @@ class ConeTraced(Technique):
 
     def _recompute_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
         chunked = self.host.precomputing
-        opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0, 0.1)
-        yield from scale_steps(self._ensure_textures_steps(opacity.shape), 0.1, 0.1)
-        assert self.source is not None and self.filtered is not None
-        if chunked:  # the upload in parts, each waited for
-            slab = max(1, UPLOAD_SLAB_VOXELS // max(1, opacity.shape[1] * opacity.shape[2]))
-            for z0 in range(0, opacity.shape[0], slab):
-                self.source.upload_slab(opacity[z0:z0 + slab], z0)
-                finish_gl(self.host.render_window)
-                yield 0.1
-        else:
-            self.source.upload(opacity, 0)
-        weights = gaussian_weights(values["sigma"], values["span"])
         gpu = self._gpu_filter()
         self._cpu_pyramids = None
+        if gpu is not None:
+            # The host's opacity texture (classified on the GPU: no numpy pass, no upload)
+            # copied into the source's level 0.
+            opacity_tex = yield from scale_steps(self.host.opacity_texture_steps(), 0.0, 0.1)
+            yield from scale_steps(self._ensure_textures_steps(opacity_tex.shape), 0.1, 0.1)
+            assert self.source is not None and self.filtered is not None
+            opacity_tex.copy_to(self.source, 0)
+        else:
+            opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0, 0.1)
+            yield from scale_steps(self._ensure_textures_steps(opacity.shape), 0.1, 0.1)
+            assert self.source is not None and self.filtered is not None
+            if chunked:  # the upload in parts, each waited for
+                slab = max(1, UPLOAD_SLAB_VOXELS // max(1, opacity.shape[1] * opacity.shape[2]))
+                for z0 in range(0, opacity.shape[0], slab):
+                    self.source.upload_slab(opacity[z0:z0 + slab], z0)
+                    finish_gl(self.host.render_window)
+                    yield 0.1
+            else:
+                self.source.upload(opacity, 0)
+        weights = gaussian_weights(values["sigma"], values["span"])
         if gpu is not None:
             assert self._scratch is not None
             for fraction in gpu.run_steps(self.source, self.filtered, self._scratch, weights,

@@ -155,6 +155,33 @@ class GpuPropagator:
             if not full:
                 data.release()
 
+    def prefilter_texture_steps(self, depth: Texture3D, sigma: Texture3D,
+                                grid: LightGrid, *, chunked: bool) -> Iterator[float]:
+        """The host's optical-depth texture (``Illuminator.opacity_texture("optical_depth")``:
+        s per data voxel, classified and converted on the GPU) -> s on the light grid, with no
+        upload and no conversion pass: copied into ``sigma`` at full resolution, reduced
+        (pass 2) on a coarser grid. Yields 1.0 when done (``chunked``: waited for)."""
+        GL = gl(self.render_window)
+        if grid.dims == grid.data_dims:
+            depth.copy_to(sigma)
+        else:
+            prog = self.program(("reduce",))
+            prog.use()
+            self._set(prog, "vv_sigmaData", 0)
+            self._set(prog, "vv_sigmaOut", 1)
+            self._set(prog, "vv_dataDims", *grid.data_dims)
+            self._set(prog, "vv_gridDims", *grid.dims)
+            self._set(prog, "vv_gridStep", *grid.step, integer=False)
+            depth.bind_image(0, "read")
+            sigma.bind_image(1, "write")
+            mx, my, mz = grid.dims
+            prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
+            self._unbind_images(GL, 2)
+            prog.done()
+        if chunked:
+            GL.glFinish()
+        yield 1.0
+
     def propagate(
         self, sigma: Texture3D, work: Mapping[int, Texture3D], out: LightTexture,
         grid: LightGrid, kind: str, vec: np.ndarray, *, model: str, softness: float,

@@ -234,10 +234,13 @@ class ShadowVolume(Technique):
                     self._sigma_tex.release()
                 self._sigma_tex = Texture3D(rw, grid.shape_zyx)
                 yield 0.0
-            opacity = yield from scale_steps(self.host.opacity_volume_steps(), 0.0,
-                                             0.5 * prefilter / total)
+            # The host's optical depth (classified and converted on the GPU: no numpy pass,
+            # no upload, no conversion pass of ours; or numpy uploaded once).
+            depth = yield from scale_steps(self.host.opacity_texture_steps("optical_depth"),
+                                           0.0, 0.5 * prefilter / total)
             yield from scale_steps(
-                gpu.prefilter_steps(opacity, self._sigma_tex, grid, chunked=chunk_s is not None),
+                gpu.prefilter_texture_steps(depth, self._sigma_tex, grid,
+                                            chunked=chunk_s is not None),
                 0.5 * prefilter / total, prefilter / total)
             self._sigma_valid["gpu"] = True
         ensure_work_textures(rw, self._work_tex, grid)

@@ -175,6 +175,20 @@ class Texture3D:
         GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, z0, nx, ny, nz, self._pixel_format,
                            GL.GL_FLOAT, arr)
 
+    def copy_to(self, dst: Texture3D, level: int = 0) -> None:
+        """Copy level 0 into level ``level`` of ``dst`` (same size there, same channels) on
+        the GPU (``glCopyImageSubData``: no binding, no read-back); shader writes issued
+        before are made visible first."""
+        nz, ny, nx = self.shape
+        dz, dy, dx = (max(1, s >> level) for s in dst.shape)
+        if (dz, dy, dx) != (nz, ny, nx) or dst.channels != self.channels:
+            raise ValueError(f"cannot copy a {self.shape} texture into level {level} of "
+                             f"{dst.shape}")
+        GL = gl(self.render_window)
+        GL.glMemoryBarrier(GL.GL_ALL_BARRIER_BITS)
+        GL.glCopyImageSubData(self.handle, GL.GL_TEXTURE_3D, 0, 0, 0, 0, dst.handle,
+                              GL.GL_TEXTURE_3D, level, 0, 0, 0, nx, ny, nz)
+
     def generate_mipmaps(self) -> None:
         """Fill levels 1… from level 0 with the driver's box filter (``mip_levels`` > 1)."""
         if self.mip_levels <= 1:
@@ -255,6 +269,82 @@ class Texture2D:
             self.tex.Deactivate()
             self.tex.ReleaseGraphicsResources(self.render_window)
             self.tex = None
+
+
+class StorageBuffer:
+    """A GL buffer object used as a shader storage buffer (``std430`` arrays a compute shader
+    reads or writes with plain memory loads: on llvmpipe several times cheaper than texel
+    fetches and image stores) and as a pixel-unpack source for texture copies on the GPU.
+
+    VTK's state cache does not track these bindings; every method leaves the generic
+    ``GL_SHADER_STORAGE_BUFFER`` and ``GL_PIXEL_UNPACK_BUFFER`` bindings at 0."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow, nbytes: int = 0) -> None:
+        self.render_window = render_window
+        GL = gl(render_window)
+        self.handle: int | None = int(np.asarray(GL.glGenBuffers(1)).ravel()[0])
+        self.nbytes = 0
+        if nbytes:
+            self.allocate(nbytes)
+
+    def _bound(self) -> Any:
+        GL = gl(self.render_window)
+        if self.handle is None:
+            raise GLUnavailableError("the storage buffer was released")
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, self.handle)
+        return GL
+
+    def allocate(self, nbytes: int) -> None:
+        """(Re)specify ``nbytes`` of undefined storage."""
+        GL = self._bound()
+        GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, int(nbytes), None, GL.GL_DYNAMIC_COPY)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        self.nbytes = int(nbytes)
+
+    def upload(self, data: np.ndarray) -> None:
+        """Replace the storage by ``data``'s bytes (C order)."""
+        arr = np.ascontiguousarray(data)
+        GL = self._bound()
+        GL.glBufferData(GL.GL_SHADER_STORAGE_BUFFER, arr.nbytes, arr, GL.GL_DYNAMIC_DRAW)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+        self.nbytes = int(arr.nbytes)
+
+    def bind(self, binding: int) -> None:
+        """Attach to the shader's ``layout(std430, binding = binding)`` block."""
+        GL = gl(self.render_window)
+        GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, self.handle)
+
+    @staticmethod
+    def unbind(render_window: vtk.vtkRenderWindow, bindings: int) -> None:
+        GL = gl(render_window)
+        for binding in range(bindings):
+            GL.glBindBufferBase(GL.GL_SHADER_STORAGE_BUFFER, binding, 0)
+        GL.glBindBuffer(GL.GL_SHADER_STORAGE_BUFFER, 0)
+
+    def copy_to_texture(self, texture: Texture3D, z0: int, slices: int) -> None:
+        """Level 0 slices ``z0…z0 + slices`` of the single-channel float ``texture`` from the
+        first floats of this buffer (x fastest), on the GPU; shader writes are made visible
+        first."""
+        GL = gl(self.render_window)
+        nz, ny, nx = texture.shape
+        if texture.channels != 1 or not 0 <= z0 <= nz - slices or (
+                nx * ny * slices * 4 > self.nbytes):
+            raise ValueError(f"cannot copy {slices} slices at z {z0} into {texture.shape}")
+        GL.glMemoryBarrier(GL.GL_PIXEL_BUFFER_BARRIER_BIT | GL.GL_TEXTURE_UPDATE_BARRIER_BIT)
+        texture.tex.Activate()
+        self.render_window.GetState().vtkglPixelStorei(GL.GL_UNPACK_ALIGNMENT, 1)
+        GL.glBindBuffer(GL.GL_PIXEL_UNPACK_BUFFER, self.handle)
+        try:
+            GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, z0, nx, ny, slices, GL.GL_RED,
+                               GL.GL_FLOAT, None)
+        finally:
+            GL.glBindBuffer(GL.GL_PIXEL_UNPACK_BUFFER, 0)
+
+    def release(self) -> None:
+        if self.handle is not None:
+            gl(self.render_window).glDeleteBuffers(1, [self.handle])
+            self.handle = None
+            self.nbytes = 0
 
 
 class GpuTimer:

@@ -30,8 +30,8 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import vtk_to_numpy
 
-from vtkvol.engine import occupancy, shaders, tf2d
-from vtkvol.engine.gl import Texture2D, Texture3D
+from vtkvol.engine import classify, occupancy, shaders, tf2d
+from vtkvol.engine.gl import GLUnavailableError, Texture2D, Texture3D, compute_supported, gl
 from vtkvol.engine.technique import Technique, technique_class
 from vtkvol.model.params import Invalidates
 from vtkvol.model.scene import Light
@@ -212,6 +212,13 @@ class Illuminator:
         self._uniforms: set[str] = set()  # custom uniforms set for the technique (host-owned)
         self._expected_markers: tuple[set[str], set[str]] | None = None
         self._opacity_cache: tuple[tuple, np.ndarray] | None = None
+        #: Classification backend of :meth:`opacity_texture` ("auto", "gpu", "cpu").
+        self._classification = "auto"
+        self._classifier: classify.GpuClassifier | None = None
+        self._classify_failed = ""  # why the GPU classification is off for good ("" = not)
+        self._opacity_texture: Texture3D | None = None
+        self._opacity_texture_key: tuple | None = None
+        self._classify_stats: dict[str, Any] = classify.stats_template()
         #: Per component, VTK's table coordinates (s, t) of every voxel: they depend on the
         #: data only, so a 2-D TF edit pays the lookup, not the gradient.
         self._coords_cache: dict[int, tuple[tuple, tuple[np.ndarray, np.ndarray]]] = {}
@@ -782,6 +789,202 @@ class Illuminator:
         self._opacity_cache = (key, opacity)
         return opacity
 
+    # -- classification on the GPU --------------------------------------------------------------
+    @property
+    def classification(self) -> str:
+        """Backend of :meth:`opacity_texture`: ``"auto"`` (the compute shader where the
+        context runs compute shaders and the volume allows it, else numpy with one logged
+        warning), ``"gpu"`` (the compute shader or an error) or ``"cpu"`` (numpy, uploaded).
+        An engine choice, not a session setting; :meth:`opacity_volume` is always numpy."""
+        return self._classification
+
+    @classification.setter
+    def classification(self, backend: str) -> None:
+        if backend not in ("auto", "gpu", "cpu"):
+            raise ValueError(f"classification must be 'auto', 'gpu' or 'cpu', not {backend!r}")
+        if backend != self._classification:
+            self._classification = backend
+            self._opacity_texture_key = None  # the next request classifies anew
+            self._changes.opacity = True  # and the technique recomputes from it
+
+    def classification_stats(self) -> dict[str, Any]:
+        """The opacity texture's classification: ``backend`` of the last one ("gpu"/"cpu"),
+        ``reason`` (why not on the GPU, or ""), counters ``gpu_classifications``,
+        ``cpu_classifications``, ``scalar_uploads`` (data sets uploaded for the shader),
+        ``opacity_uploads`` (numpy volumes uploaded), ``classify_ms`` (wall time of the last
+        classification, issuing only unless chunked), ``scalar_upload_ms`` and
+        ``scalar_bytes`` (GPU memory of the scalar copy)."""
+        return dict(self._classify_stats)
+
+    def opacity_texture(self, quantity: str = "alpha") -> Texture3D:
+        """:meth:`opacity_volume` as a host-owned r32f 3-D texture of the data's shape (voxel
+        centres at texel centres; context current), classified on the GPU
+        (:attr:`classification`). ``quantity``: ``"alpha"`` (the opacity per unit distance)
+        or ``"optical_depth"``, s = −ln(1 − α) with α clamped at 1 − 10⁻⁶ (the extinction
+        grid of the shadow volume, converted in the same pass). Cached until an input or
+        the quantity changes; valid until the next call, the technique's release or
+        :meth:`release`. Techniques read it, never release it."""
+        return run_steps(self.opacity_texture_steps(quantity))
+
+    def opacity_texture_steps(self, quantity: str = "alpha"
+                              ) -> Generator[float, None, Texture3D]:
+        """:meth:`opacity_texture` in chunks (for ``prepare_steps``; each chunk waited for
+        while :attr:`precomputing`): ``tex = yield from host.opacity_texture_steps()``."""
+        if quantity not in classify.QUANTITIES:
+            raise ValueError(f"quantity must be one of {classify.QUANTITIES}, not {quantity!r}")
+        key = (self._opacity_signature(), self._classification, quantity)
+        tex = self._opacity_texture
+        if tex is not None and tex.tex is not None and key == self._opacity_texture_key:
+            return tex
+        window = self.render_window
+        if window is None:
+            raise RuntimeError("the opacity texture needs a rendered frame (a GL context)")
+        nx, ny, nz = self.dims
+        if tex is None or tex.tex is None or tex.shape != (nz, ny, nx):
+            if tex is not None:
+                tex.release()
+            self._opacity_texture = tex = None
+            self._opacity_texture_key = None
+            tex = Texture3D(window, (nz, ny, nx))
+            self._opacity_texture = tex
+        chunked = self._stepping
+        stats = self._classify_stats
+        t0 = time.perf_counter()
+        classifier = self._gpu_classifier()
+        if classifier is not None:
+            uploads = classifier.scalar_uploads
+            try:
+                plan = self._classification_plan(quantity)
+                yield from classifier.run_steps(plan, self.image, tex, chunked=chunked)
+            except GLUnavailableError as exc:
+                if self._classification == "gpu":
+                    raise
+                self._disable_gpu_classification(str(exc).splitlines()[0])
+                classifier = None
+            else:
+                stats.update(backend="gpu", reason="",
+                             gpu_classifications=stats["gpu_classifications"] + 1,
+                             scalar_uploads=stats["scalar_uploads"]
+                             + classifier.scalar_uploads - uploads,
+                             scalar_upload_ms=classifier.upload_ms,
+                             scalar_bytes=classifier.scalar_bytes)
+        if classifier is None:
+            opacity = yield from self.opacity_volume_steps()
+            if quantity == "optical_depth":
+                opacity = classify.optical_depth(opacity)
+            if chunked:
+                slab = max(1, OPACITY_SLAB_VOXELS // max(1, nx * ny))
+                for z0 in range(0, nz, slab):
+                    tex.upload_slab(opacity[z0:z0 + slab], z0)
+                    gl(window).glFinish()
+                    yield min(1.0, (z0 + slab) / nz)
+            else:
+                tex.upload(opacity)
+            tex.tex.Deactivate()
+            stats.update(backend="cpu", cpu_classifications=stats["cpu_classifications"] + 1,
+                         opacity_uploads=stats["opacity_uploads"] + 1)
+        stats["classify_ms"] = (time.perf_counter() - t0) * 1e3
+        self._opacity_texture_key = key
+        return tex
+
+    def _release_classification(self) -> None:
+        """Free the opacity texture and the classifier's scalars, tables and programs (with the
+        technique that used them: local shading holds no data-sized GPU memory of ours)."""
+        if self._opacity_texture is not None:
+            self._opacity_texture.release()
+            self._opacity_texture = None
+        self._opacity_texture_key = None
+        if self._classifier is not None:
+            self._classifier.release()
+            self._classifier = None
+
+    def _gpu_classifier(self) -> classify.GpuClassifier | None:
+        """The GPU classifier when :attr:`classification` and this volume allow it (else None,
+        with the reason in the stats: one warning per reason)."""
+        stats = self._classify_stats
+        if self._classification == "cpu":
+            stats["reason"] = "classification = 'cpu'"
+            return None
+        reason = self._classify_failed or classify.unsupported_reason(self.volume, self.image)
+        if reason:
+            if self._classification == "gpu":
+                raise GLUnavailableError(f"GPU classification is not possible: {reason}")
+            if stats["reason"] != reason:
+                logger.warning("vtkvol: classification on the CPU (numpy): %s", reason)
+            stats["reason"] = reason
+            return None
+        if self._classifier is None:
+            window = self.render_window
+            assert window is not None
+            if not compute_supported(window):
+                self._disable_gpu_classification("this OpenGL context has no compute shaders")
+                return self._gpu_classifier()
+            self._classifier = classify.GpuClassifier(window)
+        too_large = self._classifier.unsupported(self.image)
+        if too_large:
+            if self._classification == "gpu":
+                raise GLUnavailableError(f"GPU classification is not possible: {too_large}")
+            if stats["reason"] != too_large:
+                logger.warning("vtkvol: classification on the CPU (numpy): %s", too_large)
+            stats["reason"] = too_large
+            return None
+        return self._classifier
+
+    def _disable_gpu_classification(self, why: str) -> None:
+        self._classify_failed = why
+        if self._classifier is not None:
+            self._classifier.release()
+            self._classifier = None
+        logger.warning("vtkvol: GPU classification unavailable, classifying with numpy (%s)",
+                       why)
+        self._classify_stats["reason"] = why
+
+    def _classification_plan(self, quantity: str = "alpha") -> classify.Plan:
+        """Tables and per-axis rows of the current transfer functions, crop and weights."""
+        mapper = self.volume.GetMapper()
+        img = self.image
+        nx, ny, nz = img.GetDimensions()
+        weights = _axis_weight_vectors(self._weights, (nz, ny, nx)) if (
+            self._weights is not None) else None
+        regions = None
+        flags = 0
+        if mapper.GetCropping():
+            regions = tuple(self._crop_regions(axis, n, 0)
+                            for axis, n in enumerate((nx, ny, nz)))
+            flags = int(mapper.GetCroppingRegionFlags())
+        return classify.build_plan(self.volume, img, weights, regions, flags,
+                                   self._clip_coefficients(), quantity)
+
+    def _crop_regions(self, axis: int, n: int, first: int) -> np.ndarray:
+        """Cropping region (0 below the first plane, 1 between, 2 above) of the voxel indices
+        ``first…first + n`` along ``axis``."""
+        img = self.image
+        origin, spacing = img.GetOrigin(), img.GetSpacing()
+        planes = self.volume.GetMapper().GetCroppingRegionPlanes()
+        coord = origin[axis] + spacing[axis] * np.arange(first, first + n)
+        lo, hi = planes[2 * axis], planes[2 * axis + 1]
+        tol = 1e-6 * spacing[axis]
+        return (coord >= lo - tol).astype(np.int64) + (coord > hi + tol).astype(np.int64)
+
+    def _clip_coefficients(self) -> list[tuple[float, float, float, float]]:
+        """Each clipping plane's side as ``a·i + b·j + c·k + d`` of the voxel index (i, j, k)
+        (world space through the volume's matrix; VTK keeps side ≥ 0), in float64."""
+        clipping = self.volume.GetMapper().GetClippingPlanes()
+        if clipping is None or not clipping.GetNumberOfItems():
+            return []
+        img = self.image
+        origin, spacing = np.array(img.GetOrigin()), np.array(img.GetSpacing())
+        matrix = self.volume.GetMatrix()
+        m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+        out = []
+        for k in range(clipping.GetNumberOfItems()):
+            plane = clipping.GetItem(k)
+            o, n = np.array(plane.GetOrigin()), np.array(plane.GetNormal())
+            per_index = (n @ m[:3, :3]) * spacing
+            const = float(n @ (m[:3, :3] @ origin + m[:3, 3] - o))
+            out.append((*(float(v) for v in per_index), const))
+        return out
+
     def classify_2d(self, c: int, what: Literal["alpha", "rgb"] = "alpha") -> np.ndarray | None:
         """Component ``c``'s 2-D table read at every voxel as VTK's shader reads it (its
         gradient, its texture coordinates, bilinear): ``"alpha"`` per ``unit_distance`` of the
@@ -832,17 +1035,9 @@ class Illuminator:
         origin, spacing = img.GetOrigin(), img.GetSpacing()
         nz, ny, nx = opacity.shape
         if mapper.GetCropping():
-            planes = mapper.GetCroppingRegionPlanes()
             flags = int(mapper.GetCroppingRegionFlags())
-            # Region of each voxel per axis: 0 below the first plane, 1 between, 2 above.
-            region = []
-            for axis, n in enumerate((nx, ny, nz)):
-                first = z0 if axis == 2 else 0
-                coord = origin[axis] + spacing[axis] * np.arange(first, first + n)
-                lo, hi = planes[2 * axis], planes[2 * axis + 1]
-                tol = 1e-6 * spacing[axis]
-                region.append((coord >= lo - tol).astype(np.int64)
-                              + (coord > hi + tol).astype(np.int64))
+            region = [self._crop_regions(axis, n, z0 if axis == 2 else 0)
+                      for axis, n in enumerate((nx, ny, nz))]
             index = (region[0][None, None, :] + 3 * region[1][None, :, None]
                      + 9 * region[2][:, None, None])
             visible = np.array([(flags >> i) & 1 for i in range(27)], bool)
@@ -1362,6 +1557,7 @@ class Illuminator:
         if self._technique is not None:
             self._technique.release()
             self._technique = None
+        self._release_classification()
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name in self._uniforms:
             fu.RemoveUniform(name)
