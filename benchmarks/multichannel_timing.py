@@ -1,14 +1,17 @@
 """Development study of multi-channel frame cost (not part of the installed library): the frame
 time of two channels beside one channel of the same size, with VTK's own per-component loop
-("before") and the host's multi-channel sample (``host_multichannel.glsl``, "after"), in one
-run, per illumination method; and the image difference between the two two-channel paths.
+("before"), the host's multi-channel sample (``host_multichannel.glsl``, "after", lit per
+channel) and shared lighting (``RenderSettings.multichannel_lighting = "shared"``,
+``host_multichannel_lighting.glsl``), in one run, per illumination method; and the image
+differences: host's sample vs VTK's loop, shared vs per-channel lighting.
 
 Run from the checkout: ``python benchmarks/multichannel_timing.py [N] [IMAGE] [methods]``
 (default 128³ data, a 256² image, local shading, shadow volume, cone tracing, translucency)
 prints a markdown table. Data: the built-in confocal phantom (uint16 nuclei and membranes,
 0.5 µm voxels); one channel = its nuclei channel alone. Each frame time is the median of
-``FRAMES`` full-quality frames after two warm-up frames (render + read-back), the three
-configurations interleaved so machine load affects them alike.
+``FRAMES`` full-quality frames after two warm-up frames (render + read-back), the
+configurations interleaved so machine load affects them alike (the one-channel frame is
+measured first and last; the faster of the two is the reference).
 """
 
 from __future__ import annotations
@@ -23,12 +26,16 @@ import numpy as np
 FRAMES = 3
 
 
-def _frames(data: Any, method: str, image: int, *, vtk_loop: bool) -> tuple[float, np.ndarray]:
+def _frames(data: Any, method: str, image: int, *, vtk_loop: bool = False,
+            lighting: str = "per_channel") -> tuple[float, np.ndarray]:
     """Median frame time (ms) and the last image of ``data`` under ``method``."""
     from vtkvol.engine.api import offscreen_view
     from vtkvol.engine.offscreen import grab
+    from vtkvol.model.defaults import scene_for
 
-    with offscreen_view(data, size=(image, image), method=method) as (rw, scene, _):
+    model = scene_for(data)
+    model.render.multichannel_lighting = lighting
+    with offscreen_view(data, model=model, size=(image, image), method=method) as (rw, scene, _):
         assert scene.illuminator is not None
         scene.illuminator.multichannel_sample = not vtk_loop
         grab(rw)
@@ -41,9 +48,12 @@ def _frames(data: Any, method: str, image: int, *, vtk_loop: bool) -> tuple[floa
         return statistics.median(times), last
 
 
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
+def difference(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """Largest 8-bit level difference, PSNR (dB) and SSIM of two RGB(A) frames."""
+    from vtkvol.reference import image_metrics
+
+    metrics = image_metrics(image[..., :3], reference[..., :3])
+    return {"max": int(metrics["max_abs"]), "psnr": metrics["psnr"], "ssim": metrics["ssim"]}
 
 
 def study(n: int = 128, image: int = 256,
@@ -58,23 +68,31 @@ def study(n: int = 128, image: int = 256,
     for method in methods:
         t_one, _ = _frames(one, method, image, vtk_loop=False)
         t_before, before = _frames(two, method, image, vtk_loop=True)
-        t_after, after = _frames(two, method, image, vtk_loop=False)
+        t_after, after = _frames(two, method, image)
+        t_shared, shared = _frames(two, method, image, lighting="shared")
         t_one_again, _ = _frames(one, method, image, vtk_loop=False)
         t_one = min(t_one, t_one_again)
-        diff = np.abs(before.astype(int) - after.astype(int))
         rows.append({"method": method, "size": f"{n}³", "image": f"{image}²",
                      "one_ms": t_one, "before_ms": t_before, "after_ms": t_after,
-                     "max_diff": int(diff.max()), "psnr": psnr(before, after)})
+                     "shared_ms": t_shared, "after_vs_before": difference(after, before),
+                     "shared_vs_after": difference(shared, after)})
         print(_row(rows[-1]), flush=True)
     return rows
 
 
+def _difference_text(d: dict[str, float]) -> str:
+    if d["psnr"] == float("inf"):
+        return "identical"
+    return f"{d['max']} levels, {d['psnr']:.1f} dB, SSIM {d['ssim']:.4f}"
+
+
 def _row(r: dict[str, Any]) -> str:
-    psnr_text = "identical" if r["psnr"] == float("inf") else f"{r['psnr']:.1f} dB"
     return (f"| {r['method']} | {r['size']}, {r['image']} | {r['one_ms']:.0f} | "
             f"{r['before_ms']:.0f} ({r['before_ms'] / r['one_ms']:.2f}×) | "
             f"{r['after_ms']:.0f} ({r['after_ms'] / r['one_ms']:.2f}×) | "
-            f"{r['max_diff']} levels, {psnr_text} |")
+            f"{r['shared_ms']:.0f} ({r['shared_ms'] / r['one_ms']:.2f}×) | "
+            f"{_difference_text(r['after_vs_before'])} | "
+            f"{_difference_text(r['shared_vs_after'])} |")
 
 
 if __name__ == "__main__":
@@ -84,6 +102,8 @@ if __name__ == "__main__":
     chosen = tuple(args[2].split(",")) if len(args) > 2 else (
         "local", "shadow_volume", "cone_traced", "translucency")
     print("| method | data, image | 1 channel (ms) | 2 channels, VTK's loop (ms) | "
-          "2 channels, host's sample (ms) | after vs before (max 8-bit, PSNR) |")
-    print("|---|---|---|---|---|---|")
+          "2 channels, host's sample, per-channel lighting (ms) | "
+          "2 channels, shared lighting (ms) | host's sample vs VTK's loop | "
+          "shared vs per-channel (max 8-bit, PSNR, SSIM) |")
+    print("|---|---|---|---|---|---|---|---|")
     study(size, image, chosen)
