@@ -9,13 +9,14 @@ Run from the checkout: ``python benchmarks/multichannel_timing.py [N] [IMAGE] [m
 (default 128³ data, a 256² image, local shading, shadow volume, cone tracing, translucency)
 prints a markdown table. Data: the built-in confocal phantom (uint16 nuclei and membranes,
 0.5 µm voxels); one channel = its nuclei channel alone. Each frame time is the median of
-``FRAMES`` full-quality frames after two warm-up frames (render + read-back), the
-configurations interleaved so machine load affects them alike (the one-channel frame is
-measured first and last; the faster of the two is the reference).
+``FRAMES`` full-quality frames after two warm-up frames (render + read-back); the four views
+of a method are open together and their frames interleaved, so a change of machine load
+during the run affects them alike.
 """
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import sys
 import time
@@ -23,29 +24,42 @@ from typing import Any
 
 import numpy as np
 
-FRAMES = 3
+FRAMES = 5
+#: The configurations of one method, in the order their frames are interleaved.
+CONFIGS = ("one", "before", "after", "shared")
 
 
-def _frames(data: Any, method: str, image: int, *, vtk_loop: bool = False,
-            lighting: str = "per_channel") -> tuple[float, np.ndarray]:
-    """Median frame time (ms) and the last image of ``data`` under ``method``."""
-    from vtkvol.engine.api import offscreen_view
+def _timed_frames(views: dict[str, Any]) -> dict[str, tuple[float, np.ndarray]]:
+    """Median frame time (ms) and last image of every open view, their frames interleaved
+    (A, B, C, D, A, B, …) so that a change of machine load during the run hits all alike."""
     from vtkvol.engine.offscreen import grab
+
+    for rw in views.values():
+        grab(rw)
+        grab(rw)
+    times: dict[str, list[float]] = {name: [] for name in views}
+    last: dict[str, np.ndarray] = {}
+    for _ in range(FRAMES):
+        for name, rw in views.items():
+            t0 = time.perf_counter()
+            last[name] = grab(rw)
+            times[name].append((time.perf_counter() - t0) * 1e3)
+    return {name: (statistics.median(times[name]), last[name]) for name in views}
+
+
+def _open_view(stack: contextlib.ExitStack, data: Any, method: str, image: int, *,
+               vtk_loop: bool = False, lighting: str = "per_channel") -> Any:
+    """A render window showing ``data`` under ``method``, closed with ``stack``."""
+    from vtkvol.engine.api import offscreen_view
     from vtkvol.model.defaults import scene_for
 
     model = scene_for(data)
     model.render.multichannel_lighting = lighting
-    with offscreen_view(data, model=model, size=(image, image), method=method) as (rw, scene, _):
-        assert scene.illuminator is not None
-        scene.illuminator.multichannel_sample = not vtk_loop
-        grab(rw)
-        grab(rw)
-        times = []
-        for _ in range(FRAMES):
-            t0 = time.perf_counter()
-            last = grab(rw)
-            times.append((time.perf_counter() - t0) * 1e3)
-        return statistics.median(times), last
+    rw, scene, _ = stack.enter_context(
+        offscreen_view(data, model=model, size=(image, image), method=method))
+    assert scene.illuminator is not None
+    scene.illuminator.multichannel_sample = not vtk_loop
+    return rw
 
 
 def difference(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:
@@ -66,12 +80,16 @@ def study(n: int = 128, image: int = 256,
                                 ["nuclei"])
     rows = []
     for method in methods:
-        t_one, _ = _frames(one, method, image, vtk_loop=False)
-        t_before, before = _frames(two, method, image, vtk_loop=True)
-        t_after, after = _frames(two, method, image)
-        t_shared, shared = _frames(two, method, image, lighting="shared")
-        t_one_again, _ = _frames(one, method, image, vtk_loop=False)
-        t_one = min(t_one, t_one_again)
+        with contextlib.ExitStack() as stack:
+            views = {
+                "one": _open_view(stack, one, method, image),
+                "before": _open_view(stack, two, method, image, vtk_loop=True),
+                "after": _open_view(stack, two, method, image),
+                "shared": _open_view(stack, two, method, image, lighting="shared"),
+            }
+            measured = _timed_frames(views)
+        (t_one, _), (t_before, before), (t_after, after), (t_shared, shared) = (
+            measured[name] for name in CONFIGS)
         rows.append({"method": method, "size": f"{n}³", "image": f"{image}²",
                      "one_ms": t_one, "before_ms": t_before, "after_ms": t_after,
                      "shared_ms": t_shared, "after_vs_before": difference(after, before),
