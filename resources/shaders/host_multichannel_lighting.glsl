@@ -17,12 +17,17 @@
 //                                                     factor reads; the host's shading ignores it)
 //   ka, kd, ks, p = sum_c w_c * (channel c's value)   (the material)
 //   colour   = clamp(computeLighting(albedo), 0, 1), given to every channel
-// VTK's compositing loop then mixes colour * sum_c w_c... exactly as it mixes per-channel
-// colours, with the scene's channel mixing (which only changes alpha). Surface lighting is
-// affine in the albedo (ambient and diffuse scale it, specular adds), so this equals lighting
-// every channel with the shared normal and material and mixing the results (up to VTK's
-// per-channel clamp); where one channel is visible at a sample it is that channel's own
-// lighting. The medium model has no normal: there only the material (ka) is mixed.
+// VTK's compositing loop then weighs that colour with each channel's opacity exactly as it
+// weighs per-channel colours, with the scene's channel mixing (which only changes alpha).
+// Surface lighting is affine in the albedo (ambient and diffuse scale it, specular adds), so
+// this equals lighting every channel with the shared normal and material and mixing the
+// results (up to VTK's per-channel clamp); where one channel is visible at a sample it is
+// that channel's own lighting. The medium model has no normal: there only the material (ka) is
+// mixed. Why the normal is the weighted sum of unit normals and not the gradient of the
+// combined opacity: it needs no more fetches than the shared six (the opacity's gradient would
+// take six opacity lookups per channel), it is the channel's own normal wherever one channel
+// shows, and channels whose data differ in range by orders of magnitude weigh by what is seen
+// (their opacity), not by their units.
 //
 // Defines: VV_MC_SHARED_NORMAL (surface model: build the combined gradient);
 // VV_MC_CHANNEL_GRADIENT (the per-channel gradient from the shared fetches: vv_mcGradient or
@@ -154,7 +159,9 @@ void vv_mcShareLighting(inout vec4 color[4], float totalAlpha)
 #if VV_MC_COMPONENTS > 3
   w[3] = color[3][3] * in_componentWeight[3];
 #endif
-  w /= totalAlpha;
+  // llvmpipe runs this for the lanes that returned above too (under a mask): keep them free
+  // of NaN, and give them the channels' mean normal, as cheap to light as a visible sample.
+  w = totalAlpha > 0.0 ? w / totalAlpha : vec4(1.0 / float(VV_MC_COMPONENTS));
   vec3 albedo = w[0] * color[0].rgb + w[1] * color[1].rgb;
 #if VV_MC_COMPONENTS > 2
   albedo += w[2] * color[2].rgb;
