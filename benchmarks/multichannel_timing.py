@@ -2,11 +2,13 @@
 time of two channels beside one channel of the same size, with VTK's own per-component loop
 ("before"), the host's multi-channel sample (``host_multichannel.glsl``, "after", lit per
 channel) and shared lighting (``RenderSettings.multichannel_lighting = "shared"``,
-``host_multichannel_lighting.glsl``), in one run, per illumination method; and the image
+``host_multichannel_lighting.glsl``), in one run, per illumination method (and "unshaded",
+local shading switched off, to separate classification from lighting); and the image
 differences: host's sample vs VTK's loop, shared vs per-channel lighting.
 
 Run from the checkout: ``python benchmarks/multichannel_timing.py [N] [IMAGE] [methods]``
-(default 128³ data, a 256² image, local shading, shadow volume, cone tracing, translucency)
+(default 128³ data, a 256² image, local shading, shadow volume, cone tracing, translucency,
+unshaded)
 prints a markdown table. Data: the built-in confocal phantom (uint16 nuclei and membranes,
 0.5 µm voxels); one channel = its nuclei channel alone. Each frame time is the median of
 ``FRAMES`` full-quality frames after two warm-up frames (render + read-back); the four views
@@ -49,12 +51,16 @@ def _timed_frames(views: dict[str, Any]) -> dict[str, tuple[float, np.ndarray]]:
 
 def _open_view(stack: contextlib.ExitStack, data: Any, method: str, image: int, *,
                vtk_loop: bool = False, lighting: str = "per_channel") -> Any:
-    """A render window showing ``data`` under ``method``, closed with ``stack``."""
+    """A render window showing ``data`` under ``method`` (``"unshaded"``: local shading
+    switched off, so nothing is lit), closed with ``stack``."""
     from vtkvol.engine.api import offscreen_view
     from vtkvol.model.defaults import scene_for
 
     model = scene_for(data)
     model.render.multichannel_lighting = lighting
+    if method == "unshaded":
+        model.render.shade = False
+        method = "local"
     rw, scene, _ = stack.enter_context(
         offscreen_view(data, model=model, size=(image, image), method=method))
     assert scene.illuminator is not None
@@ -71,7 +77,8 @@ def difference(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:
 
 
 def study(n: int = 128, image: int = 256,
-          methods: tuple[str, ...] = ("local", "shadow_volume", "cone_traced", "translucency"),
+          methods: tuple[str, ...] = ("local", "shadow_volume", "cone_traced", "translucency",
+                                      "unshaded"),
           ) -> list[dict[str, Any]]:
     from vtkvol.io import VolumeData, confocal_phantom
 
@@ -118,7 +125,7 @@ if __name__ == "__main__":
     size = int(args[0]) if args else 128
     image = int(args[1]) if len(args) > 1 else 256
     chosen = tuple(args[2].split(",")) if len(args) > 2 else (
-        "local", "shadow_volume", "cone_traced", "translucency")
+        "local", "shadow_volume", "cone_traced", "translucency", "unshaded")
     print("| method | data, image | 1 channel (ms) | 2 channels, VTK's loop (ms) | "
           "2 channels, host's sample, per-channel lighting (ms) | "
           "2 channels, shared lighting (ms) | host's sample vs VTK's loop | "
