@@ -267,3 +267,28 @@ def test_channels_dock_control(qapp, phantom):
         assert not combo.isVisible()  # nothing to share with one channel
     finally:
         dock.deleteLater()
+
+
+@pytest.mark.gl
+def test_gradient_opacity_keeps_per_channel_lighting(phantom):
+    """VTK's gradient-opacity variant takes its gradients per channel: shared lighting stands
+    aside (and says why) rather than light with a normal it cannot share."""
+    import vtk
+
+    images = {}
+    for lighting in ("per_channel", "shared"):
+        model = scene_for(phantom)
+        model.render.multichannel_lighting = lighting
+        with offscreen_view(phantom, model=model, size=(96, 96), method="local") as (rw, s, _):
+            ramp = vtk.vtkPiecewiseFunction()
+            ramp.AddPoint(0.0, 0.2)
+            ramp.AddPoint(50.0, 1.0)
+            s.volume.GetProperty().SetGradientOpacity(0, ramp)
+            grab(rw)
+            images[lighting] = grab(rw).astype(int)
+            il = s.illuminator
+            assert il is not None and SHARE_CALL not in il.fragment_source
+            state = il.multichannel_lighting_state
+    assert state == ("per_channel (gradient opacity or volumetric scattering take gradients "
+                     "per channel)")
+    assert np.array_equal(images["per_channel"], images["shared"])
