@@ -4,10 +4,11 @@ and lit once per sample with the opacity-weighted normal and material.
 
 Measured on these scenes (96² images; docs/benchmarks.md, "Multi-channel frames"): the
 confocal phantom (nuclei and membranes barely overlap) differs from per-channel lighting by at
-most 3 8-bit levels with every surface technique and not at all with the medium ones; two
-overlapping copies of the nuclei (different normals where they overlap) by PSNR 36.6–42.0 dB,
-SSIM ≥ 0.990 (max 43–67 levels on a few edge pixels), while leaving the lighting out entirely
-would give PSNR 14.7–16.8 dB; a second, empty channel changes nothing (0 levels)."""
+most 3 8-bit levels with every surface technique and by 0 (diffusion) to 3 (path tracing's
+Monte Carlo sums, a few pixels) with the medium ones; two overlapping copies of the nuclei
+(different normals where they overlap) by PSNR 36.6–42.0 dB, SSIM ≥ 0.990 (max 43–67 levels
+on a few edge pixels), while leaving the lighting out entirely would give PSNR 14.7–16.8 dB;
+a second, empty channel changes nothing (0 levels)."""
 
 from __future__ import annotations
 
@@ -52,10 +53,14 @@ def render(data: VolumeData, method: str, lighting: str, edit: Callable | None =
     if edit is not None:
         edit(model)
     with offscreen_view(data, model=model, size=(96, 96), method=method) as (rw, scene, _):
-        assert scene.illuminator is not None
+        il = scene.illuminator
+        assert il is not None
+        if il.spec.has("progressive"):
+            # Both images from the same number of iterations, whatever the machine's load.
+            il.set_parameters(max_iterations=8)
+            il.converge(max_seconds=60)
         grab(rw)
         image = grab(rw).astype(int)
-        il = scene.illuminator
         return image, il.fragment_source, il.multichannel_lighting_state
 
 
@@ -80,8 +85,12 @@ def metrics(a: np.ndarray, b: np.ndarray) -> dict[str, float]:
 @pytest.mark.parametrize("method", SURFACE + MEDIUM)
 def test_every_technique_lights_once_close_to_per_channel(phantom, method):
     per_channel, shared = both(phantom, method)
-    bound = 0 if method in MEDIUM else 4  # medium: no normal, equal materials → the same
-    assert np.abs(per_channel - shared).max() <= bound
+    diff = np.abs(per_channel - shared)
+    assert diff.max() <= 4
+    if method in MEDIUM:
+        # No normal and equal materials: the same light (path tracing's Monte Carlo sums may
+        # round a level apart on a few pixels).
+        assert (diff.max(axis=-1) > 1).mean() < 0.01
 
 
 @pytest.mark.gl
