@@ -1,18 +1,24 @@
 """Development study of multi-channel frame cost (not part of the installed library): the frame
 time of two channels beside one channel of the same size, with VTK's own per-component loop
-("before") and the host's multi-channel sample (``host_multichannel.glsl``, "after"), in one
-run, per illumination method; and the image difference between the two two-channel paths.
+("before"), the host's multi-channel sample (``host_multichannel.glsl``, "after", lit per
+channel) and shared lighting (``RenderSettings.multichannel_lighting = "shared"``,
+``host_multichannel_lighting.glsl``), in one run, per illumination method (and "unshaded",
+local shading switched off, to separate classification from lighting); and the image
+differences: host's sample vs VTK's loop, shared vs per-channel lighting.
 
 Run from the checkout: ``python benchmarks/multichannel_timing.py [N] [IMAGE] [methods]``
-(default 128³ data, a 256² image, local shading, shadow volume, cone tracing, translucency)
+(default 128³ data, a 256² image, local shading, shadow volume, cone tracing, translucency,
+unshaded)
 prints a markdown table. Data: the built-in confocal phantom (uint16 nuclei and membranes,
 0.5 µm voxels); one channel = its nuclei channel alone. Each frame time is the median of
-``FRAMES`` full-quality frames after two warm-up frames (render + read-back), the three
-configurations interleaved so machine load affects them alike.
+``FRAMES`` full-quality frames after two warm-up frames (render + read-back); the four views
+of a method are open together and their frames interleaved, so a change of machine load
+during the run affects them alike.
 """
 
 from __future__ import annotations
 
+import contextlib
 import statistics
 import sys
 import time
@@ -20,34 +26,59 @@ from typing import Any
 
 import numpy as np
 
-FRAMES = 3
+FRAMES = 5
+#: The configurations of one method, in the order their frames are interleaved.
+CONFIGS = ("one", "before", "after", "shared")
 
 
-def _frames(data: Any, method: str, image: int, *, vtk_loop: bool) -> tuple[float, np.ndarray]:
-    """Median frame time (ms) and the last image of ``data`` under ``method``."""
-    from vtkvol.engine.api import offscreen_view
+def _timed_frames(views: dict[str, Any]) -> dict[str, tuple[float, np.ndarray]]:
+    """Median frame time (ms) and last image of every open view, their frames interleaved
+    (A, B, C, D, A, B, …) so that a change of machine load during the run hits all alike."""
     from vtkvol.engine.offscreen import grab
 
-    with offscreen_view(data, size=(image, image), method=method) as (rw, scene, _):
-        assert scene.illuminator is not None
-        scene.illuminator.multichannel_sample = not vtk_loop
+    for rw in views.values():
         grab(rw)
         grab(rw)
-        times = []
-        for _ in range(FRAMES):
+    times: dict[str, list[float]] = {name: [] for name in views}
+    last: dict[str, np.ndarray] = {}
+    for _ in range(FRAMES):
+        for name, rw in views.items():
             t0 = time.perf_counter()
-            last = grab(rw)
-            times.append((time.perf_counter() - t0) * 1e3)
-        return statistics.median(times), last
+            last[name] = grab(rw)
+            times[name].append((time.perf_counter() - t0) * 1e3)
+    return {name: (statistics.median(times[name]), last[name]) for name in views}
 
 
-def psnr(a: np.ndarray, b: np.ndarray) -> float:
-    mse = float(np.mean((a.astype(np.float64) - b.astype(np.float64)) ** 2))
-    return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
+def _open_view(stack: contextlib.ExitStack, data: Any, method: str, image: int, *,
+               vtk_loop: bool = False, lighting: str = "per_channel") -> Any:
+    """A render window showing ``data`` under ``method`` (``"unshaded"``: local shading
+    switched off, so nothing is lit), closed with ``stack``."""
+    from vtkvol.engine.api import offscreen_view
+    from vtkvol.model.defaults import scene_for
+
+    model = scene_for(data)
+    model.render.multichannel_lighting = lighting
+    if method == "unshaded":
+        model.render.shade = False
+        method = "local"
+    rw, scene, _ = stack.enter_context(
+        offscreen_view(data, model=model, size=(image, image), method=method))
+    assert scene.illuminator is not None
+    scene.illuminator.multichannel_sample = not vtk_loop
+    return rw
+
+
+def difference(image: np.ndarray, reference: np.ndarray) -> dict[str, float]:
+    """Largest 8-bit level difference, PSNR (dB) and SSIM of two RGB(A) frames."""
+    from vtkvol.reference import image_metrics
+
+    metrics = image_metrics(image[..., :3], reference[..., :3])
+    return {"max": int(metrics["max_abs"]), "psnr": metrics["psnr"], "ssim": metrics["ssim"]}
 
 
 def study(n: int = 128, image: int = 256,
-          methods: tuple[str, ...] = ("local", "shadow_volume", "cone_traced", "translucency"),
+          methods: tuple[str, ...] = ("local", "shadow_volume", "cone_traced", "translucency",
+                                      "unshaded"),
           ) -> list[dict[str, Any]]:
     from vtkvol.io import VolumeData, confocal_phantom
 
@@ -56,25 +87,37 @@ def study(n: int = 128, image: int = 256,
                                 ["nuclei"])
     rows = []
     for method in methods:
-        t_one, _ = _frames(one, method, image, vtk_loop=False)
-        t_before, before = _frames(two, method, image, vtk_loop=True)
-        t_after, after = _frames(two, method, image, vtk_loop=False)
-        t_one_again, _ = _frames(one, method, image, vtk_loop=False)
-        t_one = min(t_one, t_one_again)
-        diff = np.abs(before.astype(int) - after.astype(int))
+        with contextlib.ExitStack() as stack:
+            views = {
+                "one": _open_view(stack, one, method, image),
+                "before": _open_view(stack, two, method, image, vtk_loop=True),
+                "after": _open_view(stack, two, method, image),
+                "shared": _open_view(stack, two, method, image, lighting="shared"),
+            }
+            measured = _timed_frames(views)
+        (t_one, _), (t_before, before), (t_after, after), (t_shared, shared) = (
+            measured[name] for name in CONFIGS)
         rows.append({"method": method, "size": f"{n}³", "image": f"{image}²",
                      "one_ms": t_one, "before_ms": t_before, "after_ms": t_after,
-                     "max_diff": int(diff.max()), "psnr": psnr(before, after)})
+                     "shared_ms": t_shared, "after_vs_before": difference(after, before),
+                     "shared_vs_after": difference(shared, after)})
         print(_row(rows[-1]), flush=True)
     return rows
 
 
+def _difference_text(d: dict[str, float]) -> str:
+    if d["psnr"] == float("inf"):
+        return "identical"
+    return f"{d['max']} levels, {d['psnr']:.1f} dB, SSIM {d['ssim']:.4f}"
+
+
 def _row(r: dict[str, Any]) -> str:
-    psnr_text = "identical" if r["psnr"] == float("inf") else f"{r['psnr']:.1f} dB"
     return (f"| {r['method']} | {r['size']}, {r['image']} | {r['one_ms']:.0f} | "
             f"{r['before_ms']:.0f} ({r['before_ms'] / r['one_ms']:.2f}×) | "
             f"{r['after_ms']:.0f} ({r['after_ms'] / r['one_ms']:.2f}×) | "
-            f"{r['max_diff']} levels, {psnr_text} |")
+            f"{r['shared_ms']:.0f} ({r['shared_ms'] / r['one_ms']:.2f}×) | "
+            f"{_difference_text(r['after_vs_before'])} | "
+            f"{_difference_text(r['shared_vs_after'])} |")
 
 
 if __name__ == "__main__":
@@ -82,8 +125,10 @@ if __name__ == "__main__":
     size = int(args[0]) if args else 128
     image = int(args[1]) if len(args) > 1 else 256
     chosen = tuple(args[2].split(",")) if len(args) > 2 else (
-        "local", "shadow_volume", "cone_traced", "translucency")
+        "local", "shadow_volume", "cone_traced", "translucency", "unshaded")
     print("| method | data, image | 1 channel (ms) | 2 channels, VTK's loop (ms) | "
-          "2 channels, host's sample (ms) | after vs before (max 8-bit, PSNR) |")
-    print("|---|---|---|---|---|---|")
+          "2 channels, host's sample, per-channel lighting (ms) | "
+          "2 channels, shared lighting (ms) | host's sample vs VTK's loop | "
+          "shared vs per-channel (max 8-bit, PSNR, SSIM) |")
+    print("|---|---|---|---|---|---|---|---|")
     study(size, image, chosen)

@@ -149,7 +149,7 @@ def rich_model() -> SceneModel:
             blend_mode="mip", channel_mixing="composite", sample_distance=0.25, jitter=False,
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
             background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3, interpolation="corrected",
-            empty_space_skipping=False,
+            empty_space_skipping=False, multichannel_lighting="shared",
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
                           color_legend=True, slice_planes=True),
@@ -460,7 +460,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 6)"),
+         "(format version 99; this version reads up to 7)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -843,7 +843,7 @@ def test_migrate_v5_to_v6_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[5](raw)
     assert out == load_fixture("v5_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     scene = out["scene"]
     # v5 had no slice views: the data's centre, and no plane outlines in the 3-D view.
     assert scene["cursor"] is None and scene["overlays"]["slice_planes"] is False
@@ -870,8 +870,42 @@ def test_v5_file_reads_without_warnings_as_it_was_shown() -> None:
     assert model.render.empty_space_skipping is True
 
 
+def test_migrate_v6_to_v7_matches_fixture() -> None:
+    raw = load_fixture("v6_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[6](raw)
+    assert out == load_fixture("v6_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # v6 lit every channel with its own normal: the file renders as it did.
+    assert out["scene"]["render"]["multichannel_lighting"] == "per_channel"
+    assert raw == untouched
+
+
+def test_v6_file_reads_without_warnings_as_it_was_shown() -> None:
+    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.render.multichannel_lighting == "per_channel"
+    expected = rich_model()
+    expected.render.multichannel_lighting = "per_channel"
+    assert _same_except_volume(session.model, expected)
+
+
+@pytest.mark.parametrize("value", ["Shared", "both", 1, None])
+def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_path, value
+                                                                           ) -> None:
+    doc = load_fixture("v7_complete.vtkvol.json")
+    doc["scene"]["render"]["multichannel_lighting"] = value
+    path = tmp_path / "v.vtkvol.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(SessionError, match=r"^v\.vtkvol\.json: ") as info:
+        read_session(path)
+    message = str(info.value)
+    assert "render.multichannel_lighting" in message and "\n" not in message
+    assert "per_channel" in message and "shared" in message  # says what is allowed
+
+
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v6_complete.vtkvol.json")
+    doc = load_fixture("v7_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -901,8 +935,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v6 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v6_complete.vtkvol.json")
+    """The checked-in v7 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -922,8 +956,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 7; this version reads up to 6"):
-        migrate({"format": FORMAT, "version": 7})
+    with pytest.raises(ValueError, match="format version 8; this version reads up to 7"):
+        migrate({"format": FORMAT, "version": 8})
 
 
 @pytest.mark.parametrize(

@@ -21,7 +21,12 @@
 // transmittance towards each light, which depends on the position only, is evaluated once per
 // sample (vv_mcLights) instead of once per component.
 //
-// Defines: VV_MC_COMPONENTS (2, 3 or 4); VV_MC_SHARE_GRADIENT; VV_MC_SHARE_LIGHT.
+// VV_MC_SHARED_LIGHTING (RenderSettings.multichannel_lighting = "shared"): the channels are
+// classified unlit and the sample is lit once (host_multichannel_lighting.glsl, loaded after
+// this file, defines vv_mcShareLighting).
+//
+// Defines: VV_MC_COMPONENTS (2, 3 or 4); VV_MC_SHARE_GRADIENT; VV_MC_SHARE_LIGHT;
+// VV_MC_SHARED_LIGHTING.
 
 //@inject //VTK::ComputeGradient::Dec pre after
 #ifdef VV_MC_SHARE_GRADIENT
@@ -52,6 +57,10 @@ vec4 vv_mcGradient(in vec3 texPos, in int c, in sampler3D volume, in int index)
 #endif
 
 //@inject //VTK::ComputeColor::Dec pre after
+#ifdef VV_MC_SHARED_LIGHTING
+void vv_mcShareLighting(inout vec4 color[4], float totalAlpha);
+#endif
+
 // VTK's classification loop body for each component, indices literal. `scalar` is VTK's
 // (scaled) sample; computeOpacity/computeColor are whatever the host wrapped them into (slice
 // weights, corrected trilinear filter).
@@ -78,5 +87,8 @@ void vv_mcClassify(vec4 scalar, inout vec4 color[4], inout float totalAlpha)
   color[3][3] = computeOpacity(scalar, 3);
   color[3] = computeColor(scalar, color[3][3], 3);
   totalAlpha += color[3][3] * in_componentWeight[3];
+#endif
+#ifdef VV_MC_SHARED_LIGHTING
+  vv_mcShareLighting(color, totalAlpha);
 #endif
 }

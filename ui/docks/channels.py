@@ -1,10 +1,11 @@
 """Channels dock: per channel visibility, colour, contrast limits and TF link; the blending.
 
-Edits ``model.channels[i]`` and ``model.render`` (blend mode, channel mixing, isosurface
-value). Contrast limits are the transfer function's value span: changing them stretches the
-TF's nodes (:meth:`~vtkvol.model.TransferFunction.rescale`); "Auto" sets the limits a freshly
-opened channel gets (:func:`vtkvol.model.defaults.contrast_limits`: background plus three
-robust standard deviations to the 99.9th percentile), so it agrees with the first view.
+Edits ``model.channels[i]`` and ``model.render`` (blend mode, channel mixing, channel
+lighting, isosurface value). Contrast limits are the transfer function's value span: changing
+them stretches the TF's nodes (:meth:`~vtkvol.model.TransferFunction.rescale`); "Auto" sets
+the limits a freshly opened channel gets (:func:`vtkvol.model.defaults.contrast_limits`:
+background plus three robust standard deviations to the 99.9th percentile), so it agrees
+with the first view.
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from PySide6.QtWidgets import (
 from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
+from vtkvol.model.techniques import technique_specs
 from vtkvol.ui.binding import Bindings, signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
@@ -40,6 +42,19 @@ MIXING_LABELS = {
     "additive": "Additive colours (VTK)",
     "composite": "Independent absorbers",
 }
+CHANNEL_LIGHTING_LABELS = {
+    "per_channel": "Per channel (VTK)",
+    "shared": "Shared (one lighting per sample)",
+}
+CHANNEL_LIGHTING_TIP = (
+    "How several channels are lit. Per channel: VTK's, every channel with its own normal "
+    "(exact). Shared: the channels' colours are mixed first and lit once per sample with the "
+    "opacity-weighted normal of the channels — close to per channel (the same where one "
+    "channel shows), at about the cost of one channel's lighting. Shaded composite "
+    "blending only")
+CHANNEL_LIGHTING_MEDIUM_TIP = (
+    " · The current technique lights a scattering medium (no normals): shared lights the "
+    "mixed colour once, which looks the same and costs less")
 INTERPOLATION_LABELS = {
     "trilinear": "Trilinear",
     "corrected": "Corrected trilinear (sharper)",
@@ -232,6 +247,13 @@ class ChannelsDock(ModelDock):
             self.mixing.addItem(label, mode)
         self.mixing_label = QLabel("Channel mixing")
         form.addRow(self.mixing_label, self.mixing)
+        self.channel_lighting = QComboBox()
+        self.channel_lighting.setObjectName("render_multichannel_lighting")
+        self.channel_lighting.setToolTip(CHANNEL_LIGHTING_TIP)
+        for mode, label in CHANNEL_LIGHTING_LABELS.items():
+            self.channel_lighting.addItem(label, mode)
+        self.channel_lighting_label = QLabel("Channel lighting")
+        form.addRow(self.channel_lighting_label, self.channel_lighting)
         self.interpolation = QComboBox()
         self.interpolation.setObjectName("render_interpolation")
         self.interpolation.setToolTip(
@@ -275,6 +297,11 @@ class ChannelsDock(ModelDock):
         b.bind(render, "channel_mixing", self.mixing, self.mixing.currentIndexChanged,
                lambda mode: self.mixing.setCurrentIndex(self.mixing.findData(mode)),
                to_model=lambda i: self.mixing.itemData(i))
+        b.bind(render, "multichannel_lighting", self.channel_lighting,
+               self.channel_lighting.currentIndexChanged,
+               lambda mode: self.channel_lighting.setCurrentIndex(
+                   self.channel_lighting.findData(mode)),
+               to_model=lambda i: self.channel_lighting.itemData(i))
         b.bind(render, "interpolation", self.interpolation,
                self.interpolation.currentIndexChanged,
                lambda mode: self.interpolation.setCurrentIndex(
@@ -305,7 +332,8 @@ class ChannelsDock(ModelDock):
             # Any TF may be the one a linked channel follows: update every row's limits.
             for row in self.rows:
                 row.show_limits()
-        if touches(paths, "render") or touches(paths, "channels", "tf"):
+        if (touches(paths, "render") or touches(paths, "channels", "tf")
+                or touches(paths, "illumination", "method")):
             self._refresh_render()
 
     def refresh(self) -> None:
@@ -325,6 +353,14 @@ class ChannelsDock(ModelDock):
         several = len(self.model.channels) > 1
         self.mixing.setVisible(several)
         self.mixing_label.setVisible(several)
+        # Lighting is shared between channels only where there are several.
+        self.channel_lighting.setVisible(several)
+        self.channel_lighting_label.setVisible(several)
+        self.channel_lighting.setEnabled(render.blend_mode == "composite")
+        spec = technique_specs().get(self.model.illumination.method)
+        medium = spec is not None and spec.lighting == "medium"
+        self.channel_lighting.setToolTip(
+            CHANNEL_LIGHTING_TIP + (CHANNEL_LIGHTING_MEDIUM_TIP if medium else ""))
         iso = render.blend_mode == "isosurface"
         self.iso_row.setVisible(iso)
         self.iso_label.setVisible(iso)

@@ -16,7 +16,7 @@ from vtkvol.engine.offscreen import grab, make_render_window
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.presets import apply_preset
-from vtkvol.model.scene import Light, SceneModel
+from vtkvol.model.scene import MULTICHANNEL_LIGHTINGS, Light, SceneModel
 from vtkvol.model.techniques import get_spec
 
 if TYPE_CHECKING:
@@ -29,6 +29,7 @@ def illuminate(
     *,
     method: str = "local",
     lights: Sequence[Light] | None = None,
+    multichannel_lighting: str = "per_channel",
     **parameters: Any,
 ) -> Illuminator:
     """Give an existing ``vtkVolume`` a vtkvol illumination technique.
@@ -54,6 +55,12 @@ def illuminate(
         World-space :class:`vtkvol.Light` objects (µm); default: the renderer's own lights
         (PyVista's light kit, VTK's headlight), followed at every frame, so the view keeps the
         lighting it had.
+    multichannel_lighting
+        Two to four independent components: ``"per_channel"`` (VTK's, every component lit with
+        its own normal and material) or ``"shared"`` (components classified unlit, mixed, and
+        lit once per sample with the opacity-weighted normal and material: about the cost of
+        one component; :attr:`Illuminator.multichannel_lighting_state` says whether it applies).
+        Later: ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
     **parameters
         Technique parameters (validated against its declaration; ``ValueError`` if bad).
 
@@ -69,10 +76,16 @@ def illuminate(
         renderer = getattr(renderer, "renderer", None)
         if not isinstance(renderer, vtk.vtkRenderer):
             raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
-    return Illuminator(volume, renderer, method=method,
-                       lights="renderer" if lights is None else lights, parameters=parameters,
-                       # lights given: the caller asks for them to shade the volume
-                       keep_local_shading=lights is None)
+    if multichannel_lighting not in MULTICHANNEL_LIGHTINGS:
+        raise ValueError("multichannel_lighting must be 'per_channel' or 'shared', not "
+                         f"{multichannel_lighting!r}")
+    illuminator = Illuminator(volume, renderer, method=method,
+                              lights="renderer" if lights is None else lights,
+                              parameters=parameters,
+                              # lights given: the caller asks for them to shade the volume
+                              keep_local_shading=lights is None)
+    illuminator.set_multichannel_lighting(multichannel_lighting)
+    return illuminator
 
 
 def render_image(

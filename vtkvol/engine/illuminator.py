@@ -34,7 +34,7 @@ from vtkvol.engine import classify, occupancy, shaders, tf2d
 from vtkvol.engine.gl import GLUnavailableError, Texture2D, Texture3D, compute_supported, gl
 from vtkvol.engine.technique import Technique, technique_class
 from vtkvol.model.params import Invalidates
-from vtkvol.model.scene import Light
+from vtkvol.model.scene import MULTICHANNEL_LIGHTINGS, Light
 from vtkvol.model.techniques import TechniqueSpec
 
 logger = logging.getLogger(__name__)
@@ -228,6 +228,9 @@ class Illuminator:
         self._phase_g = 0.0
         self._interpolation = "trilinear"
         self._skip_empty = True
+        self._multichannel_lighting = "per_channel"
+        #: What the last shader build did with multi-channel lighting (multichannel_lighting_state).
+        self._mc_lighting_state = "per_channel"
         #: (key, per-brick ranges, ms the pass took): computed once per data set.
         self._ess_ranges: tuple[tuple, occupancy.BrickRanges, float] | None = None
         self._ess_key: tuple | None = None
@@ -431,6 +434,31 @@ class Illuminator:
                 f"interpolation must be 'trilinear' or 'corrected', not {interpolation!r}"
             )
         self._interpolation = interpolation
+
+    @property
+    def multichannel_lighting(self) -> str:
+        """How two to four independent channels are lit (RenderSettings.multichannel_lighting):
+        ``"per_channel"`` (VTK's: every channel lit with its own normal and material) or
+        ``"shared"`` (the channels classified unlit, mixed, and lit once per sample with the
+        opacity-weighted normal and material; host_multichannel_lighting.glsl)."""
+        return self._multichannel_lighting
+
+    def set_multichannel_lighting(self, mode: str) -> None:
+        """Choose ``"per_channel"`` or ``"shared"`` multi-channel lighting. ``shared`` applies
+        to two to four independent components on a composite blend where the sample is lit
+        (shaded surface lighting without gradient opacity, volumetric scattering or a 2-D
+        transfer function; or a ``medium`` technique); elsewhere, one channel included, the
+        image is unchanged (:attr:`multichannel_lighting_state` says what the last build did)."""
+        if mode not in MULTICHANNEL_LIGHTINGS:
+            raise ValueError(
+                f"multichannel_lighting must be 'per_channel' or 'shared', not {mode!r}")
+        self._multichannel_lighting = mode
+
+    @property
+    def multichannel_lighting_state(self) -> str:
+        """What the last shader build did: ``"shared"``, ``"per_channel"``, or
+        ``"per_channel (<why shared does not apply>)"`` when ``shared`` was asked for."""
+        return self._mc_lighting_state
 
     @property
     def empty_space_skipping(self) -> bool:
@@ -1275,8 +1303,9 @@ class Illuminator:
             )
         interpolation = self._interpolation_sections()
         sections += interpolation
-        multichannel = self._multichannel_sections(shares_gradient=any(
-            "#define VV_IP_SHARE_GRADIENT" in s.code for s in interpolation))
+        multichannel, shared_lighting = self._multichannel_sections(
+            shares_gradient=any("#define VV_IP_SHARE_GRADIENT" in s.code for s in interpolation),
+            lighting=tech.SPEC.lighting)
         sections += multichannel
         if self._ess_stats.get("active"):
             bz, by, bx = self._ess_stats["brick_voxels_zyx"]
@@ -1297,8 +1326,10 @@ class Illuminator:
         ]
         if self.shaded or (tech.SPEC.lighting == "medium" and self._compositing()):
             sections += shaders.load("host_hooks.glsl", hooks)
-            # Multi-channel, shaded surface lighting: one transmittance per light and sample.
-            share_light = bool(multichannel) and self.shaded and tech.SPEC.lighting == "surface"
+            # Multi-channel, shaded surface lighting per channel: one transmittance per light
+            # and sample (shared lighting evaluates the lights once anyway).
+            share_light = (bool(multichannel) and not shared_lighting and self.shaded
+                           and tech.SPEC.lighting == "surface")
             sections += shaders.load(lighting, {"VV_MC_SHARE_LIGHT": "1"} if share_light
                                      else None)
         replacements = shaders.compose(sections)
@@ -1313,26 +1344,60 @@ class Illuminator:
             markers = {shaders.marker(s) for s in sections}
             self._expected_markers = (markers, set(self._technique_uniform_values(values)))
 
-    def _multichannel_sections(self, *, shares_gradient: bool) -> list[shaders.Section]:
+    def _multichannel_sections(self, *, shares_gradient: bool, lighting: str
+                               ) -> tuple[list[shaders.Section], bool]:
         """The multi-channel sample's sections (``host_multichannel.glsl``: VTK's per-component
-        work with constant indices, one set of gradient fetches), or none. For two to four
-        independent components on a composite blend; ``shares_gradient``: the corrected
-        trilinear filter already shares its fetches with the gradient."""
+        work with constant indices, one set of gradient fetches; with shared lighting also
+        ``host_multichannel_lighting.glsl``), or none; and whether the lighting is shared.
+        For two to four independent components on a composite blend; ``shares_gradient``: the
+        corrected trilinear filter already shares its fetches with the gradient; ``lighting``:
+        the technique's lighting model."""
+        self._mc_lighting_state = "per_channel"
         scalars = self.image.GetPointData().GetScalars()
         ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
         prop = self.volume.GetProperty()
         mapper = self.volume.GetMapper()
         if not (self.multichannel_sample and 2 <= ncomp <= 4 and prop.GetIndependentComponents()
                 and mapper.GetBlendMode() == vtk.vtkVolumeMapper.COMPOSITE_BLEND):
-            return []
+            return [], False
         defines = {"VV_MC_COMPONENTS": str(ncomp)}
-        if (self.shaded and not shares_gradient
-                and not any(prop.HasGradientOpacity(c) for c in range(ncomp))
-                and mapper.GetVolumetricScatteringBlending() == 0):
+        share_gradient = (self.shaded and not shares_gradient
+                          and not any(prop.HasGradientOpacity(c) for c in range(ncomp))
+                          and mapper.GetVolumetricScatteringBlending() == 0)
+        if share_gradient:
             # As for the corrected filter: VTK's gradient-opacity variant returns a magnitude
             # and its volumetric shadows take gradients away from the sample.
             defines["VV_MC_SHARE_GRADIENT"] = "1"
-        return shaders.load("host_multichannel.glsl", defines)
+        why_not = self._why_not_shared_lighting(
+            lighting, gradient_shared=share_gradient or shares_gradient)
+        if why_not is not None:
+            if self._multichannel_lighting == "shared":
+                self._mc_lighting_state = f"per_channel ({why_not})"
+            return shaders.load("host_multichannel.glsl", defines), False
+        defines["VV_MC_SHARED_LIGHTING"] = "1"
+        self._mc_lighting_state = "shared"
+        light_defines = None
+        if lighting == "surface":
+            light_defines = {"VV_MC_SHARED_NORMAL": "1", "VV_MC_CHANNEL_GRADIENT":
+                             "vv_ipGradient" if shares_gradient else "vv_mcGradient"}
+        return (shaders.load("host_multichannel.glsl", defines)
+                + shaders.load("host_multichannel_lighting.glsl", light_defines), True)
+
+    def _why_not_shared_lighting(self, lighting: str, *, gradient_shared: bool) -> str | None:
+        """None when the multi-channel sample lights its channels once (shared lighting asked
+        for, and a lit sample whose normal can come from the shared fetches); else why not."""
+        if self._multichannel_lighting != "shared":
+            return "per channel asked for"
+        prop = self.volume.GetProperty()
+        if prop.GetTransferFunctionMode() == vtk.vtkVolumeProperty.TF_2D:
+            return "2-D transfer functions colour from the gradient per channel"
+        if lighting == "medium":
+            return None  # lit on every composited sample, no normal
+        if not self.shaded:
+            return "unshaded: nothing is lit"
+        if not gradient_shared:
+            return "gradient opacity or volumetric scattering take gradients per channel"
+        return None
 
     def _interpolation_sections(self) -> list[shaders.Section]:
         """The corrected-trilinear filter's sections (after the slice weights: both wrap

@@ -293,6 +293,8 @@ class VolumeScene:
                     "trilinear" if nearest else render.interpolation)
         if (every or "empty_space_skipping" in names) and self.illuminator is not None:
             self.illuminator.set_empty_space_skipping(render.empty_space_skipping)
+        if (every or "multichannel_lighting" in names) and self.illuminator is not None:
+            self.illuminator.set_multichannel_lighting(render.multichannel_lighting)
 
     def _apply_all(self) -> None:
         self._on_render_change(None)

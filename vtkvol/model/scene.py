@@ -30,6 +30,9 @@ ChannelMixing = Literal["additive", "composite"]
 #: 40 is some label in between, which would colour the boundary with labels that are not there.
 Interpolation = Literal["trilinear", "corrected", "nearest"]
 INTERPOLATIONS: tuple[str, ...] = Interpolation.__args__  # type: ignore[attr-defined]
+#: How two to four channels are lit (RenderSettings.multichannel_lighting).
+MultichannelLighting = Literal["per_channel", "shared"]
+MULTICHANNEL_LIGHTINGS: tuple[str, ...] = MultichannelLighting.__args__  # type: ignore[attr-defined]
 Vec3 = tuple[float, float, float]
 #: Largest angular radius (°) of a directional light: wider is no longer a "direction".
 MAX_ANGULAR_RADIUS = 45.0
@@ -278,6 +281,24 @@ class RenderSettings(EventedModel):
     #: not change); applies to composite, additive and, with non-decreasing opacity, MIP
     #: blending. docs/empty-space-skipping.md.
     empty_space_skipping: bool = True
+    #: Lighting of two to four channels on a composite blend (unit-free choice).
+    #: ``per_channel`` (VTK's, the exact reference): every channel is lit with its own normal
+    #: (its gradient) and material. ``shared``: every channel is classified unlit (TF colour and
+    #: opacity), and the sample is lit ONCE on the mixed colour (the channels' colours weighted
+    #: by opacity × visibility, as the channel mixing weights them) with ONE normal — the
+    #: weighted sum of the channels' unit normals (each VTK's normalised gradient; turned to the
+    #: viewer first with two-sided lighting), from the gradient fetches already shared — and
+    #: one material (ambient, diffuse, specular, power: the same weighted mean). All lights and
+    #: the technique's shadows, transmittance, ambient occlusion and in-scattering are evaluated
+    #: once instead of once per channel. Where one channel is visible at a sample the result is
+    #: that channel's own lighting; where channels overlap, their normals are averaged.
+    #: ``medium`` techniques (diffusion, path tracing) have no normal: ``shared`` lights the
+    #: mixed colour once with the mixed ambient coefficient, which changes nothing visible
+    #: unless channels' materials differ. No effect on one channel, on unshaded rendering, on
+    #: blends other than composite, with 2-D transfer functions, gradient opacity or VTK's
+    #: volumetric scattering (those keep per-channel lighting). docs/benchmarks.md,
+    #: "Multi-channel frames", has the cost and the measured image difference.
+    multichannel_lighting: MultichannelLighting = "per_channel"
 
     @field_validator("blend_mode", mode="before")
     @classmethod
