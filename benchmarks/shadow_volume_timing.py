@@ -21,6 +21,7 @@ float phantom directly.
 
 from __future__ import annotations
 
+import itertools
 import math
 import statistics
 import time
@@ -66,13 +67,16 @@ def recompute_times(
     models: Sequence[str] = ("transmittance",),
     repeats: int = 5,
     cpu_max_size: int = 128,
+    kernels: Sequence[str] = ("current",),
 ) -> list[Row]:
     """Light-volume recompute times (ms) per size, resolution, model and path.
 
     ``light_ms``: median after a light move (propagation only); ``tf_ms``: median after a
     transfer-function edit (the host's CPU opacity volume, upload, prefilter and propagation);
     ``min`` columns are the fastest of the repeats (the least disturbed by other load). The
-    numpy path is measured up to ``cpu_max_size``.
+    numpy path is measured up to ``cpu_max_size``. ``kernels``: GPU propagation designs
+    measured back to back per configuration (:data:`KERNEL_DESIGNS`; "before" is the design
+    this study replaced, for before/after tables from one run).
     """
     from vtkvol.engine.illuminator import Illuminator
     from vtkvol.model import Light
@@ -87,7 +91,9 @@ def recompute_times(
             backends = ["auto"] + (["cpu"] if n <= cpu_max_size else [])
             for backend in backends:
                 for model in models:
-                    for res in resolutions:
+                    for res, kernel in itertools.product(
+                            resolutions, kernels if backend == "auto" else ("current",)):
+                        _use_kernel_design(kernel)
                         il.set_parameters(backend=backend, model=model, resolution=res)
                         il.set_lights([Light(direction=LIGHT)])
                         rw.Render()  # compile, allocate, first computation
@@ -107,7 +113,7 @@ def recompute_times(
                         cells = grid.dims[0] * grid.dims[1] * grid.dims[2]
                         med = statistics.median(light_ms)
                         rows.append({
-                            "size": n, "model": model, "resolution": res,
+                            "size": n, "model": model, "resolution": res, "kernel": kernel,
                             "backend": tech.stats().get("backend", ""),
                             "grid": "×".join(str(d) for d in grid.dims),
                             "light_ms": med, "light_min_ms": min(light_ms),
@@ -117,9 +123,29 @@ def recompute_times(
                             "light_volume_mib": grid.nbytes_per_light() / 2**20,
                         })
         finally:
+            _use_kernel_design("current")
             il.release()
             rw.Finalize()
     return rows
+
+
+#: Directional-light propagation designs of plugins/shadow_volume/gpu.py (module constants
+#: ``BLOCK``, ``EDGE_STRIPS``): "current" as shipped; "before": 4 cells per invocation and one
+#: kernel that also carries the side-face arm (every cell paid for it on llvmpipe).
+KERNEL_DESIGNS: dict[str, dict[str, Any]] = {
+    "current": {},
+    "before": {"BLOCK": 4, "EDGE_STRIPS": False},
+}
+_SHIPPED: dict[str, Any] = {}
+
+
+def _use_kernel_design(name: str) -> None:
+    from vtkvol.plugins.shadow_volume import gpu
+
+    if not _SHIPPED:
+        _SHIPPED.update(BLOCK=gpu.BLOCK, EDGE_STRIPS=gpu.EDGE_STRIPS)
+    for key, value in {**_SHIPPED, **KERNEL_DESIGNS[name]}.items():
+        setattr(gpu, key, value)
 
 
 def _light_moves(il: Any, rw: Any, tech: ShadowVolume, repeats: int) -> list[float]:
