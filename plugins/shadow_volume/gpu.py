@@ -25,13 +25,16 @@ from vtkvol.plugins.shadow_volume.cpu import (
 #: Work-group size (u, v) of the propagation kernel.
 GROUP = (8, 8)
 #: Cells along u per invocation for directional lights (they share taps; see the kernel).
-BLOCK = 16
+BLOCK = 4
+#: The same when the edge strips are split off (EDGE_STRIPS_MIN_CELLS): fastest measured there.
+SPLIT_BLOCK = 16
 COMPUTE_SOURCE = "propagate.comp.glsl"
-#: Directional transmittance: the block kernel is compiled without the side-face arm and the
-#: edge strips of every slice (rays leaving through a side face) are recomputed by the one-cell
-#: kernel in a second dispatch. False: one kernel with both arms (the previous design, kept
-#: for benchmarks/shadow_volume_timing.py's before/after comparison).
-EDGE_STRIPS = True
+#: Directional transmittance with slices of at least this many cells: the block kernel is
+#: compiled without the side-face arm and the edge strips of every slice (rays leaving through
+#: a side face) are recomputed by the one-cell kernel in a second dispatch. The extra dispatch
+#: and program switch (~0.05 ms a slice on llvmpipe) outweigh the saving below ~192² cells.
+#: None: never (the previous design, kept for benchmarks/shadow_volume_timing.py).
+EDGE_STRIPS_MIN_CELLS: int | None = 192 * 192
 #: Voxels per part of a chunked upload (``prefilter_steps``).
 UPLOAD_SLAB_VOXELS = 1 << 22
 
@@ -210,10 +213,14 @@ class GpuPropagator:
         GL = gl(self.render_window)
         seed = model == "seed000"
         radius, g = (SEED000_RADIUS, np.ones(1)) if seed else gauss_taps(softness)
-        block = 1 if kind == "point" else BLOCK
-        # Directional transmittance: the block kernel assumes every crossing inside the slice
-        # and the one-cell kernel redoes the edge strips (EDGE_STRIPS; see the kernel).
-        split = kind != "point" and not seed and EDGE_STRIPS
+        passes = plan_passes(grid.dims, kind, vec)
+        # Directional transmittance on large slices: the block kernel assumes every crossing
+        # inside the slice and the one-cell kernel redoes the edge strips (see the kernel).
+        split = False
+        if kind != "point" and not seed and EDGE_STRIPS_MIN_CELLS is not None:
+            ua, va = in_plane_axes(passes[0].axis)  # directional: exactly one pass
+            split = grid.dims[ua] * grid.dims[va] >= EDGE_STRIPS_MIN_CELLS
+        block = 1 if kind == "point" else (SPLIT_BLOCK if split else BLOCK)
         prog = self.program(("propagate", seed, out.channels, radius, block, not split))
         edge = self.program(("propagate", seed, out.channels, radius, 1, True)) if split else None
         barrier = GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
@@ -252,7 +259,7 @@ class GpuPropagator:
 
         done = 0
         per_chunk = 4  # slices per chunk; adapted to chunk_s after each measured chunk
-        for p in plan_passes(grid.dims, kind, vec):
+        for p in passes:
             a = p.axis
             ua, va = in_plane_axes(a)
             columns = -(-grid.dims[ua] // block)
