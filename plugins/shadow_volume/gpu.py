@@ -1,5 +1,6 @@
 """Shadow volumes on the GPU: the light texture and the drivers of shaders/propagate.comp.glsl
-(one dispatch per slice; docs/shadow-volume.md). Expects VTK's context to be current.
+(one dispatch per slice, plus one for the edge strips of large directional slices;
+docs/shadow-volume.md §3). Expects VTK's context to be current.
 """
 
 from __future__ import annotations
@@ -97,7 +98,7 @@ class GpuPropagator:
     """Compute programs of shaders/propagate.comp.glsl and their dispatch (GL context current).
 
     Programs are compiled on first use per variant (prefilter; propagate × model × channels ×
-    filter radius × cells per invocation) and kept until :meth:`release`.
+    filter radius × cells per invocation × side-face arm) and kept until :meth:`release`.
     """
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
