@@ -21,6 +21,7 @@ float phantom directly.
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import statistics
@@ -67,13 +68,16 @@ def recompute_times(
     models: Sequence[str] = ("transmittance",),
     repeats: int = 5,
     cpu_max_size: int = 128,
+    kernels: Sequence[str] = ("current",),
 ) -> list[Row]:
     """Light-volume recompute times (ms) per size, resolution, model and path.
 
     ``light_ms``: median after a light move (propagation only); ``tf_ms``: median after a
     transfer-function edit (the host's CPU opacity volume, upload, prefilter and propagation);
     ``min`` columns are the fastest of the repeats (the least disturbed by other load). The
-    numpy path is measured up to ``cpu_max_size``.
+    numpy path is measured up to ``cpu_max_size``. ``kernels``: GPU propagation designs
+    measured back to back per configuration (:data:`KERNEL_DESIGNS`; "before" is the design
+    this study replaced, for before/after tables from one run).
     """
     from vtkvol.engine.illuminator import Illuminator
     from vtkvol.model import Light
@@ -87,47 +91,79 @@ def recompute_times(
         try:
             backends = ["auto"] + (["cpu"] if n <= cpu_max_size else [])
             for backend in backends:
-                for model in models:
-                    for res in resolutions:
-                        il.set_parameters(backend=backend, model=model, resolution=res)
-                        il.set_lights([Light(direction=LIGHT)])
-                        rw.Render()  # compile, allocate, first computation
-                        tech = il.technique
-                        assert isinstance(tech, ShadowVolume)
-                        reps = repeats if backend == "auto" else max(2, repeats // 2)
-                        light_ms = _light_moves(il, rw, tech, reps)
-                        tf_ms = []
-                        for i in range(max(2, reps // 2)):
-                            otf.AddPoint(128.0, 0.5 + 0.01 * (i % 2))  # a real TF edit
-                            count = _recomputes(tech)
-                            rw.Render()
-                            if _recomputes(tech) > count:
-                                tf_ms.append(_recompute_ms(rw, tech))
-                        grid = tech.grid
-                        assert grid is not None
-                        cells = grid.dims[0] * grid.dims[1] * grid.dims[2]
-                        med = statistics.median(light_ms)
+                for model, res in itertools.product(models, resolutions):
+                    designs = kernels if backend == "auto" else ("current",)
+                    times: dict[str, tuple[list[float], list[float]]] = {
+                        k: ([], []) for k in designs}
+                    reps = repeats if backend == "auto" else max(2, repeats // 2)
+                    # Designs interleaved one light move and one TF edit at a time, so slow
+                    # phases of a shared machine hit them alike.
+                    for i in range(reps):
+                        for d, kernel in enumerate(designs):
+                            step = i * len(designs) + d  # a new light and TF every time
+                            _use_kernel_design(kernel)
+                            il.set_parameters(backend=backend, model=model, resolution=res)
+                            if i == 0:
+                                il.set_lights([Light(direction=LIGHT)])
+                                rw.Render()  # compile, allocate, first computation
+                            tech = il.technique
+                            assert isinstance(tech, ShadowVolume)
+                            light_ms, tf_ms = times[kernel]
+                            light_ms += _light_moves(il, rw, tech, 1, step)
+                            if i < max(2, reps // 2):
+                                otf.AddPoint(128.0, 0.5 + 0.01 * (step % 2))  # a real TF edit
+                                count = _recomputes(tech)
+                                rw.Render()
+                                if _recomputes(tech) > count:
+                                    tf_ms.append(_recompute_ms(rw, tech))
+                    grid = il.technique.grid
+                    assert grid is not None
+                    cells = grid.dims[0] * grid.dims[1] * grid.dims[2]
+                    for kernel, (light_ms, tf_ms) in times.items():
                         rows.append({
-                            "size": n, "model": model, "resolution": res,
-                            "backend": tech.stats().get("backend", ""),
+                            "size": n, "model": model, "resolution": res, "kernel": kernel,
+                            "backend": il.technique.stats().get("backend", ""),
                             "grid": "×".join(str(d) for d in grid.dims),
-                            "light_ms": med, "light_min_ms": min(light_ms),
+                            "light_ms": statistics.median(light_ms),
+                            "light_min_ms": min(light_ms),
                             "tf_ms": statistics.median(tf_ms) if tf_ms else math.nan,
                             "tf_min_ms": min(tf_ms) if tf_ms else math.nan,
                             "mcells_per_s": cells / min(light_ms) / 1e3,
                             "light_volume_mib": grid.nbytes_per_light() / 2**20,
                         })
         finally:
+            _use_kernel_design("current")
             il.release()
             rw.Finalize()
     return rows
 
 
-def _light_moves(il: Any, rw: Any, tech: ShadowVolume, repeats: int) -> list[float]:
+#: Directional-light propagation designs of plugins/shadow_volume/gpu.py (its module
+#: constants): "current" as shipped; "before": one kernel that also carries the side-face arm
+#: (every cell paid for it on llvmpipe), 4 cells per invocation.
+KERNEL_DESIGNS: dict[str, dict[str, Any]] = {
+    "current": {},
+    "before": {"EDGE_STRIPS_MIN_CELLS": None},
+}
+_SHIPPED: dict[str, Any] = {}
+
+
+def _use_kernel_design(name: str) -> None:
+    from vtkvol.plugins.shadow_volume import gpu
+
+    if not _SHIPPED:
+        _SHIPPED.update(BLOCK=gpu.BLOCK, SPLIT_BLOCK=gpu.SPLIT_BLOCK,
+                        EDGE_STRIPS_MIN_CELLS=gpu.EDGE_STRIPS_MIN_CELLS)
+    for key, value in {**_SHIPPED, **KERNEL_DESIGNS[name]}.items():
+        setattr(gpu, key, value)
+
+
+def _light_moves(il: Any, rw: Any, tech: ShadowVolume, repeats: int,
+                 first: int = 0) -> list[float]:
     from vtkvol.model import Light
 
     out: list[float] = []
-    for i in range(repeats):
+    for i in range(first, first + repeats):
         angle = math.radians(3.0 * (i + 1) * (-1) ** i)  # small moves about z
         c, s = math.cos(angle), math.sin(angle)
         x, y, z = LIGHT

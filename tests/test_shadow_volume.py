@@ -18,6 +18,7 @@ from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
 from vtkvol.model.techniques import get_spec
 from vtkvol.plugins.shadow_volume import cpu as sv
+from vtkvol.plugins.shadow_volume import gpu as sv_gpu
 from vtkvol.plugins.shadow_volume.technique import ShadowVolume
 from vtkvol.reference import (
     DirectionalLight,
@@ -260,7 +261,11 @@ AGREEMENT_CASES = [
 
 
 @pytest.mark.gl
-def test_gpu_and_cpu_paths_agree():
+@pytest.mark.parametrize("edge_strips_min_cells", [None, 0])
+def test_gpu_and_cpu_paths_agree(monkeypatch, edge_strips_min_cells):
+    # None: one kernel per slice with the side-face arm; 0: the block kernel without it plus
+    # the edge strips redone by the one-cell kernel (used on large slices only).
+    monkeypatch.setattr(sv_gpu, "EDGE_STRIPS_MIN_CELLS", edge_strips_min_cells)
     rw, ren, volume = _agreement_scene()
     il = Illuminator(volume, ren, method="shadow_volume")
     try:

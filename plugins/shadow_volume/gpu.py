@@ -1,9 +1,11 @@
 """Shadow volumes on the GPU: the light texture and the drivers of shaders/propagate.comp.glsl
-(one dispatch per slice; docs/shadow-volume.md). Expects VTK's context to be current.
+(one dispatch per slice, plus one for the edge strips of large directional slices;
+docs/shadow-volume.md §3). Expects VTK's context to be current.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Iterator, Mapping
 from typing import Any
@@ -25,7 +27,15 @@ from vtkvol.plugins.shadow_volume.cpu import (
 GROUP = (8, 8)
 #: Cells along u per invocation for directional lights (they share taps; see the kernel).
 BLOCK = 4
+#: The same when the edge strips are split off (EDGE_STRIPS_MIN_CELLS): fastest measured there.
+SPLIT_BLOCK = 16
 COMPUTE_SOURCE = "propagate.comp.glsl"
+#: Directional transmittance with slices of at least this many cells: the block kernel is
+#: compiled without the side-face arm and the edge strips of every slice (rays leaving through
+#: a side face) are recomputed by the one-cell kernel in a second dispatch. The extra dispatch
+#: and program switch (~0.05 ms a slice on llvmpipe) outweigh the saving below ~192² cells.
+#: None: never (the previous design, kept for benchmarks/shadow_volume_timing.py).
+EDGE_STRIPS_MIN_CELLS: int | None = 192 * 192
 #: Voxels per part of a chunked upload (``prefilter_steps``).
 UPLOAD_SLAB_VOXELS = 1 << 22
 
@@ -56,11 +66,39 @@ class LightTexture(Texture3D):
         super().__init__(render_window, shape_zyx, data=ones, border=1.0, channels=channels)
 
 
+def edge_strips(dims: tuple[int, int, int], axis: int,
+                vec: np.ndarray) -> list[tuple[tuple[int, int], tuple[int, int]]]:
+    """The cells of a slice whose crossing with the previous slice may lie outside it, for a
+    directional light (grid-space ``vec``) swept along ``axis``: up to two rectangles
+    ``((u0, v0), (nu, nv))`` of the slice, one column or row wider than exact (the kernel
+    decides per cell in float32; a cell computed by both kernels gets the same value)."""
+    ua, va = in_plane_axes(axis)
+    strips = []
+    for b, other in ((ua, va), (va, ua)):
+        step = float(vec[b]) / abs(float(vec[axis]))
+        n = dims[b]
+        if step > 0.0:
+            lo = max(0, math.floor(n - 1 - step) - 1)
+            span = (lo, n - lo)
+        elif step < 0.0:
+            span = (0, min(n, math.ceil(-step) + 1))
+        else:
+            continue
+        if span[1] <= 0:
+            continue
+        full = (0, dims[other])
+        if b == ua:
+            strips.append(((span[0], full[0]), (span[1], full[1])))
+        else:
+            strips.append(((full[0], span[0]), (full[1], span[1])))
+    return strips
+
+
 class GpuPropagator:
     """Compute programs of shaders/propagate.comp.glsl and their dispatch (GL context current).
 
     Programs are compiled on first use per variant (prefilter; propagate × model × channels ×
-    filter radius × cells per invocation) and kept until :meth:`release`.
+    filter radius × cells per invocation × side-face arm) and kept until :meth:`release`.
     """
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
@@ -79,8 +117,8 @@ class GpuPropagator:
             else:
                 defines = {
                     "VV_PASS": 1, "VV_SEED000": int(key[1]), "VV_CHANNELS": key[2],
-                    "VV_RADIUS": key[3], "VV_BLOCK": key[4], "VV_GROUP_X": GROUP[0],
-                    "VV_GROUP_Y": GROUP[1],
+                    "VV_RADIUS": key[3], "VV_BLOCK": key[4], "VV_SIDE_FACES": int(key[5]),
+                    "VV_GROUP_X": GROUP[0], "VV_GROUP_Y": GROUP[1],
                 }
             source = compute_source(COMPUTE_SOURCE, {k: str(v) for k, v in defines.items()},
                                     __package__)
@@ -90,11 +128,7 @@ class GpuPropagator:
 
     def _set(self, prog: ComputeProgram, name: str, *values: float, integer: bool = True) -> None:
         GL = gl(self.render_window)
-        handle = int(prog.prog.GetHandle())
-        loc = self._locations.get((handle, name))
-        if loc is None:
-            loc = int(GL.glGetUniformLocation(handle, name))
-            self._locations[(handle, name)] = loc
+        loc = self._location(prog, name)
         if loc < 0:
             return  # optimised away
         fn = {1: "glUniform1", 2: "glUniform2", 3: "glUniform3"}[len(values)]
@@ -207,45 +241,76 @@ class GpuPropagator:
         GL = gl(self.render_window)
         seed = model == "seed000"
         radius, g = (SEED000_RADIUS, np.ones(1)) if seed else gauss_taps(softness)
-        block = 1 if kind == "point" else BLOCK
-        prog = self.program(("propagate", seed, out.channels, radius, block))
+        passes = plan_passes(grid.dims, kind, vec)
+        # Directional transmittance on large slices: the block kernel assumes every crossing
+        # inside the slice and the one-cell kernel redoes the edge strips (see the kernel).
+        split = False
+        if kind != "point" and not seed and EDGE_STRIPS_MIN_CELLS is not None:
+            ua, va = in_plane_axes(passes[0].axis)  # directional: exactly one pass
+            split = grid.dims[ua] * grid.dims[va] >= EDGE_STRIPS_MIN_CELLS
+        block = 1 if kind == "point" else (SPLIT_BLOCK if split else BLOCK)
+        prog = self.program(("propagate", seed, out.channels, radius, block, not split))
+        edge = self.program(("propagate", seed, out.channels, radius, 1, True)) if split else None
         barrier = GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT
 
         def bind(axis: int, p_sweep: int, restrict: bool) -> tuple[int, int]:
-            program = prog.use()
-            self._set(prog, "vv_sigma", 0)
-            self._set(prog, "vv_work", 1)
-            self._set(prog, "vv_out", 2)
-            self._set(prog, "vv_dims", *grid.dims)
-            self._set(prog, "vv_point", int(kind == "point"))
-            self._set(prog, "vv_light", *(float(c) for c in vec), integer=False)
-            self._set(prog, "vv_cellUm", *grid.cell_um, integer=False)
-            self._set(prog, "vv_invUnit", 1.0 / unit_distance, integer=False)
-            self._set(prog, "vv_radius", radius)
-            self._set(prog, "vv_channel", channel)
-            program.SetUniform1fv("vv_gauss", radius + 1, [float(x) for x in g])
+            if edge is not None:
+                set_uniforms(edge, axis, p_sweep, restrict)
+                self._set(edge, "vv_cellOrigin", 0, 0)
+                edge_locs[:] = [self._location(edge, n) for n in
+                                ("vv_slice", "vv_first", "vv_cellOrigin")]
+            set_uniforms(prog, axis, p_sweep, restrict)
             sigma.bind_image(0, "read")
             out.bind_image(2, "write" if out.channels == 1 else "readwrite")
             work[axis].bind_image(1, "readwrite")
-            self._set(prog, "vv_axis", axis)
-            self._set(prog, "vv_sweep", p_sweep)
-            self._set(prog, "vv_restrict", int(restrict))
             return self._location(prog, "vv_slice"), self._location(prog, "vv_first")
+
+        edge_locs: list[int] = []
+
+        def set_uniforms(target: ComputeProgram, axis: int, p_sweep: int, restrict: bool) -> None:
+            program = target.use()
+            self._set(target, "vv_sigma", 0)
+            self._set(target, "vv_work", 1)
+            self._set(target, "vv_out", 2)
+            self._set(target, "vv_dims", *grid.dims)
+            self._set(target, "vv_point", int(kind == "point"))
+            self._set(target, "vv_light", *(float(c) for c in vec), integer=False)
+            self._set(target, "vv_cellUm", *grid.cell_um, integer=False)
+            self._set(target, "vv_invUnit", 1.0 / unit_distance, integer=False)
+            self._set(target, "vv_radius", radius)
+            self._set(target, "vv_channel", channel)
+            program.SetUniform1fv("vv_gauss", radius + 1, [float(x) for x in g])
+            self._set(target, "vv_axis", axis)
+            self._set(target, "vv_sweep", p_sweep)
+            self._set(target, "vv_restrict", int(restrict))
+            self._set(target, "vv_cellOrigin", 0, 0)
 
         done = 0
         per_chunk = 4  # slices per chunk; adapted to chunk_s after each measured chunk
-        for p in plan_passes(grid.dims, kind, vec):
+        for p in passes:
             a = p.axis
             ua, va = in_plane_axes(a)
             columns = -(-grid.dims[ua] // block)
             groups = (-(-columns // GROUP[0]), -(-grid.dims[va] // GROUP[1]), 1)
+            strips = edge_strips(grid.dims, a, vec) if edge is not None else []
             slice_loc, first_loc = bind(a, p.sweep, p.restrict)
             issued, t0 = 0, time.perf_counter()
             for index, k in enumerate(p.slices):
+                if strips:
+                    prog.use()
                 GL.glUniform1i(slice_loc, k)
                 GL.glUniform1i(first_loc, int(index == 0))
                 GL.glDispatchCompute(*groups)
                 GL.glMemoryBarrier(barrier)
+                if strips:
+                    assert edge is not None
+                    edge.use()
+                    GL.glUniform1i(edge_locs[0], k)
+                    GL.glUniform1i(edge_locs[1], int(index == 0))
+                    for (u0, v0), (nu, nv) in strips:
+                        GL.glUniform2i(edge_locs[2], u0, v0)
+                        GL.glDispatchCompute(-(-nu // GROUP[0]), -(-nv // GROUP[1]), 1)
+                    GL.glMemoryBarrier(barrier)
                 done += 1
                 issued += 1
                 if chunk_s is not None and issued >= per_chunk and index + 1 < len(p.slices):
@@ -270,8 +335,12 @@ class GpuPropagator:
         return sum(len(p.slices) for p in plan_passes(grid.dims, kind, vec))
 
     def _location(self, prog: ComputeProgram, name: str) -> int:
-        self._set(prog, name, 0)  # caches the location
-        return self._locations[(int(prog.prog.GetHandle()), name)]
+        handle = int(prog.prog.GetHandle())
+        loc = self._locations.get((handle, name))
+        if loc is None:
+            loc = int(gl(self.render_window).glGetUniformLocation(handle, name))
+            self._locations[(handle, name)] = loc
+        return loc
 
     @staticmethod
     def _unbind_images(GL: Any, count: int) -> None:

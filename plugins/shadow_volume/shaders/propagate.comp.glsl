@@ -13,6 +13,12 @@
 //   VV_RADIUS    R: the neighbourhood filter has (2R + 2)^2 taps (seed000: R = 3, 8 x 8)
 //   VV_BLOCK     cells along u per invocation: 1 (point lights) or more (directional lights)
 //   VV_GROUP_X/Y work-group size of the propagation
+//   VV_SIDE_FACES 1: finishCell handles rays that leave through a side face before the previous
+//                slice; 0: it assumes every crossing lies inside the slice (the directional
+//                block kernel: the driver recomputes the few edge cells with the one-cell kernel
+//                in a second dispatch per slice). llvmpipe executes both arms of a divergent
+//                branch under a mask, so the rare side-face arm (16 extra loads and an exp per
+//                cell) would otherwise cost every cell.
 //
 // Spaces: "grid" = index space of the light grid (cell centres at integers, same point bounds
 // as the data; cell edge vv_cellUm µm per axis, possibly anisotropic). Slices are planes of
@@ -126,6 +132,9 @@ layout(local_size_x = VV_GROUP_X, local_size_y = VV_GROUP_Y, local_size_z = 1) i
 #ifndef VV_BLOCK
 #define VV_BLOCK 1
 #endif
+#ifndef VV_SIDE_FACES
+#define VV_SIDE_FACES 1
+#endif
 #define NTAP (2 * VV_RADIUS + 2)
 
 layout(r32f) uniform readonly image3D vv_sigma;    // s per light-grid cell
@@ -150,6 +159,7 @@ uniform vec3 vv_cellUm;      // grid cell edge per axis, µm
 uniform float vv_invUnit;    // 1 / opacity unit distance, 1/µm
 uniform float vv_gauss[VV_RADIUS + 1];  // normalised discrete Gaussian g(0..R) (transmittance)
 uniform int vv_channel;      // output channel (light index)
+uniform ivec2 vv_cellOrigin; // one-cell kernel: (u, v) of invocation (0, 0) (edge strips)
 
 ivec3 gridPos(int u, int v, int k)
 {
@@ -258,11 +268,16 @@ void finishCell(int u, int v, int k, int kp, vec3 stepCells, float acc, float sA
     // Point light less than one slice away: straight to the light through this cell's medium.
     vis = exp(-sA * length((vec3(A) - vv_light) * vv_cellUm) * vv_invUnit);
   }
+#if VV_SIDE_FACES
   else if (insideSlice(pu, pv))
+#else
+  else   // the crossing lies inside the slice, or the cell is computed again (edge strips)
+#endif
   {
     // clamp(): the weights sum to 1 only up to rounding.
     vis = clamp((1.0 - acc) * exp(-(4.0 * sM + sA) / 6.0 * depthPerS), 0.0, 1.0);
   }
+#if VV_SIDE_FACES
   else
   {
     // The ray leaves through a side face before the previous slice, after a fraction f of the
@@ -284,10 +299,13 @@ void finishCell(int u, int v, int k, int kp, vec3 stepCells, float acc, float sA
                             kp);
     vis = exp(-(sA + 4.0 * sMf + sE) / 6.0 * f * depthPerS);
   }
+#endif
   stored = 1.0 - vis * exp(-sA / 6.0 * depthPerS);
 #endif
   imageStore(vv_work, ivec3(u, v, k & 1), vec4(stored));
 
+#if VV_BLOCK == 1
+  // Only the one-cell kernel serves point lights (the check costs every cell on llvmpipe).
   if (vv_restrict == 1)
   {
     // Point light: this pass owns the cells whose largest |A - L| component (grid cells) is
@@ -302,6 +320,7 @@ void finishCell(int u, int v, int k, int kp, vec3 stepCells, float acc, float sA
       }
     }
   }
+#endif
 #if VV_CHANNELS == 1
   imageStore(vv_out, A, vec4(vis));
 #else
@@ -312,13 +331,14 @@ void finishCell(int u, int v, int k, int kp, vec3 stepCells, float acc, float sA
 }
 
 #if VV_BLOCK == 1
-// One cell per invocation (point lights: the crossing's offset differs per cell).
+// One cell per invocation (point lights: the crossing's offset differs per cell; directional
+// lights: the edge strips of a slice whose rays leave through a side face, vv_cellOrigin).
 void main()
 {
   int ua = vv_axis == 0 ? 1 : 0;
   int va = vv_axis == 2 ? 1 : 2;
-  int u = int(gl_GlobalInvocationID.x);
-  int v = int(gl_GlobalInvocationID.y);
+  int u = vv_cellOrigin.x + int(gl_GlobalInvocationID.x);
+  int v = vv_cellOrigin.y + int(gl_GlobalInvocationID.y);
   if (u >= vv_dims[ua] || v >= vv_dims[va])
   {
     return;
