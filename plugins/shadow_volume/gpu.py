@@ -169,17 +169,7 @@ class GpuPropagator:
             nx, ny, nz = grid.data_dims
             prog.dispatch((-(-nx // 8), -(-ny // 8), -(-nz // 4)))
             if not full:
-                prog = self.program(("reduce",))
-                prog.use()
-                self._set(prog, "vv_sigmaData", 0)
-                self._set(prog, "vv_sigmaOut", 1)
-                self._set(prog, "vv_dataDims", *grid.data_dims)
-                self._set(prog, "vv_gridDims", *grid.dims)
-                self._set(prog, "vv_gridStep", *grid.step, integer=False)
-                data.bind_image(0, "read")
-                sigma.bind_image(1, "write")
-                mx, my, mz = grid.dims
-                prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
+                prog = self._reduce(data, sigma, grid)
             self._unbind_images(GL, 2)
             prog.done()
             if chunked:
@@ -199,22 +189,29 @@ class GpuPropagator:
         if grid.dims == grid.data_dims:
             depth.copy_to(sigma)
         else:
-            prog = self.program(("reduce",))
-            prog.use()
-            self._set(prog, "vv_sigmaData", 0)
-            self._set(prog, "vv_sigmaOut", 1)
-            self._set(prog, "vv_dataDims", *grid.data_dims)
-            self._set(prog, "vv_gridDims", *grid.dims)
-            self._set(prog, "vv_gridStep", *grid.step, integer=False)
-            depth.bind_image(0, "read")
-            sigma.bind_image(1, "write")
-            mx, my, mz = grid.dims
-            prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
+            prog = self._reduce(depth, sigma, grid)
             self._unbind_images(GL, 2)
             prog.done()
         if chunked:
             GL.glFinish()
         yield 1.0
+
+    def _reduce(self, data: Texture3D, sigma: Texture3D, grid: LightGrid) -> ComputeProgram:
+        """Dispatch pass 2: s per data voxel in ``data`` -> its box average per cell of the
+        coarser light grid in ``sigma``. Returns the program (in use, images bound) for the
+        caller to unbind and finish."""
+        prog = self.program(("reduce",))
+        prog.use()
+        self._set(prog, "vv_sigmaData", 0)
+        self._set(prog, "vv_sigmaOut", 1)
+        self._set(prog, "vv_dataDims", *grid.data_dims)
+        self._set(prog, "vv_gridDims", *grid.dims)
+        self._set(prog, "vv_gridStep", *grid.step, integer=False)
+        data.bind_image(0, "read")
+        sigma.bind_image(1, "write")
+        mx, my, mz = grid.dims
+        prog.dispatch((-(-mx // 8), -(-my // 8), -(-mz // 4)))
+        return prog
 
     def propagate(
         self, sigma: Texture3D, work: Mapping[int, Texture3D], out: LightTexture,

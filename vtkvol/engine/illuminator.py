@@ -935,12 +935,7 @@ class Illuminator:
             return None
         reason = self._classify_failed or classify.unsupported_reason(self.volume, self.image)
         if reason:
-            if self._classification == "gpu":
-                raise GLUnavailableError(f"GPU classification is not possible: {reason}")
-            if stats["reason"] != reason:
-                logger.warning("vtkvol: classification on the CPU (numpy): %s", reason)
-            stats["reason"] = reason
-            return None
+            return self._numpy_classification(reason)
         if self._classifier is None:
             window = self.render_window
             assert window is not None
@@ -950,13 +945,17 @@ class Illuminator:
             self._classifier = classify.GpuClassifier(window)
         too_large = self._classifier.unsupported(self.image)
         if too_large:
-            if self._classification == "gpu":
-                raise GLUnavailableError(f"GPU classification is not possible: {too_large}")
-            if stats["reason"] != too_large:
-                logger.warning("vtkvol: classification on the CPU (numpy): %s", too_large)
-            stats["reason"] = too_large
-            return None
+            return self._numpy_classification(too_large)
         return self._classifier
+
+    def _numpy_classification(self, reason: str) -> None:
+        """The GPU cannot classify this volume for ``reason``: an error when
+        :attr:`classification` is ``"gpu"``, else numpy classifies (one warning per reason)."""
+        if self._classification == "gpu":
+            raise GLUnavailableError(f"GPU classification is not possible: {reason}")
+        if self._classify_stats["reason"] != reason:
+            logger.warning("vtkvol: classification on the CPU (numpy): %s", reason)
+        self._classify_stats["reason"] = reason
 
     def _disable_gpu_classification(self, why: str) -> None:
         self._classify_failed = why
