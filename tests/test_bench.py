@@ -554,3 +554,32 @@ def test_regenerating_keeps_the_hand_written_sections(tmp_path):
     text = page.read_text(encoding="utf-8")
     assert text.count(report.KEPT_MARKER) == 1 and text.endswith("measured by hand\n")
     assert text.startswith("# vtkvol benchmarks")
+
+
+def test_cpu_path_for_the_voxel_error_runs_with_the_declared_values():
+    """The per-voxel check runs a technique's CPU light path with its ``cpu_path_values`` over
+    the setting's values (hybrid diffusion: 8 samples, not 256), and its result is checked."""
+    from types import SimpleNamespace
+
+    from vtkvol.model.techniques import get_spec
+
+    seen: list[dict] = []
+
+    class Recorder:
+        SPEC = get_spec("hybrid_diffusion")
+
+        def __init__(self, host: object) -> None:
+            pass
+
+        def light_visibility_cpu(self, opacity, spacing, light, values):
+            seen.append(dict(values))
+            return np.full(opacity.shape, np.nan)  # a broken result: reported, no reference
+
+    scene = phantom_scenes(16)[0]
+    ctx = SimpleNamespace(techniques={"hybrid_diffusion": Recorder}, slow_cpu_paths=set(),
+                          rig=SimpleNamespace(illuminator=None), config=runner.QUICK)
+    setting = runner.Setting("hybrid_diffusion", {"max_iterations": 256, "seed": 3}, "HD", "HD")
+    metrics, problem = runner._voxel_metrics(ctx, scene, setting, np.zeros((8, 8, 8)),
+                                             force=True)
+    assert seen == [{"max_iterations": 8, "seed": 3}]
+    assert metrics == {} and problem == "light_visibility_cpu: 512 non-finite voxels"

@@ -128,3 +128,12 @@ def test_applies_when_and_merged_invalidations():
     assert angle.applies({**s.defaults(), "mode": "b"})
     assert s.invalidations({"mode", "angle"}) == Invalidates.SHADER | Invalidates.ILLUMINATION
     assert s.invalidations({"unknown"}) == Invalidates(0)
+
+
+def test_cpu_path_values_are_validated_like_parameters():
+    p = Param("samples", 4, "Samples", "", kind="int", range=(1, 64), step=1)
+    assert spec(parameters=(p,), cpu_path_values={"samples": 2}).cpu_path_values == {"samples": 2}
+    with pytest.raises(ValueError, match="samples"):
+        spec(parameters=(p,), cpu_path_values={"samples": 1000})
+    with pytest.raises(ValueError, match="unknown"):
+        spec(parameters=(p,), cpu_path_values={"iterations": 2})

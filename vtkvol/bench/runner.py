@@ -277,8 +277,9 @@ def _voxel_metrics(ctx: Context, scene: Scene, setting: Setting, opacity: np.nda
     if cls is None or (setting.method in ctx.slow_cpu_paths and not force):
         return {}, ""
     tech = cls(ctx.rig.illuminator)
+    values = {**setting.values, **cls.SPEC.cpu_path_values}
     t0 = time.perf_counter()
-    vis = tech.light_visibility_cpu(opacity, scene.spacing, _light_spec(scene), setting.values)
+    vis = tech.light_visibility_cpu(opacity, scene.spacing, _light_spec(scene), values)
     if vis is None:
         return {}, ""
     if time.perf_counter() - t0 > ctx.config.voxel_metric_seconds:

@@ -96,6 +96,11 @@ class TechniqueSpec:
         Settings the benchmark measures; empty = the declared defaults only.
     stability
         Settings the stability sweep runs (each on every stress case); empty = defaults only.
+    cpu_path_values
+        Parameter values (over each benchmarked setting's) with which the benchmark runs the
+        CPU light path for its per-voxel error: a stochastic path's sample count, so that
+        check costs seconds per scene instead of the tens of minutes a converged numpy
+        estimate takes; empty = the setting's own values.
     """
 
     name: str
@@ -107,6 +112,7 @@ class TechniqueSpec:
     capabilities: frozenset[str] = field(default_factory=frozenset)
     bench: tuple[BenchSetting, ...] = ()
     stability: tuple[BenchSetting, ...] = ()
+    cpu_path_values: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not self.name.isidentifier():
@@ -137,6 +143,7 @@ class TechniqueSpec:
                     )
         for setting in (*self.bench, *self.stability):
             self.validate(setting.values)
+        self.validate(self.cpu_path_values)
 
     def has(self, capability: str) -> bool:
         return capability in self.capabilities
