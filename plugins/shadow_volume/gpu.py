@@ -36,8 +36,6 @@ COMPUTE_SOURCE = "propagate.comp.glsl"
 #: and program switch (~0.05 ms a slice on llvmpipe) outweigh the saving below ~192² cells.
 #: None: never (the previous design, kept for benchmarks/shadow_volume_timing.py).
 EDGE_STRIPS_MIN_CELLS: int | None = 192 * 192
-#: Voxels per part of a chunked upload (``prefilter_steps``).
-UPLOAD_SLAB_VOXELS = 1 << 22
 
 
 def ensure_work_textures(window: vtk.vtkRenderWindow, work: dict[int, Texture3D],
@@ -135,31 +133,19 @@ class GpuPropagator:
         getattr(GL, fn + ("i" if integer else "f"))(loc, *values)
 
     def prefilter(self, alpha: np.ndarray, sigma: Texture3D, grid: LightGrid) -> None:
-        """TF opacity ``alpha`` (data resolution, ``[z, y, x]``) -> s on the light grid.
+        """TF opacity ``alpha`` (data resolution, ``[z, y, x]``, numpy) -> s on the light grid,
+        for techniques that derive their own opacities (translucency's per-channel ones; the
+        shadow volume reads the host's optical depth, :meth:`prefilter_texture_steps`).
 
         Full resolution: uploaded into ``sigma`` itself and converted in place (no extra
         memory). Coarser grids: a temporary data-resolution texture, converted in place, then
         reduced by box averaging into ``sigma``.
         """
-        for _ in self.prefilter_steps(alpha, sigma, grid, chunked=False):
-            pass
-
-    def prefilter_steps(self, alpha: np.ndarray, sigma: Texture3D, grid: LightGrid, *,
-                        chunked: bool) -> Iterator[float]:
-        """:meth:`prefilter` yielding the fraction done; ``chunked``: the upload goes in
-        slabs of about :data:`UPLOAD_SLAB_VOXELS` and every part is waited for."""
         GL = gl(self.render_window)
         full = grid.dims == grid.data_dims
         data = sigma if full else Texture3D(self.render_window, alpha.shape)
         try:
-            nz = alpha.shape[0]
-            slab = nz if not chunked else max(
-                1, UPLOAD_SLAB_VOXELS // max(1, alpha.shape[1] * alpha.shape[2]))
-            for z0 in range(0, nz, slab):
-                data.upload_slab(alpha[z0:z0 + slab], z0)
-                if chunked:
-                    GL.glFinish()
-                    yield 0.6 * min(z0 + slab, nz) / nz
+            data.upload(alpha)
             data.tex.Deactivate()  # upload bound it to a unit; image units are separate
             prog = self.program(("convert",))
             prog.use()
@@ -172,9 +158,6 @@ class GpuPropagator:
                 prog = self._reduce(data, sigma, grid)
             self._unbind_images(GL, 2)
             prog.done()
-            if chunked:
-                GL.glFinish()
-            yield 1.0
         finally:
             if not full:
                 data.release()
