@@ -143,19 +143,13 @@ def test_crop_regions_clipping_plane_and_slice_weights_equal_numpy(made):
 
 
 def test_2d_transfer_function_with_painted_layer_equals_numpy():
-    from test_tf2d_engine import View, sphere_and_slab
+    from test_tf2d_engine import View
     from test_tf2d_paint import blob as paint_blob
+    from test_tf2d_paint import interiors_scene
 
-    from vtkvol.model.defaults import scene_for
     from vtkvol.model.tf_paint import TFPaintLayer
-    from vtkvol.model.transfer_function import TFPrimitive, TransferFunction2D
 
-    data = sphere_and_slab()
-    model = scene_for(data)
-    model.illumination.method = "shadow_volume"
-    model.channels[0].tf2d = TransferFunction2D(primitives=[TFPrimitive(
-        value_range=(150.0, 300.0), gradient_range=(0.0, 4.0), opacity=0.5)])
-    model.channels[0].tf_mode = "2d"
+    data, model = interiors_scene()
     view = View(data, model)
     try:
         (v0, v1), (g0, g1) = view.scene.tf2d_axes(0)

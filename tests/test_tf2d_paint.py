@@ -37,6 +37,18 @@ def blob(layer: TFPaintLayer, centre: tuple[float, float], radius: float,
 
 
 # -- the brush ---------------------------------------------------------------------------------
+def interiors_scene() -> tuple[np.ndarray, object]:
+    """The sphere over a slab with shadows and a 2-D TF that classifies interiors only (low
+    gradients): the sphere's flanks are left for a painted layer to add."""
+    data = sphere_and_slab()
+    model = scene_for(data)
+    model.illumination.method = "shadow_volume"
+    model.channels[0].tf2d = TransferFunction2D(primitives=[TFPrimitive(
+        value_range=(150.0, 300.0), gradient_range=(0.0, 4.0), opacity=0.5)])
+    model.channels[0].tf_mode = "2d"
+    return data, model
+
+
 def test_stroke_mask_covers_the_segments_within_the_radius_with_a_one_pixel_edge() -> None:
     mask = stroke_mask((32, 48), [(10.0, 8.0), (30.0, 8.0)], 3.0)
     assert mask[8, 10:31].min() == 1.0 and mask[10, 20] == 1.0  # on and 2 px off the line
@@ -194,13 +206,7 @@ def test_hostile_paint_in_a_session_gives_one_line_with_its_path(tmp_path: Path)
 # -- engine: the opacity volume and the image follow the paint (GL) ----------------------------
 @pytest.mark.gl
 def test_painted_blob_adds_opacity_to_its_voxels_and_the_eraser_restores_them() -> None:
-    data = sphere_and_slab()
-    model = scene_for(data)
-    model.illumination.method = "shadow_volume"
-    # Interiors only (low gradients): the sphere's flanks are not classified yet.
-    model.channels[0].tf2d = TransferFunction2D(primitives=[TFPrimitive(
-        value_range=(150.0, 300.0), gradient_range=(0.0, 4.0), opacity=0.5)])
-    model.channels[0].tf_mode = "2d"
+    data, model = interiors_scene()
     view = View(data, model)
     try:
         image0 = view.image()
