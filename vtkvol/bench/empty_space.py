@@ -170,16 +170,14 @@ def main(quick: bool = False, out: str = "vtkvol-bench", size: int | None = None
     import sys
     from dataclasses import replace
 
+    from vtkvol.bench.runner import bench_command, check_size
     from vtkvol.io import VolumeReadError
 
     config = QUICK if quick else FULL
+    check_size(size)
     if size is not None:
-        if size < 16:
-            raise ValueError(f"--size must be at least 16 voxels, got {size}")
         config = replace(config, size=int(size))
-    command = "vtkvol bench --empty-space" + (" --quick" if quick else "") + (
-        f" --size {size}" if size is not None else "") + f" -o {out}" + "".join(
-        f" --data {Path(d).name}" for d in data)
+    command = bench_command(" --empty-space", quick, size, out, data)
     try:
         scenes = phantom_scenes(config.size) + app_scenes(data)
     except VolumeReadError as exc:

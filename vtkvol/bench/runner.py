@@ -766,6 +766,21 @@ def _time_load() -> dict[str, Any]:
             "shape_czyx": list(result["shape_czyx"]), "file_bytes": result["file_bytes"]}
 
 
+def check_size(size: int | None) -> None:
+    """``--size``: at least 16 voxels (``ValueError`` naming the value)."""
+    if size is not None and size < 16:
+        raise ValueError(f"--size must be at least 16 voxels, got {size}")
+
+
+def bench_command(mode_flag: str, quick: bool, size: int | None, out: str,
+                  data: Sequence[str]) -> str:
+    """The command line a run records (``mode_flag``: "", " --scattering", " --empty-space");
+    data files by name only, so results from different machines compare."""
+    return ("vtkvol bench" + mode_flag + (" --quick" if quick else "")
+            + (f" --size {size}" if size is not None else "") + f" -o {out}"
+            + "".join(f" --data {Path(d).name}" for d in data))
+
+
 def main_scattering(quick: bool = False, out: str = "vtkvol-bench", size: int | None = None,
                     data: Sequence[str] = ()) -> int:
     """``vtkvol bench --scattering -o DIR [--quick] [--size N] [--data FILE]…``: the convergence
@@ -778,13 +793,10 @@ def main_scattering(quick: bool = False, out: str = "vtkvol-bench", size: int | 
 
     config = StudyConfig(mode="quick", size=32, image_size=128, max_seconds=90.0) if quick \
         else StudyConfig()
+    check_size(size)
     if size is not None:
-        if size < 16:
-            raise ValueError(f"--size must be at least 16 voxels, got {size}")
         config = replace(config, size=int(size))
-    command = "vtkvol bench --scattering" + (" --quick" if quick else "") + (
-        f" --size {size}" if size is not None else "") + f" -o {out}" + "".join(
-        f" --data {Path(d).name}" for d in data)
+    command = bench_command(" --scattering", quick, size, out, data)
     try:
         scenes = phantom_scenes(config.size) + file_scenes(data, max_size=config.size)
     except VolumeReadError as exc:
@@ -810,14 +822,11 @@ def main(quick: bool = False, out: str = "vtkvol-bench", size: int | None = None
     are written either way).
     """
     config = QUICK if quick else FULL
+    check_size(size)
     if size is not None:
-        if size < 16:
-            raise ValueError(f"--size must be at least 16 voxels, got {size}")
         config = replace(config, size=int(size), stability_size=min(int(size),
                                                                       config.stability_size))
-    command = "vtkvol bench" + (" --quick" if quick else "") + (
-        f" --size {size}" if size is not None else "") + f" -o {out}" + "".join(
-        f" --data {Path(d).name}" for d in data)
+    command = bench_command("", quick, size, out, data)
     from vtkvol.io import VolumeReadError
 
     try:
