@@ -534,12 +534,33 @@ def cmd_convert(args: argparse.Namespace) -> int:
     return 0
 
 
+def no_display_reason() -> str | None:
+    """Why Qt cannot open a window here, or None when it can (as far as the environment says).
+
+    On Linux and the BSDs a window needs an X server ($DISPLAY) or a Wayland compositor
+    ($WAYLAND_DISPLAY), unless $QT_QPA_PLATFORM names a platform that needs neither (offscreen,
+    vnc, eglfs…); macOS and Windows always have one.
+    """
+    if not sys.platform.startswith(("linux", "freebsd", "openbsd", "netbsd")):
+        return None
+    if os.environ.get("QT_QPA_PLATFORM") or os.environ.get("DISPLAY"):
+        return None
+    if os.environ.get("WAYLAND_DISPLAY"):
+        return None
+    return "no display found (neither DISPLAY nor WAYLAND_DISPLAY is set)"
+
+
 def cmd_open(args: argparse.Namespace) -> int:
     if args.time is not None and args.time < 0:
         print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
         return 2
     if args.time and args.file is None:
         print("vtkvol: --time does not apply to the built-in sample (it has one time point)",
+              file=sys.stderr)
+        return 2
+    if no_display_reason() is not None:
+        print(f"vtkvol: {no_display_reason()}; the app needs a desktop session. Headless, render "
+              f"images instead: vtkvol render {args.file or 'sample'} -o view.png",
               file=sys.stderr)
         return 2
     try:
