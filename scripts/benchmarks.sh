@@ -6,6 +6,9 @@
 # nuclei stacks, into its own section of the same files.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+# shellcheck source=scripts/project-env.sh
+. scripts/project-env.sh
+vtkvol_env_install test  # the project's .venv (or the active environment), as test.sh makes it
 DATA=../shared/data
 args=()
 for f in Bead_Image1_crop.tif platynereis_nuclei_labels_256x256x103.tif \
@@ -13,10 +16,10 @@ for f in Bead_Image1_crop.tif platynereis_nuclei_labels_256x256x103.tif \
   if [ -f "$DATA/$f" ]; then args+=(--data "$DATA/$f"); fi
 done
 status=0
-vtkvol bench -o docs "${args[@]}" "$@" || status=$?  # 1: some setting failed (recorded)
+"$VTKVOL_BIN/vtkvol" bench -o docs "${args[@]}" "$@" || status=$?  # 1: some setting failed (recorded)
 sparse=()
 for f in Bead_Image1_crop.tif platynereis_nuclei_labels_256x256x103.tif; do
   if [ -f "$DATA/$f" ]; then sparse+=(--data "$DATA/$f"); fi
 done
-vtkvol bench --empty-space -o docs "${sparse[@]}" "$@" || status=$?
+"$VTKVOL_BIN/vtkvol" bench --empty-space -o docs "${sparse[@]}" "$@" || status=$?
 exit "$status"
