@@ -135,7 +135,7 @@ def test_other_mappers_are_refused_with_what_to_do():
     rw.Finalize()
 
 
-def test_illuminate_follows_the_renderers_own_lights():
+def test_illuminate_follows_the_renderers_own_lights_when_asked():
     import vtkvol
 
     rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
@@ -146,7 +146,7 @@ def test_illuminate_follows_the_renderers_own_lights():
     light.SetDiffuseColor(1.0, 0.5, 0.25)
     light.SetIntensity(0.8)
     ren.AddLight(light)
-    il = vtkvol.illuminate(volume, ren)
+    il = vtkvol.illuminate(volume, ren, lights="renderer")
     grab(rw)
     (spec,) = il.light_specs()
     assert spec.kind == "directional"
@@ -158,6 +158,88 @@ def test_illuminate_follows_the_renderers_own_lights():
     il.set_lights([vtkvol.Light(direction=(0.0, 1.0, 0.0))])  # explicit lights win from now on
     grab(rw)
     assert il.light_specs()[0].vector == pytest.approx((0.0, 1.0, 0.0))
+    il.release()
+    rw.Finalize()
+
+
+def test_by_default_the_renderers_lights_are_taken_once_and_stay_in_the_world():
+    """A library user's default: VTK's headlight at the first frame becomes a world-fixed key
+    light above and beside the view; a camera move then moves no light and recomputes no
+    shadow volume (following the headlight recomputed it at every move)."""
+    import vtkvol
+    from vtkvol.engine.illuminator import key_light_direction
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    camera = ren.GetActiveCamera()
+    expected = key_light_direction(camera)
+    grab(rw)
+    (spec,) = il.light_specs()
+    assert spec.kind == "directional"
+    assert spec.vector == pytest.approx(expected)
+    to_camera = np.subtract(camera.GetPosition(), camera.GetFocalPoint())
+    to_camera /= np.linalg.norm(to_camera)
+    angle = np.degrees(np.arccos(np.dot(spec.vector, to_camera)))
+    assert angle == pytest.approx(np.degrees(np.arccos(np.cos(np.radians(50))
+                                                        * np.cos(np.radians(10)))), abs=0.01)
+    prepared: list = []
+    technique = il.technique
+    original = technique.prepare
+    technique.prepare = lambda changes, values: (prepared.append(changes), original(changes,
+                                                                                    values))[1]
+    for _ in range(3):
+        camera.Azimuth(40.0)
+        ren.ResetCameraClippingRange()
+        grab(rw)
+    assert il.light_specs()[0].vector == pytest.approx(expected)  # fixed in the world
+    assert [c for c in prepared if c.lights] == []  # no recomputation of the light
+    il.release()
+    rw.Finalize()
+
+
+def test_following_the_headlight_recomputes_at_every_camera_move():
+    """The opt-in ``lights="renderer"``: the headlight turns with the camera, and so does
+    the shadow volume's light (what the default avoids)."""
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume", lights="renderer")
+    grab(rw)
+    first = il.light_specs()[0].vector
+    prepared: list = []
+    technique = il.technique
+    original = technique.prepare
+    technique.prepare = lambda changes, values: (prepared.append(changes), original(changes,
+                                                                                    values))[1]
+    ren.GetActiveCamera().Azimuth(40.0)
+    grab(rw)
+    assert il.light_specs()[0].vector != pytest.approx(first)
+    assert [c.lights for c in prepared] == [True]
+    il.release()
+    rw.Finalize()
+
+
+def test_a_light_kit_is_kept_as_it_was_at_the_first_frame():
+    """Several renderer lights (PyVista's light kit): all taken, none replaced, then fixed."""
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    kit = vtk.vtkLightKit()
+    kit.AddLightsToRenderer(ren)
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    grab(rw)
+    taken = [s.vector for s in il.light_specs()]
+    switched_on = [light for light in ren.GetLights() if light.GetSwitch()]
+    assert len(taken) == min(len(switched_on), 4)
+    for spec_vector, light in zip(taken, switched_on, strict=False):
+        d = np.subtract(light.GetTransformedPosition(), light.GetTransformedFocalPoint())
+        assert spec_vector == pytest.approx(tuple(d / np.linalg.norm(d)))
+    ren.GetActiveCamera().Elevation(30.0)
+    ren.GetActiveCamera().OrthogonalizeViewUp()
+    grab(rw)
+    np.testing.assert_allclose([s.vector for s in il.light_specs()], taken, atol=1e-9)
+    with pytest.raises(ValueError, match="'renderer', not 'camera'"):
+        vtkvol.illuminate(volume, ren, lights="camera")
     il.release()
     rw.Finalize()
 
@@ -188,7 +270,9 @@ def eight_volume_scene(method: str, n: int = 8):
         volume.SetMapper(mapper)
         volume.SetProperty(prop)
         ren.AddVolume(volume)
-        illuminators.append(vtkvol.illuminate(volume, ren, method=method))
+        # lit from the camera's side (+z), as VTK's headlight lights them
+        illuminators.append(vtkvol.illuminate(volume, ren, method=method,
+                                              lights=[vtkvol.Light(direction=(0.0, 0.0, 1.0))]))
     ren.ResetCamera()
     camera = ren.GetActiveCamera()
     camera.ParallelProjectionOn()

@@ -6,7 +6,7 @@ import math
 import time
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 import vtk
@@ -28,7 +28,7 @@ def illuminate(
     renderer: Any,
     *,
     method: str = "local",
-    lights: Sequence[Light] | None = None,
+    lights: Sequence[Light] | Literal["renderer"] | None = None,
     multichannel_lighting: str = "per_channel",
     **parameters: Any,
 ) -> Illuminator:
@@ -52,9 +52,13 @@ def illuminate(
         ``"local"``, ``"shadow_volume"``, ``"cone_traced"``, … (see
         :func:`vtkvol.model.techniques.technique_specs`).
     lights
-        World-space :class:`vtkvol.Light` objects (µm); default: the renderer's own lights
-        (PyVista's light kit, VTK's headlight), followed at every frame, so the view keeps the
-        lighting it had.
+        World-space :class:`vtkvol.Light` objects (µm). Default: the renderer's own lights
+        (PyVista's light kit, VTK's headlight) as they are at the first frame, then fixed in
+        the world, so turning the camera shows the shadows from another side and costs no
+        recomputation of the light; a lone headlight becomes a key light 50° above and 10°
+        beside the view (its shadows would fall straight behind, out of sight).
+        ``"renderer"``: follow the renderer's lights at every frame (a camera light then
+        recomputes precomputed illumination at every camera move).
     multichannel_lighting
         Two to four independent components: ``"per_channel"`` (VTK's, every component lit with
         its own normal and material) or ``"shared"`` (components classified unlit, mixed, and
@@ -76,14 +80,16 @@ def illuminate(
         renderer = getattr(renderer, "renderer", None)
         if not isinstance(renderer, vtk.vtkRenderer):
             raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
+    if isinstance(lights, str) and lights != "renderer":
+        raise ValueError(f"lights must be vtkvol.Light objects or 'renderer', not {lights!r}")
     if multichannel_lighting not in MULTICHANNEL_LIGHTINGS:
         raise ValueError("multichannel_lighting must be 'per_channel' or 'shared', not "
                          f"{multichannel_lighting!r}")
     illuminator = Illuminator(volume, renderer, method=method,
-                              lights="renderer" if lights is None else lights,
+                              lights="renderer_fixed" if lights is None else lights,
                               parameters=parameters,
                               # lights given: the caller asks for them to shade the volume
-                              keep_local_shading=lights is None)
+                              keep_local_shading=lights is None or lights == "renderer")
     illuminator.set_multichannel_lighting(multichannel_lighting)
     return illuminator
 

@@ -125,7 +125,9 @@ class Illuminator:
         ``"shadow_volume"``, ``"cone_traced"``.
     lights
         Up to four :class:`vtkvol.model.Light` in world space; ``"renderer"``: the renderer's
-        own switched-on lights (its headlight or light kit), followed at every frame. Default:
+        own switched-on lights (its headlight or light kit), followed at every frame;
+        ``"renderer_fixed"``: those lights taken at the first frame and fixed in the world from
+        then on (a lone headlight becomes a key light above and beside the camera). Default:
         one directional light.
     parameters
         Technique parameter values; missing ones take the declared defaults.
@@ -163,7 +165,7 @@ class Illuminator:
         renderer: vtk.vtkRenderer,
         *,
         method: str = "local",
-        lights: Sequence[Light] | Literal["renderer"] | None = None,
+        lights: Sequence[Light] | Literal["renderer", "renderer_fixed"] | None = None,
         parameters: Mapping[str, Any] | None = None,
         keep_local_shading: bool = False,
     ) -> None:
@@ -190,8 +192,11 @@ class Illuminator:
         self._replacements = shaders.ReplacementSet(self.shader_property)
         #: "renderer": follow the renderer's own (switched-on) lights at every frame.
         self._follow_renderer = lights == "renderer"
+        #: "renderer_fixed": take the renderer's lights once, at the first frame, and keep them
+        #: fixed in the world (a lone headlight becomes a key light; see _renderer_lights).
+        self._capture_renderer = lights == "renderer_fixed"
         self._lights: list[Light] = (
-            [Light()] if lights is None or self._follow_renderer else list(lights)  # type: ignore[arg-type]
+            [Light()] if lights is None or isinstance(lights, str) else list(lights)
         )
         self._check_lights(self._lights)
         self._unsupported: str | None = None
@@ -330,7 +335,7 @@ class Illuminator:
         lights = list(lights)
         self._check_lights(lights)
         self._lights = lights
-        self._follow_renderer = False
+        self._follow_renderer = self._capture_renderer = False
 
     def _check_input(self, *, raise_error: bool) -> bool:
         """Whether the mapper's input can be illuminated (point scalars). Cell data cannot: at
@@ -364,18 +369,50 @@ class Illuminator:
                 self.on_error(message)
         return False
 
-    def _renderer_lights(self) -> list[Light]:
+    def _take_renderer_lights(self) -> None:
+        """At a frame's start: the renderer's lights, every frame when following them, once
+        (the first frame, when the camera is set) when they are taken as fixed lights."""
+        if self._follow_renderer:
+            self._lights = self._renderer_lights()
+        elif self._capture_renderer:
+            self._lights = self._renderer_lights(fixed=True)
+            self._capture_renderer = False
+
+    def _renderer_lights(self, *, fixed: bool = False) -> list[Light]:
         """The renderer's switched-on lights as world-space vtkvol lights (camera lights, the
-        headlight and light kits included, through their transformed positions)."""
+        headlight and light kits included, through their transformed positions).
+
+        ``fixed``: the lights are taken once and stay put in the world. A lone headlight then
+        becomes a key light (:func:`key_light_direction`), since shadows cast along the view
+        direction fall straight behind what casts them, where the viewer cannot see them.
+        """
         out: list[Light] = []
         lights = self.renderer.GetLights()
         lights.InitTraversal()
+        switched_on = []
         for _ in range(lights.GetNumberOfItems()):
             light = lights.GetNextItem()
-            if light is None or not light.GetSwitch() or len(out) == MAX_LIGHTS:
+            if light is not None and light.GetSwitch():
+                switched_on.append(light)
+        if not switched_on and self.renderer.GetAutomaticLightCreation():
+            # Before its first render a renderer has no lights yet: it is about to make its
+            # headlight (white, intensity 1), so take that one.
+            camera = self.renderer.GetActiveCamera()
+            if fixed:
+                return [Light(direction=key_light_direction(camera))]
+            to_camera = np.subtract(camera.GetPosition(), camera.GetFocalPoint())
+            if np.linalg.norm(to_camera) > 0:
+                return [Light(direction=tuple(float(v) for v in to_camera))]
+        for light in switched_on:
+            if len(out) == MAX_LIGHTS:
+                break
+            if fixed and len(switched_on) == 1 and light.LightTypeIsHeadlight():
+                color = tuple(float(min(max(c, 0.0), 1.0)) for c in light.GetDiffuseColor())
+                intensity = float(min(max(light.GetIntensity(), 0.0), 100.0))
+                out.append(Light(direction=key_light_direction(self.renderer.GetActiveCamera()),
+                                 color=color, intensity=intensity))
                 continue
-            position = np.array(light.GetTransformedPosition())
-            focal = np.array(light.GetTransformedFocalPoint())
+            position, focal = _light_world_geometry(light, self.renderer.GetActiveCamera())
             color = tuple(float(min(max(c, 0.0), 1.0)) for c in light.GetDiffuseColor())
             intensity = float(min(max(light.GetIntensity(), 0.0), 100.0))
             if light.GetPositional():
@@ -536,8 +573,7 @@ class Illuminator:
         window = self.render_window
         with _no_collection():
             window.MakeCurrent()
-            if self._follow_renderer:
-                self._lights = self._renderer_lights()
+            self._take_renderer_lights()
             self._frame_specs = self._compute_light_specs()
             try:
                 self._ensure_technique()
@@ -1190,8 +1226,7 @@ class Illuminator:
             return
         if not self._check_input(raise_error=False):
             return
-        if self._follow_renderer:
-            self._lights = self._renderer_lights()
+        self._take_renderer_lights()
         self._frame_specs = self._compute_light_specs()
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
@@ -1739,6 +1774,52 @@ def _no_collection() -> Iterator[None]:
     finally:
         if enabled:
             gc.enable()
+
+
+def _light_world_geometry(light: vtk.vtkLight,
+                          camera: vtk.vtkCamera) -> tuple[np.ndarray, np.ndarray]:
+    """World position and focal point of ``light`` for ``camera``'s current view.
+
+    Computed from the camera rather than read from the light: the renderer moves its headlight
+    and camera lights to the camera only inside its render, after the frame's start where the
+    illuminator reads them, so the light's own transformed position is a frame behind."""
+    if light.LightTypeIsHeadlight():
+        return np.array(camera.GetPosition(), float), np.array(camera.GetFocalPoint(), float)
+    if light.LightTypeIsCameraLight():
+        matrix = camera.GetCameraLightTransformMatrix()
+        position = matrix.MultiplyPoint((*light.GetPosition(), 1.0))
+        focal = matrix.MultiplyPoint((*light.GetFocalPoint(), 1.0))
+        return (np.array(position[:3]) / position[3], np.array(focal[:3]) / focal[3])
+    return (np.array(light.GetTransformedPosition(), float),
+            np.array(light.GetTransformedFocalPoint(), float))
+
+
+#: Where a key light sits relative to the view (degrees): VTK's vtkLightKit's defaults, the
+#: photographer's key light above and beside the camera.
+KEY_LIGHT_ELEVATION_DEG = 50.0
+KEY_LIGHT_AZIMUTH_DEG = 10.0
+
+
+def key_light_direction(camera: vtk.vtkCamera) -> tuple[float, float, float]:
+    """World direction towards a key light for ``camera``'s current view: the direction to the
+    camera turned up by :data:`KEY_LIGHT_ELEVATION_DEG` (about the camera's right axis) and to
+    the right by :data:`KEY_LIGHT_AZIMUTH_DEG` (about its view-up)."""
+    position = np.array(camera.GetPosition(), float)
+    focal = np.array(camera.GetFocalPoint(), float)
+    to_camera = position - focal
+    norm = np.linalg.norm(to_camera)
+    to_camera = to_camera / norm if norm > 0 else np.array([0.0, 0.0, 1.0])
+    up = np.array(camera.GetViewUp(), float)
+    up = up - np.dot(up, to_camera) * to_camera
+    if np.linalg.norm(up) < 1e-9:  # a view-up along the view: any perpendicular will do
+        up = np.cross(to_camera, [1.0, 0.0, 0.0] if abs(to_camera[0]) < 0.9 else [0, 1.0, 0])
+    up = up / np.linalg.norm(up)
+    right = np.cross(-to_camera, up)
+    elevation = math.radians(KEY_LIGHT_ELEVATION_DEG)
+    azimuth = math.radians(KEY_LIGHT_AZIMUTH_DEG)
+    direction = (math.cos(elevation) * (math.cos(azimuth) * to_camera + math.sin(azimuth) * right)
+                 + math.sin(elevation) * up)
+    return tuple(float(v) for v in direction)
 
 
 def _gpu_mapper_like(smart: vtk.vtkSmartVolumeMapper) -> vtk.vtkOpenGLGPUVolumeRayCastMapper:
