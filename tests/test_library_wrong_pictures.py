@@ -9,6 +9,7 @@ import pytest
 import vtk
 
 import vtkvol
+from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 
 pv = pytest.importorskip("pyvista")
@@ -169,6 +170,48 @@ def test_a_user_replacement_that_removes_a_tag_we_replace_is_refused_at_the_call
     rw.Finalize()
 
 
+def test_a_conflicting_user_replacement_added_later_makes_the_illuminator_stand_aside():
+    rw, ren, volume = simple_volume_scene(np.ones((8, 8, 8), np.float32), size=(32, 32))
+    volume.GetProperty().ShadeOn()
+    plain = grab(rw)
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    errors: list[str] = []
+    il.on_error = errors.append
+    grab(rw)
+    sp = volume.GetShaderProperty()
+    sp.AddFragmentShaderReplacement("//VTK::ComputeLighting::Exit", False, "  // gone", False)
+    grab(rw)
+    image = grab(rw)
+    assert len(errors) == 1 and "//VTK::ComputeLighting::Exit" in errors[0]
+    assert not errors[0].startswith("vtkvol: vtkvol")
+    assert replacements_of(sp) == [("Fragment", "//VTK::ComputeLighting::Exit", False,
+                                    "  // gone", False)]  # only the user's is left
+    assert image.max() > 30 and volume.GetProperty().GetShade(0) == 1
+    il.release()
+    sp.ClearFragmentShaderReplacement("//VTK::ComputeLighting::Exit", False)
+    assert np.array_equal(grab(rw), plain)
+    rw.Finalize()
+
+
+def test_smart_mapper_picture_is_the_smart_mappers_and_vector_mode_is_refused():
+    plotter, actor = smart_plotter()
+    plain = plotter.screenshot(return_img=True)
+    plotter.close()
+    plotter, actor = smart_plotter()
+    il = vtkvol.illuminate(actor, plotter)  # local lighting, the renderer's lights
+    lit = plotter.screenshot(return_img=True)
+    assert int(np.abs(lit.astype(int) - plain.astype(int)).max()) <= 3
+    assert actor.mapper.GetSampleDistance() == pytest.approx(0.5)  # the spacing's, not -1
+    il.release()
+    plotter.close()
+    plotter, actor = smart_plotter()
+    actor.mapper.SetVectorMode(vtk.vtkSmartVolumeMapper.MAGNITUDE)
+    with pytest.raises(TypeError, match=r"^vtkvol: .*vector mode"):
+        vtkvol.illuminate(actor, plotter)
+    assert isinstance(actor.mapper, vtk.vtkSmartVolumeMapper)  # untouched
+    plotter.close()
+
+
 def test_pyvista_mapper_api_keeps_working_after_illuminate():
     """Before: actor.mapper became a plain vtkOpenGLGPUVolumeRayCastMapper, and
     ``actor.mapper.blend_mode = "maximum"`` raised a TypeError."""
@@ -240,6 +283,8 @@ def test_a_second_illuminate_returns_the_first_switched_to_the_new_method():
     assert second is first and first.method == "shadow_volume"
     assert first.parameters["softness"] == 1.5
     grab(rw)
+    with pytest.raises(ValueError, match=r"^vtkvol: this volume is already illuminated"):
+        Illuminator(volume, ren)  # the engine's constructor refuses to stack a second one
     third = vtkvol.illuminate(volume, ren, method="cone_traced",
                               lights=[vtkvol.Light(direction=(0.0, 1.0, 0.0))])
     assert third is first and first.method == "cone_traced"
