@@ -209,6 +209,10 @@ def test_smart_mapper_picture_is_the_smart_mappers_and_vector_mode_is_refused():
     with pytest.raises(TypeError, match=r"^vtkvol: .*vector mode"):
         vtkvol.illuminate(actor, plotter)
     assert isinstance(actor.mapper, vtk.vtkSmartVolumeMapper)  # untouched
+    actor.mapper.SetVectorMode(vtk.vtkSmartVolumeMapper.DISABLED)
+    with pytest.raises(ValueError, match="softness"):  # any refused call: nothing swapped
+        vtkvol.illuminate(actor, plotter, method="shadow_volume", softness=-5.0)
+    assert isinstance(actor.mapper, vtk.vtkSmartVolumeMapper)
     plotter.close()
 
 

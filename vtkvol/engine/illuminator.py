@@ -170,8 +170,7 @@ class Illuminator:
         keep_local_shading: bool = False,
     ) -> None:
         self._keep_local_shading = keep_local_shading
-        host = _HOSTS.get(id(volume))
-        if host is not None and not host.closed:
+        if Illuminator.host_of(volume) is not None:
             raise ValueError(
                 "vtkvol: this volume is already illuminated; release() its illuminator first, "
                 "or call vtkvol.illuminate(), which returns that illuminator switched to the "
@@ -193,16 +192,6 @@ class Illuminator:
         self._unsupported: str | None = None
         self._frame_specs: list[LightSpec] | None = None
         self._check_input(raise_error=True)
-        #: The GPU mapper rendering in place of the user's vtkSmartVolumeMapper, if any.
-        self._stand_in: SmartStandIn | None = None
-        if isinstance(mapper, vtk.vtkSmartVolumeMapper):
-            # The smart mapper hides its GPU mapper; render through our own, kept in step with
-            # it, and give the user's back on release().
-            self._stand_in = SmartStandIn(mapper)
-            mapper = self._stand_in.gpu
-            volume.SetMapper(mapper)
-            logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
-                        "vtkSmartVolumeMapper until release()")
         self._values: dict[str, dict[str, Any]] = {}
         self._technique_cls: type[Technique] = technique_class(method)
         self._technique: Technique | None = None
@@ -260,6 +249,17 @@ class Illuminator:
         self._stepping = False
         self._precomputed_ms = 0.0  # precompute()'s work since the last frame
         self.set_parameters(**(parameters or {}))
+        #: The GPU mapper rendering in place of the user's vtkSmartVolumeMapper, if any.
+        self._stand_in: SmartStandIn | None = None
+        if isinstance(mapper, vtk.vtkSmartVolumeMapper):
+            # The smart mapper hides its GPU mapper; render through our own, kept in step with
+            # it, and give the user's back on release(). Swapped only now that nothing of the
+            # call can be refused any more.
+            self._stand_in = SmartStandIn(mapper)
+            mapper = self._stand_in.gpu
+            volume.SetMapper(mapper)
+            logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
+                        "vtkSmartVolumeMapper until release()")
         # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
         # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
         # unshaded one (no gradient is computed). The user's setting is restored on release().
