@@ -2,8 +2,9 @@
 
 This is both the engine's own mechanism and the public integration call
 (:func:`vtkvol.illuminate`). It works on a volume built by :class:`VolumeScene`, by a plain VTK
-script or by ``pyvista.Plotter.add_volume``: it only needs the ``vtkVolume`` (mapper must be a
-``vtkOpenGLGPUVolumeRayCastMapper``) and the ``vtkRenderer`` showing it.
+script or by ``pyvista.Plotter.add_volume``: it only needs the ``vtkVolume`` (mapper: a
+``vtkOpenGLGPUVolumeRayCastMapper``, or a ``vtkSmartVolumeMapper`` rendered through one,
+:mod:`vtkvol.engine.smart`) and the ``vtkRenderer`` showing it. One illuminator per volume.
 
 All GL work happens in the renderer's ``StartEvent`` (the context is current there): installing
 shader replacements, creating textures, running precomputation and uploading uniforms. What
@@ -119,7 +120,8 @@ class Illuminator:
     Parameters
     ----------
     volume
-        The ``vtkVolume`` to light (its mapper must be the OpenGL GPU ray-cast mapper).
+        The ``vtkVolume`` to light (its mapper: the OpenGL GPU ray-cast mapper, or a smart
+        mapper, rendered through one until :meth:`release`).
     renderer
         The ``vtkRenderer`` that renders it.
     method
