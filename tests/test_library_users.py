@@ -219,6 +219,24 @@ def test_following_the_headlight_recomputes_at_every_camera_move():
     rw.Finalize()
 
 
+def test_a_second_illuminate_can_switch_to_following_the_renderers_lights():
+    import vtkvol
+
+    rw, ren, volume = plain_scene(vtk.vtkOpenGLGPUVolumeRayCastMapper(), image_with(False))
+    il = vtkvol.illuminate(volume, ren, method="shadow_volume")
+    grab(rw)
+    fixed = il.light_specs()[0].vector
+    assert vtkvol.illuminate(volume, ren, method="shadow_volume", lights="renderer") is il
+    grab(rw)
+    to_camera = np.subtract(ren.GetActiveCamera().GetPosition(),
+                            ren.GetActiveCamera().GetFocalPoint())
+    assert il.light_specs()[0].vector == pytest.approx(tuple(to_camera
+                                                             / np.linalg.norm(to_camera)))
+    assert il.light_specs()[0].vector != pytest.approx(fixed)
+    il.release()
+    rw.Finalize()
+
+
 def test_a_light_kit_is_kept_as_it_was_at_the_first_frame():
     """Several renderer lights (PyVista's light kit): all taken, none replaced, then fixed."""
     import vtkvol

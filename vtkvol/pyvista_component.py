@@ -46,14 +46,7 @@ class VtkvolComponent:
         this plotter already illuminates switches to the new method and parameters (and
         lights, if given) instead of being illuminated twice."""
         volume = volume if volume is not None else self._last_volume()
-        existing = self._illuminators.get(id(volume))
-        if existing is not None and not existing.closed:
-            existing.set_method(method)
-            if parameters:
-                existing.set_parameters(**parameters)
-            if lights is not None:
-                existing.set_lights(list(lights))
-            return existing
+        # vtkvol.illuminate returns a volume's existing illuminator, switched (one per volume)
         il = illuminate(volume, self._plotter, method=method, lights=lights, **parameters)
         self._illuminators[id(volume)] = il
         return il

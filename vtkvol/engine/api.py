@@ -29,23 +29,25 @@ def illuminate(
     *,
     method: str = "local",
     lights: Sequence[Light] | Literal["renderer"] | None = None,
-    multichannel_lighting: str = "per_channel",
+    multichannel_lighting: str | None = None,
     **parameters: Any,
 ) -> Illuminator:
     """Give an existing ``vtkVolume`` a vtkvol illumination technique.
 
     Supported: point scalars (cell data is refused with what to do), every cropping mode and
     clipping planes (what they hide casts no shadow), ``vtkSmartVolumeMapper`` (rendered through
-    a GPU ray-cast mapper set up the same way until ``release()``). ``"local"`` lighting with
-    the renderer's own lights keeps the property's shading flags; given ``lights``, or a shadow
-    technique, switch shading on (they shade through VTK's shaded variant), the medium ones
-    off, and ``release()`` restores the flags.
+    a GPU ray-cast mapper kept in step with it until ``release()``; with PyVista,
+    ``actor.mapper`` is then PyVista's GPU mapper sharing the lookup table). ``"local"``
+    lighting with the renderer's own lights keeps the property's shading flags; given
+    ``lights``, or a shadow technique, switch shading on (they shade through VTK's shaded
+    variant), the medium ones off, and ``release()`` restores the flags.
 
     Parameters
     ----------
     volume
         A ``vtkVolume`` whose mapper is a ``vtkOpenGLGPUVolumeRayCastMapper`` (with PyVista:
-        ``plotter.add_volume(..., mapper="gpu")``).
+        ``plotter.add_volume(..., mapper="gpu")``) or a ``vtkSmartVolumeMapper`` (PyVista's
+        default).
     renderer
         The ``vtkRenderer`` showing it, or a PyVista ``Plotter`` (its active renderer is used).
     method
@@ -60,13 +62,23 @@ def illuminate(
         ``"renderer"``: follow the renderer's lights at every frame (a camera light then
         recomputes precomputed illumination at every camera move).
     multichannel_lighting
-        Two to four independent components: ``"per_channel"`` (VTK's, every component lit with
-        its own normal and material) or ``"shared"`` (components classified unlit, mixed, and
-        lit once per sample with the opacity-weighted normal and material: about the cost of
-        one component; :attr:`Illuminator.multichannel_lighting_state` says whether it applies).
-        Later: ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
+        None (default): ``"per_channel"`` at the first call. Two to four independent components:
+        ``"per_channel"`` (VTK's, every component lit with its own normal and material) or
+        ``"shared"`` (components classified unlit, mixed, and lit once per sample with the
+        opacity-weighted normal and material: about the cost of one component;
+        :attr:`Illuminator.multichannel_lighting_state` says whether it applies). Later:
+        ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
     **parameters
         Technique parameters (validated against its declaration; ``ValueError`` if bad).
+
+    A volume already illuminated (and not released) is not illuminated twice: the call returns
+    its illuminator switched to ``method``, with the given parameters set (the others keep
+    their values), the given lights (None: they stay as they are) and
+    ``multichannel_lighting`` (None: unchanged); illuminating it for another renderer is a
+    ``ValueError``. Refused with a ``TypeError``: other mappers, ``vtkMultiVolume`` and its
+    member volumes; with a ``ValueError``: a user shader replacement that replaces a VTK tag
+    vtkvol replaces too (the user's own replacements are otherwise composed with ours, and
+    ``release()`` puts them back exactly).
 
     Returns
     -------
@@ -82,6 +94,15 @@ def illuminate(
             raise TypeError("renderer must be a vtkRenderer or a PyVista Plotter")
     if isinstance(lights, str) and lights != "renderer":
         raise ValueError(f"lights must be vtkvol.Light objects or 'renderer', not {lights!r}")
+    existing = Illuminator.host_of(volume)
+    if existing is not None:
+        if existing.renderer is not renderer:
+            raise ValueError("vtkvol: this volume is already illuminated in another renderer; "
+                             "release() that illuminator first")
+        existing.reconfigure(method, lights=lights, parameters=parameters,
+                             multichannel_lighting=multichannel_lighting)
+        return existing
+    multichannel_lighting = multichannel_lighting or "per_channel"
     if multichannel_lighting not in MULTICHANNEL_LIGHTINGS:
         raise ValueError("multichannel_lighting must be 'per_channel' or 'shared', not "
                          f"{multichannel_lighting!r}")

@@ -2,8 +2,9 @@
 
 This is both the engine's own mechanism and the public integration call
 (:func:`vtkvol.illuminate`). It works on a volume built by :class:`VolumeScene`, by a plain VTK
-script or by ``pyvista.Plotter.add_volume``: it only needs the ``vtkVolume`` (mapper must be a
-``vtkOpenGLGPUVolumeRayCastMapper``) and the ``vtkRenderer`` showing it.
+script or by ``pyvista.Plotter.add_volume``: it only needs the ``vtkVolume`` (mapper: a
+``vtkOpenGLGPUVolumeRayCastMapper``, or a ``vtkSmartVolumeMapper`` rendered through one,
+:mod:`vtkvol.engine.smart`) and the ``vtkRenderer`` showing it. One illuminator per volume.
 
 All GL work happens in the renderer's ``StartEvent`` (the context is current there): installing
 shader replacements, creating textures, running precomputation and uploading uniforms. What
@@ -22,6 +23,7 @@ import logging
 import math
 import re
 import time
+import weakref
 from collections.abc import Callable, Generator, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Literal
@@ -32,6 +34,7 @@ from vtk.util.numpy_support import vtk_to_numpy
 
 from vtkvol.engine import classify, occupancy, shaders, tf2d
 from vtkvol.engine.gl import GLUnavailableError, Texture2D, Texture3D, compute_supported, gl
+from vtkvol.engine.smart import SmartStandIn
 from vtkvol.engine.technique import Technique, technique_class
 from vtkvol.model.params import Invalidates
 from vtkvol.model.scene import MULTICHANNEL_LIGHTINGS, Light
@@ -117,7 +120,8 @@ class Illuminator:
     Parameters
     ----------
     volume
-        The ``vtkVolume`` to light (its mapper must be the OpenGL GPU ray-cast mapper).
+        The ``vtkVolume`` to light (its mapper: the OpenGL GPU ray-cast mapper, or a smart
+        mapper, rendered through one until :meth:`release`).
     renderer
         The ``vtkRenderer`` that renders it.
     method
@@ -170,26 +174,19 @@ class Illuminator:
         keep_local_shading: bool = False,
     ) -> None:
         self._keep_local_shading = keep_local_shading
-        self._user_mapper: vtk.vtkVolumeMapper | None = None
-        mapper = volume.GetMapper()
-        if isinstance(mapper, vtk.vtkSmartVolumeMapper):
-            # The smart mapper hides its GPU mapper; render through our own, set up the same
-            # way, and give the user's back on release().
-            self._user_mapper = mapper
-            mapper = _gpu_mapper_like(mapper)
-            volume.SetMapper(mapper)
-            logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
-                        "vtkSmartVolumeMapper until release()")
-        if not isinstance(mapper, vtk.vtkGPUVolumeRayCastMapper):
-            raise TypeError(
-                "vtkvol illumination needs a GPU ray-cast mapper, not "
-                f"{type(mapper).__name__}: use vtkOpenGLGPUVolumeRayCastMapper (PyVista: "
-                'plotter.add_volume(..., mapper="gpu"))'
-            )
+        if Illuminator.host_of(volume) is not None:
+            raise ValueError(
+                "vtkvol: this volume is already illuminated; release() its illuminator first, "
+                "or call vtkvol.illuminate(), which returns that illuminator switched to the "
+                "new method")
+        mapper = _check_mapper(volume, renderer)
         self.volume = volume
         self.renderer = renderer
         self.shader_property = volume.GetShaderProperty()
         self._replacements = shaders.ReplacementSet(self.shader_property)
+        # Refused at the call rather than at the first frame: every shaded build replaces
+        # VTK's lighting exit, so a user replacement there that drops the tag never composes.
+        self._replacements.compose({key: "" for key in _REPLACED_OUTRIGHT})
         #: "renderer": follow the renderer's own (switched-on) lights at every frame.
         self._follow_renderer = lights == "renderer"
         #: "renderer_fixed": take the renderer's lights once, at the first frame, and keep them
@@ -259,6 +256,17 @@ class Illuminator:
         self._stepping = False
         self._precomputed_ms = 0.0  # precompute()'s work since the last frame
         self.set_parameters(**(parameters or {}))
+        #: The GPU mapper rendering in place of the user's vtkSmartVolumeMapper, if any.
+        self._stand_in: SmartStandIn | None = None
+        if isinstance(mapper, vtk.vtkSmartVolumeMapper):
+            # The smart mapper hides its GPU mapper; render through our own, kept in step with
+            # it, and give the user's back on release(). Swapped only now that nothing of the
+            # call can be refused any more.
+            self._stand_in = SmartStandIn(mapper)
+            mapper = self._stand_in.gpu
+            volume.SetMapper(mapper)
+            logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
+                        "vtkSmartVolumeMapper until release()")
         # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
         # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
         # unshaded one (no gradient is computed). The user's setting is restored on release().
@@ -278,6 +286,41 @@ class Illuminator:
             mapper.AddObserver(vtk.vtkCommand.VolumeMapperRenderStartEvent, self._on_draw_start),
             mapper.AddObserver(vtk.vtkCommand.VolumeMapperRenderEndEvent, self._on_draw_end),
         )
+        _HOSTS[id(volume)] = self
+
+    @classmethod
+    def host_of(cls, volume: vtk.vtkVolume) -> Illuminator | None:
+        """The illuminator lighting ``volume`` now (None if none, or released)."""
+        host = _HOSTS.get(id(volume))
+        return host if host is not None and not host.closed and host.volume is volume else None
+
+    def reconfigure(self, method: str, *,
+                    lights: Sequence[Light] | Literal["renderer"] | None = None,
+                    parameters: Mapping[str, Any] | None = None,
+                    multichannel_lighting: str | None = None) -> None:
+        """What a second :func:`vtkvol.illuminate` on this volume does: switch to ``method``
+        and set the given ``parameters`` (the others keep their values), ``lights`` (and, as
+        at the first call, shading for them; ``"renderer"``: follow the renderer's lights
+        from now on; None: the lights stay as they are) and ``multichannel_lighting`` (None:
+        unchanged)."""
+        follow = isinstance(lights, str) and lights == "renderer"
+        if lights is not None and not follow:
+            self._check_lights(list(lights))
+        if (multichannel_lighting is not None
+                and multichannel_lighting not in MULTICHANNEL_LIGHTINGS):
+            raise ValueError("multichannel_lighting must be 'per_channel' or 'shared', not "
+                             f"{multichannel_lighting!r}")
+        cls = technique_class(method)
+        cls.SPEC.validate({**self._values.get(cls.NAME, cls.defaults()), **(parameters or {})})
+        self.set_method(method, parameters)
+        if follow:
+            self._follow_renderer, self._capture_renderer = True, False
+        elif lights is not None:
+            self.set_lights(lights)  # type: ignore[arg-type]
+            self._keep_local_shading = False  # lights given: the caller asks them to shade
+            self._apply_shade()
+        if multichannel_lighting is not None:
+            self.set_multichannel_lighting(multichannel_lighting)
 
     # -- public state ---------------------------------------------------------------------------
     @property
@@ -357,17 +400,23 @@ class Illuminator:
         )
         if raise_error:
             raise ValueError(message)
-        if self._unsupported is None:
-            self._unsupported = message
-            self._replacements.clear()
-            self._expected_markers = None  # nothing of ours is built any more
-            prop = self.volume.GetProperty()
-            for c, shade in enumerate(self._user_shade):
-                prop.SetShade(c, shade)
-            logger.error("vtkvol: %s", message)
-            if self.on_error is not None:
-                self.on_error(message)
+        self._stand_aside(message)
         return False
+
+    def _stand_aside(self, message: str) -> None:
+        """Stop illuminating for good (VTK renders the volume its own way, the user's shading
+        flags and shader replacements as they were) and say why, once."""
+        if self._unsupported is not None:
+            return
+        self._unsupported = message
+        self._replacements.clear()
+        self._expected_markers = None  # nothing of ours is built any more
+        prop = self.volume.GetProperty()
+        for c, shade in enumerate(self._user_shade):
+            prop.SetShade(c, shade)
+        logger.error("vtkvol: %s", message)
+        if self.on_error is not None:
+            self.on_error(message)
 
     def _take_renderer_lights(self) -> None:
         """At a frame's start: the renderer's lights, every frame when following them, once
@@ -1218,11 +1267,19 @@ class Illuminator:
         with _no_collection():
             try:
                 self._start_frame()
+            except shaders.ShaderConflictError as exc:
+                # The user added a replacement ours cannot compose with after the call.
+                self._on_draw_end()  # preparing may have given our textures units
+                self._stand_aside(str(exc).removeprefix("vtkvol: "))
             finally:
                 self._frame_specs = None
 
     def _start_frame(self) -> None:
-        if self._closed or self._unsupported is not None:
+        if self._closed:
+            return
+        if self._stand_in is not None:
+            self._stand_in.sync(self.renderer.GetRenderWindow())
+        if self._unsupported is not None:
             return
         if not self._check_input(raise_error=False):
             return
@@ -1250,6 +1307,8 @@ class Illuminator:
             return
         try:
             self._prepare_and_install(changes)
+        except shaders.ShaderConflictError:
+            raise  # not the technique's failure: local shading would meet the same conflict
         except Exception as exc:  # a technique's GL or numpy failure must not kill the view
             logger.exception("illumination %s failed to prepare", self.method)
             self._fail(f"failed ({type(exc).__name__}: {exc})")
@@ -1736,11 +1795,21 @@ class Illuminator:
         self.volume.GetMapper().RemoveObserver(self._error_tag)
         for tag in self._draw_tags:
             self.volume.GetMapper().RemoveObserver(tag)
-        if self._user_mapper is not None:
-            self.volume.SetMapper(self._user_mapper)
-            self._user_mapper = None
+        if self._stand_in is not None:
+            self._stand_in.give_back()  # edits made on the stand-in reach the user's mapper
+            self.volume.SetMapper(self._stand_in.smart)
+            self._stand_in = None
+        if _HOSTS.get(id(self.volume)) is self:
+            del _HOSTS[id(self.volume)]
 
 
+#: The live illuminator of each volume, by id(volume) (an illuminator holds its volume, so the
+#: id is not reused while the entry lives); weak, so a forgotten illuminator can still go.
+_HOSTS: weakref.WeakValueDictionary[int, Illuminator] = weakref.WeakValueDictionary()
+#: Replacements whose code takes the place of VTK's (the tag is not kept): host_lighting.glsl's
+#: and host_medium.glsl's ``//VTK::ComputeLighting::Exit``.
+_REPLACED_OUTRIGHT: tuple[tuple[str, shaders.Phase], ...] = (
+    ("//VTK::ComputeLighting::Exit", "post"),)
 #: Uniforms and textures the host sets for itself (not for the technique).
 _MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
 #: Lines of VTK 9.7's independent-component composite loop (post replacements, see
@@ -1822,23 +1891,39 @@ def key_light_direction(camera: vtk.vtkCamera) -> tuple[float, float, float]:
     return tuple(float(v) for v in direction)
 
 
-def _gpu_mapper_like(smart: vtk.vtkSmartVolumeMapper) -> vtk.vtkOpenGLGPUVolumeRayCastMapper:
-    """A GPU ray-cast mapper with the smart mapper's input, blend mode, cropping, clipping
-    planes and sampling."""
-    gpu = vtk.vtkOpenGLGPUVolumeRayCastMapper()
-    if smart.GetInputAlgorithm() is not None:
-        gpu.SetInputConnection(smart.GetInputConnection(0, 0))
-    else:
-        gpu.SetInputData(smart.GetInput())
-    gpu.SetBlendMode(smart.GetBlendMode())
-    gpu.SetCropping(smart.GetCropping())
-    gpu.SetCroppingRegionPlanes(smart.GetCroppingRegionPlanes())
-    gpu.SetCroppingRegionFlags(smart.GetCroppingRegionFlags())
-    if smart.GetClippingPlanes() is not None:
-        gpu.SetClippingPlanes(smart.GetClippingPlanes())
-    gpu.SetAutoAdjustSampleDistances(smart.GetAutoAdjustSampleDistances())
-    gpu.SetSampleDistance(smart.GetSampleDistance())
-    return gpu
+def _check_mapper(volume: vtk.vtkVolume, renderer: vtk.vtkRenderer) -> vtk.vtkVolumeMapper:
+    """The volume's mapper if vtkvol can illuminate it: the GPU ray caster, or a smart mapper
+    (rendered through one). Anything else is a ``TypeError`` saying what to use instead."""
+    if isinstance(volume, vtk.vtkMultiVolume):
+        raise TypeError(
+            "vtkvol: multi-volume rendering (vtkMultiVolume) cannot be illuminated: give each "
+            "image its own vtkVolume and GPU ray-cast mapper")
+    mapper = volume.GetMapper()
+    if mapper is None:
+        for other in _volumes_of(renderer):
+            if isinstance(other, vtk.vtkMultiVolume) and any(
+                    other.GetVolume(port) is volume
+                    for port in range(other.GetMapper().GetNumberOfInputPorts())):
+                raise TypeError(
+                    "vtkvol: this volume is a member of a multi-volume (vtkMultiVolume), "
+                    "which cannot be illuminated: give each image its own vtkVolume and GPU "
+                    "ray-cast mapper")
+        raise TypeError("vtkvol: the volume has no mapper; give it a "
+                        "vtkOpenGLGPUVolumeRayCastMapper (members of a vtkMultiVolume, "
+                        "multi-volume rendering, cannot be illuminated)")
+    if not isinstance(mapper, vtk.vtkGPUVolumeRayCastMapper | vtk.vtkSmartVolumeMapper):
+        raise TypeError(
+            "vtkvol illumination needs a GPU ray-cast mapper, not "
+            f"{type(mapper).__name__}: use vtkOpenGLGPUVolumeRayCastMapper (PyVista: "
+            'plotter.add_volume(..., mapper="gpu"))'
+        )
+    return mapper
+
+
+def _volumes_of(renderer: vtk.vtkRenderer) -> list[vtk.vtkVolume]:
+    volumes = renderer.GetVolumes()
+    volumes.InitTraversal()
+    return [volumes.GetNextVolume() for _ in range(volumes.GetNumberOfItems())]
 
 
 def _clipping_signature(mapper: vtk.vtkVolumeMapper) -> tuple:

@@ -172,29 +172,116 @@ def compose(sections: list[Section]) -> dict[tuple[str, Phase], str]:
     return result
 
 
+class ShaderConflictError(ValueError):
+    """The user's own replacement at a tag ours also needs cannot be composed with ours."""
+
+
+Key = tuple[str, Phase]
+#: A replacement as VTK stores it: (replacement text, replace every occurrence).
+Value = tuple[str, bool]
+
+
+def fragment_replacements(shader_property: vtk.vtkShaderProperty) -> dict[Key, Value]:
+    """The fragment-shader replacements on ``shader_property``, by (tag, phase)."""
+    out: dict[Key, Value] = {}
+    sp = shader_property
+    for i in range(sp.GetNumberOfShaderReplacements()):
+        if sp.GetNthShaderReplacementTypeAsString(i) != "Fragment":
+            continue
+        name, first, text, every = (vtk.reference(""), vtk.reference(False),
+                                    vtk.reference(""), vtk.reference(False))
+        sp.GetNthShaderReplacement(i, name, first, text, every)
+        out[(name.get(), "pre" if first.get() else "post")] = (text.get(), bool(every.get()))
+    return out
+
+
+def compose_with_user(key: Key, ours: str, user: Value | None) -> Value:
+    """Our replacement text for ``key`` combined with the user's own one there, if any.
+
+    VTK keeps one replacement per (tag, phase), so a second one would silently drop the
+    first. Both are substitutions of the tag: where the user's text keeps the tag, ours takes
+    its place inside the user's (their code stays around VTK's, ours right next to VTK's, as
+    without them); where only ours keeps it (we add code before/after), the user's takes its
+    place inside ours. Where neither keeps it, both replace VTK's code: refused.
+    """
+    if user is None:
+        return ours, False
+    tag, phase = key
+    text, every = user
+    if tag in text:
+        return text.replace(tag, ours, 1), every
+    if tag in ours:
+        return ours.replace(tag, text, 1), every
+    raise ShaderConflictError(
+        f"vtkvol: the volume's shader property already replaces {tag} ({phase}) with code of "
+        "its own (the tag is not kept), and vtkvol's illumination replaces that tag too; "
+        "keep the tag in that replacement or remove it "
+        "(vtkShaderProperty.ClearFragmentShaderReplacement) to illuminate this volume")
+
+
 class ReplacementSet:
-    """The replacements currently installed on one ``vtkShaderProperty``."""
+    """The replacements currently installed on one ``vtkShaderProperty``, composed with the
+    user's own (:func:`compose_with_user`); :meth:`clear` puts the user's back exactly."""
 
     def __init__(self, shader_property: vtk.vtkShaderProperty) -> None:
         self.shader_property = shader_property
-        self.installed: dict[tuple[str, Phase], str] = {}
+        #: Ours, as asked for (before composing with the user's).
+        self.installed: dict[Key, str] = {}
+        #: What we wrote to the property, per key.
+        self._written: dict[Key, Value] = {}
+        #: The user's replacements we composed with (and so overwrote), per key.
+        self._users: dict[Key, Value] = {}
+        self._mtime = -1
 
-    def install(self, replacements: dict[tuple[str, Phase], str]) -> bool:
+    def user_replacements(self) -> dict[Key, Value]:
+        """The user's fragment replacements: those on the property we did not write, and
+        those we composed ours with."""
+        current = fragment_replacements(self.shader_property)
+        users = {k: v for k, v in current.items() if self._written.get(k) != v}
+        for key, value in self._users.items():
+            if current.get(key) == self._written.get(key):  # still ours there: theirs inside
+                users[key] = value
+        return users
+
+    def compose(self, replacements: dict[Key, str]) -> dict[Key, Value]:
+        """``replacements`` composed with the user's (``ShaderConflictError`` if they
+        cannot be)."""
+        users = self.user_replacements()
+        return {k: compose_with_user(k, text, users.get(k)) for k, text in replacements.items()}
+
+    def install(self, replacements: dict[Key, str]) -> bool:
         """Install ``replacements``, removing ours that are no longer wanted.
 
         Returns True when anything changed (the program will be rebuilt).
         """
-        if replacements == self.installed:
-            return False
         sp = self.shader_property
-        for tag, phase in self.installed:
-            if (tag, phase) not in replacements:
-                sp.ClearFragmentShaderReplacement(tag, phase == "pre")
-        for (tag, phase), text in replacements.items():
-            if self.installed.get((tag, phase)) != text:
-                sp.AddFragmentShaderReplacement(tag, phase == "pre", text, False)
+        if replacements == self.installed and sp.GetMTime() == self._mtime:
+            return False
+        users = self.user_replacements()
+        composed = {k: compose_with_user(k, text, users.get(k))
+                    for k, text in replacements.items()}
+        current = fragment_replacements(sp)
+        changed = False
+        for key in self._written:
+            if key not in composed and current.get(key) == self._written[key]:
+                self._put_back(key, users.get(key))
+                changed = True
+        for (tag, phase), (text, every) in composed.items():
+            if current.get((tag, phase)) != (text, every):
+                sp.AddFragmentShaderReplacement(tag, phase == "pre", text, every)
+                changed = True
+        self._users = {k: users[k] for k in composed if k in users}
+        self._written = composed
         self.installed = dict(replacements)
-        return True
+        self._mtime = sp.GetMTime()
+        return changed
+
+    def _put_back(self, key: Key, user: Value | None) -> None:
+        tag, phase = key
+        self.shader_property.ClearFragmentShaderReplacement(tag, phase == "pre")
+        if user is not None:
+            self.shader_property.AddFragmentShaderReplacement(tag, phase == "pre", *user)
 
     def clear(self) -> None:
+        """Remove ours; the user's replacements we composed with are put back as they were."""
         self.install({})
