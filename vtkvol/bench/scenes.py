@@ -386,7 +386,6 @@ def slab_view_scene(n: int, theta_deg: float, *, parallel: bool,
     # The slab fills the middle of the framed box; its inner 40 % is away from its borders
     # (where oblique light enters through the side faces) in either projection.
     scene.flat_region = 0.4
-    scene.light_size_deg = 0.0  # an ideal light: its size would only soften the border
     return scene
 
 
