@@ -173,7 +173,7 @@ def test_scenes_are_deterministic_and_in_range():
     assert np.count_nonzero(plate[:, 0, 0] == 0.8) == 1
     sweeps = {c.sweep for c in stability_cases(24)}
     assert sweeps == {"light_angle", "thickness", "opacity_scale", "anisotropy", "resolution",
-                      "noise", "outliers"}
+                      "noise", "outliers", "slab_view"}
 
 
 def test_user_files_become_scenes_with_a_fitting_transfer_function(tmp_path):

@@ -2,10 +2,11 @@
 per-light offsets give the image of the per-sample formula they replace.
 
 The reference, shaders/per_sample_lookup.glsl, is the lookup as first written
-(docs/shadow-volume.md, "Frame time"): per sample and light, the direction towards the light
-converted to texture units, the offset of h0 light-grid cells along it, then VTK's texture
-coordinate → 0..1 over the point bounds → the light grid. Both are rendered in the same scene
-and compared pixel by pixel (8-bit levels)."""
+(docs/shadow-volume.md, "Frame time"): per sample and light, the near end of the sample's ray
+segment (one step back along the ray), the direction towards the light converted to texture
+units, the offset of h0 light-grid cells along it, then VTK's texture coordinate → 0..1 over
+the point bounds → the light grid. Both are rendered in the same scene and compared pixel by
+pixel (8-bit levels)."""
 
 from __future__ import annotations
 

@@ -38,8 +38,8 @@ RECORD_FIELDS: tuple[str, ...] = (
 #: Stability fields, in CSV column order.
 STABILITY_FIELDS: tuple[str, ...] = (
     "sweep", "value", "value_label", "unit", "scene", "method", "setting", "renderer",
-    "rmse", "psnr", "ssim", "max_abs", "vol_rmse", "vol_max_abs", "image_ok", "volumes_ok",
-    "shader_ok", "ok", "error", "lighting", "reference", "mode", "date",
+    "rmse", "psnr", "ssim", "max_abs", "vol_rmse", "vol_max_abs", "flat_spread", "image_ok",
+    "volumes_ok", "shader_ok", "ok", "error", "lighting", "reference", "mode", "date",
 )
 
 #: Colour-blind-safe palette (Okabe–Ito, then Tableau), handed out in method order.

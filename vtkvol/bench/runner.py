@@ -460,7 +460,7 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
     """One sweep point for every stability setting: image error against the reference,
     finite/bounded checks on the image, the GPU volumes and the CPU light volume, and whether
     the shader built. Parameter sweeps run only for techniques declaring that parameter."""
-    from vtkvol.bench.measure import image_ok, volume_checks
+    from vtkvol.bench.measure import FLAT_SPREAD_LIMIT, flat_spread, image_ok, volume_checks
 
     scene = case.scene
     opacity = scene.opacity()
@@ -486,8 +486,8 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             "date": ctx.date, "lighting": reference.lighting,
             "reference": reference.spec(scene, ctx.cache.budget).label, "rmse": None,
             "psnr": None, "ssim": None, "max_abs": None, "vol_rmse": None, "vol_max_abs": None,
-            "image_ok": False, "volumes_ok": False, "shader_ok": False, "ok": False,
-            "error": None,
+            "flat_spread": None, "image_ok": False, "volumes_ok": False, "shader_ok": False,
+            "ok": False, "error": None,
         }
         try:
             ref_img = _reference_image(ctx, scene, reference)
@@ -507,6 +507,15 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
             rec.update(rmse=m["rmse"], psnr=m["psnr"], ssim=m["ssim"], max_abs=m["max_abs"],
                        vol_rmse=vox.get("vol_rmse"), vol_max_abs=vox.get("vol_max_abs"))
             problems = [p for p in (shader_problem, gpu_problem, cpu_problem) if p]
+            if scene.flat_region is not None:
+                # A flat scene (one surface, one light): a trend across the image is an error
+                # whatever the reference says (the reference samples the same ray lattice).
+                # Progressive methods are noisy by design, so only recorded.
+                rec["flat_spread"] = flat_spread(image, scene.flat_region)
+                progressive = "progressive" in ctx.techniques[setting.method].SPEC.capabilities
+                if rec["flat_spread"] > FLAT_SPREAD_LIMIT and not progressive:
+                    problems.append(f"image not flat on a flat scene: spread "
+                                    f"{rec['flat_spread']:.3f} > {FLAT_SPREAD_LIMIT}")
             if not rec["shader_ok"] and not shader_problem:
                 problems.append("technique shader code missing from the built program")
             if not rec["image_ok"]:
@@ -522,6 +531,9 @@ def run_stability_case(ctx: Context, case: StabilityCase, settings: Sequence[Set
         for setting in vtk_settings:
             ctx.progress.step(f"stability {case.sweep}={case.value_label}: VTK scattering")
             r = measure_vtk_image(ctx, scene, setting)
+            image = r.pop("image", None)
+            r["flat_spread"] = (flat_spread(image, scene.flat_region)
+                                if scene.flat_region is not None and image is not None else None)
             out.append({
                 "sweep": case.sweep, "value": case.value, "value_label": case.value_label,
                 "unit": case.unit, "scene": scene.name, "date": ctx.date,
@@ -545,6 +557,7 @@ def measure_vtk_image(ctx: Context, scene: Scene, setting: Setting) -> dict[str,
         ref_img = _reference_image(ctx, scene, reference)
         ctx.vtk_rig.set_setting(setting.values["blending"], setting.values["reach"])
         image = ctx.vtk_rig.image()
+        rec["image"] = image  # for the caller's flatness record; popped before it is stored
         problem = ctx.errors.new_errors()
         m = image_metrics(image, ref_img)
         rec.update(rmse=m["rmse"], psnr=m["psnr"], ssim=m["ssim"], max_abs=m["max_abs"],

@@ -95,6 +95,14 @@ class Scene:
     #: Intensity of each light (the convergence study's three-light scenes give each 1/3, so
     #: that the images do not saturate and compare with the one-light ones).
     light_intensity: float = 1.0
+    #: Parallel (orthographic) instead of perspective projection of the comparison view, and
+    #: the perspective camera's view angle (°).
+    parallel: bool = False
+    view_angle: float = 30.0
+    #: Scenes whose image must be flat: the side (fraction of the image's shorter side) of the
+    #: centred square in which every pixel sees the same surface under the same light (the
+    #: stability suite records the spread there, ``flat_spread``); None for the others.
+    flat_region: float | None = None
 
     @property
     def unit_distance(self) -> float:
@@ -335,6 +343,52 @@ def sphere_over_slab_aniso(n: int, z_factor: float) -> tuple[np.ndarray, Vec3]:
     return out.astype(np.float32), (1.0, 1.0, float(sz))
 
 
+def lit_slab(n: int = 48, thickness: int = 5) -> np.ndarray:
+    """An opaque slab filling the x–y extent: ``thickness`` voxel layers of α = 1 in the middle
+    of an ``(n, n, ≈ 5/6 n)`` volume ``[z, y, x]`` (48 → 48 × 48 × 40 voxels), empty elsewhere.
+
+    Seen from above, every pixel over the slab shows the same horizontal surface under the
+    same (directional) light, so the correct image is flat: any trend across the image is an
+    error of the rendering, not of the scene. With a perspective camera each ray meets the
+    surface at its own angle and at its own phase of the ray's sample lattice (the rays start
+    on the bounding box, one sample distance apart along the ray), which a parallel camera does
+    not vary; issue 26 found the shadow volume's surface darkening towards the image edges
+    here (docs/shadow-volume.md, "Sample phase at opaque surfaces")."""
+    nz = max(thickness + 4, round(n * 5 / 6))
+    out = np.zeros((nz, n, n), np.float32)
+    z0 = (nz - thickness) // 2
+    out[z0: z0 + thickness] = 1.0
+    return out
+
+
+#: Camera elevation (°) of the slab views: straight down onto the slab (90° itself leaves the
+#: orbit's view-up parallel to the view direction).
+SLAB_VIEW_ELEVATION = 89.0
+
+
+#: View angle (°) of the perspective slab views (VTK's default is 30°).
+SLAB_VIEW_ANGLE = 60.0
+
+
+def slab_view_scene(n: int, theta_deg: float, *, parallel: bool,
+                    azimuth: float = 0.0) -> Scene:
+    """:func:`lit_slab` seen from above (``azimuth`` turns the view about the vertical), lit by
+    a directional light ``theta_deg`` from +z towards the (+x, +y) diagonal."""
+    proj = "parallel" if parallel else "perspective"
+    scene = _alpha_scene(
+        f"slab_{proj}_{theta_deg:g}" + (f"_az{azimuth:g}" if azimuth else ""), lit_slab(n),
+        f"opaque 5-voxel slab from above, {proj} camera", lights=[_direction(theta_deg)],
+        kind="stability")
+    scene.azimuth, scene.elevation = azimuth, SLAB_VIEW_ELEVATION
+    scene.parallel = parallel
+    # A wide lens: rays at the image's edges meet the slab up to about 25° off the view axis.
+    scene.view_angle = SLAB_VIEW_ANGLE
+    # The slab fills the middle of the framed box; its inner 40 % is away from its borders
+    # (where oblique light enters through the side faces) in either projection.
+    scene.flat_region = 0.4
+    return scene
+
+
 def sixteen_bit_cells(n: int, outlier_fraction: float, seed: int = 3) -> Scene:
     """The cell phantom as 12-bit values in uint16 (offset 100, up to ≈4000) with a fraction of
     voxels set to 65535 (hot pixels / saturated outliers); the transfer function covers the
@@ -405,5 +459,12 @@ def stability_cases(n: int = 48, *, quick: bool = True) -> list[StabilityCase]:
     for frac in ((0.0, 1e-3) if quick else (0.0, 1e-4, 1e-3, 1e-2)):
         s16 = sixteen_bit_cells(n, frac)
         cases.append(StabilityCase("outliers", frac * 100, f"{frac:.2%}", "% voxels", s16))
+    # value: the case's index (0, 1: light from above; 2, 3: at 45°; parallel camera first).
+    for theta in (0.0, 45.0):
+        for parallel in (True, False):
+            proj = "parallel" if parallel else "perspective"
+            cases.append(StabilityCase(
+                "slab_view", float(len([c for c in cases if c.sweep == "slab_view"])),
+                f"{proj} {theta:g}°", "case", slab_view_scene(n, theta, parallel=parallel)))
     return cases
 

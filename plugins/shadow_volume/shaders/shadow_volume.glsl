@@ -14,40 +14,55 @@
 //   float vv_shadow_volume_strength      0..1: visibility = 1 - strength * (1 - V)
 //   float vv_shadow_volume_offset        h0: lookup offset towards the light, light-grid cells
 //
+// Where a sample reads its light (docs/shadow-volume.md, "Sample phase at opaque surfaces"): at
+// the near end of the ray segment it closes, g_dataPos - g_dirStep (one ray step towards the
+// viewer), then h0 cells towards the light. VTK composites the sample's opacity for that whole
+// segment, and at an opaque surface the light is absorbed where the ray enters it. Read at the
+// sample itself, the lookup lands anywhere up to one step inside the surface, where the
+// visibility falls steeply with depth; how deep depends on where the ray's sample lattice
+// (it starts on the bounding box) happens to meet the surface, which in a perspective view
+// changes from ray to ray: lit surfaces darkened towards the image edges (issue 26).
+//
 // Cost per shaded sample and light (docs/shadow-volume.md, "Frame time"): one fused
 // multiply-add from VTK's texture coordinate to the light grid's, then one trilinear fetch. The
-// map and each directional light's offset depend only on uniforms, so they are computed once per
-// fragment (vv_sv_setup, at the start of the ray) instead of per sample: on llvmpipe that
-// arithmetic (a matrix product, a length and two divisions per sample and light) was more than
-// half of the technique's cost. Point lights (VV_SV_POINT_LIGHTS, set by the host when any light is one)
-// take their offset direction per sample, in light-grid cells.
+// map, the ray's step back and each directional light's offset are constant along a ray (the
+// step is the ray's own: in perspective every ray has its own direction), so they are computed
+// once per fragment (vv_sv_setup, after VTK has set up the ray) instead of per sample: on
+// llvmpipe that arithmetic (a matrix product, a length and two divisions per sample and light)
+// was more than half of the technique's cost. Point lights (VV_SV_POINT_LIGHTS, set by the host
+// when any light is one) take their offset direction per sample, in light-grid cells.
 //
 // Shading (host_lighting.glsl): V multiplies the diffuse and specular terms of its light;
 // ambient is kept (vv_ambient_visibility = 1: this technique computes no occlusion).
 
 //@inject //VTK::ComputeLighting::Dec pre before
 // Light-grid texture coordinate = VTK's texture coordinate * vv_sv_texToGrid + vv_sv_gridBias[i]
-// (bias: the grid's own origin, plus for directional light i its offset towards the light).
+// (bias: the grid's own origin, one step of this ray back towards the viewer, and for
+// directional light i the offset towards the light).
 vec3 vv_sv_texToGrid;
 vec3 vv_sv_gridBias[4];
 #if VV_SV_POINT_LIGHTS
 vec3 vv_sv_lightGrid[4];  // point light i in light-grid texture coordinates
 #endif
 
-// Once per fragment: the affine map from VTK's texture coordinates (0..1 over the data texture)
-// to the light grid's (the same point bounds, vv_shadow_volume_dims cells), and the offset of h0
-// light-grid cells towards each directional light. A cell is measured in the light grid's own
-// (possibly anisotropic) units, so the offset is h0 cells whatever the direction.
+// Once per fragment, after VTK's ray set-up (g_dirStep is this ray's step, texture units): the
+// affine map from VTK's texture coordinates (0..1 over the data texture) to the light grid's
+// (the same point bounds, vv_shadow_volume_dims cells), the step back to the near end of the
+// sample's segment, and the offset of h0 light-grid cells towards each directional light. A
+// cell is measured in the light grid's own (possibly anisotropic) units, so the offset is h0
+// cells whatever the direction.
 void vv_sv_setup()
 {
   vec3 dims = vv_shadow_volume_dims;
   vec3 unitPerTex = 1.0 / (in_texMax[0] - in_texMin[0]);
   vv_sv_texToGrid = unitPerTex * (dims - 1.0) / dims;
   vec3 origin = (0.5 - in_texMin[0] * unitPerTex * (dims - 1.0)) / dims;
+  vec3 segmentStart = origin - g_dirStep * vv_sv_texToGrid;
   for (int i = 0; i < vv_numLights; ++i)
   {
-    vv_sv_gridBias[i] = origin;
+    vv_sv_gridBias[i] = segmentStart;
 #if VV_SV_POINT_LIGHTS
+    // The light's own position is not moved (only the lookup point is).
     vec3 lightTex = (in_inverseTextureDatasetMatrix[0] * vec4(vv_lightVector(i), 1.0)).xyz;
     vv_sv_lightGrid[i] = lightTex * vv_sv_texToGrid + origin;
     if (vv_lightIsPoint(i)) continue;

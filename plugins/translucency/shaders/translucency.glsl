@@ -48,11 +48,15 @@ vec4 vv_translucency_fetch(int light, vec3 tc)
 
 vec3 vv_light_transmittance_rgb(int light, vec3 texPos, vec3 dirDS)
 {
-  // Offset h0 cells towards the light, as the shadow volume reads its volume (a cell is
-  // measured in the light grid's own, possibly anisotropic, units).
+  // As the shadow volume reads its volume (shadow_volume.glsl, docs/shadow-volume.md "Sample
+  // phase at opaque surfaces"): from the near end of the sample's ray segment (one step of
+  // this ray towards the viewer; read at the sample, an opaque surface's light depended on
+  // where the ray's samples met it, which varies from ray to ray in perspective), offset h0
+  // cells towards the light (a cell is measured in the light grid's own, possibly
+  // anisotropic, units).
   vec3 dirTex = vv_datasetDirToTex(dirDS);                          // texture units per µm
   float cellsPerUm = length(dirTex / vv_translucency_cellTex);
-  vec3 p = texPos + dirTex * (vv_translucency_offset / max(cellsPerUm, 1e-30));
+  vec3 p = texPos - g_dirStep + dirTex * (vv_translucency_offset / max(cellsPerUm, 1e-30));
   vec3 tc = vv_unitToGrid(vv_texToUnit(p), vv_translucency_dims);
 #if VV_TL_LIGHTS > 0
   vec4 t = light < VV_TL_LIGHTS ? vv_translucency_fetch(light, tc) : vec4(1.0);
