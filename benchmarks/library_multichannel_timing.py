@@ -1,29 +1,28 @@
-"""Development study of multi-channel frame cost through the LIBRARY path (not part of the
-installed library): a plain VTK pipeline (``vtkImageData`` with independent components,
-``vtkOpenGLGPUVolumeRayCastMapper``, ``vtkVolumeProperty`` with ``IndependentComponentsOn``
-and one colour/opacity function per component) given ``vtkvol.illuminate(volume, renderer,
-method=..., multichannel_lighting=...)``, beside the app's scene path
-(``vtkvol.engine.api.offscreen_view``, as ``benchmarks/multichannel_timing.py`` measures it),
-on the same data with the same transfer functions, in one run.
+"""Development study of multi-channel frame cost through the LIBRARY path (issue 26; not part
+of the installed library): a plain VTK pipeline (``vtkImageData`` with two independent
+components, ``vtkOpenGLGPUVolumeRayCastMapper``, ``vtkVolumeProperty`` with
+``IndependentComponentsOn()``, ``ShadeOn()`` and one colour/opacity function per component)
+given ``vtkvol.illuminate(volume, renderer, method=..., multichannel_lighting=...)``, beside
+the app's scene path (``vtkvol.engine.api.offscreen_view``, as
+``benchmarks/multichannel_timing.py`` measures it), on the same data with the same transfer
+functions (the scene's defaults), in one run.
 
-Per method, nine views are open together and their frames interleaved (A, B, C, …, A, B, …)
-so that a change of machine load affects them alike: for each of three pipelines, one channel
-(the nuclei alone), two channels lit per channel and two channels with shared lighting:
-
-* ``scene``: the app's scene path (``scene_for`` defaults: shading on for every channel,
-  linear interpolation, 0.5-voxel steps);
-* ``lib``: the plain pipeline as a VTK user writes it: ``prop.ShadeOn()`` (which is VTK's
-  ``SetShade(0, 1)``: component 0 only), ``SetInterpolationTypeToLinear()``, the mapper's
-  default sample distance;
-* ``lib_all``: the same with ``prop.SetShade(c, 1)`` for every component.
+Pipelines (``PIPELINE_SPECS``): ``scene`` (the scene's defaults: 0.5-voxel ray step, jitter),
+``lib`` (the plain pipeline: VTK's automatic sample distance, i.e. one voxel),
+``scene_step1`` (the scene at a one-voxel step) and ``lib_step0.5`` (the plain pipeline with
+``AutoAdjustSampleDistances`` off and a 0.5-voxel step). For each, three views: one channel
+(the nuclei alone), two channels lit per channel, two channels with shared lighting. A
+method's views are all open together and their frames interleaved (A, B, C, …, A, B, …) so
+that a change of machine load affects them alike.
 
 Run from the checkout: ``python benchmarks/library_multichannel_timing.py [ZxYxX] [IMAGE]
-[methods] [pipelines]`` (default 64x128x128 voxels, a 256² image, local shading and shadow
-volume, all three pipelines); prints a markdown table, then each two-channel view's
-multi-channel lighting state, shading flags and whether its shader holds the shared
-lighting. Data: the built-in confocal phantom (uint16, 0.5 µm voxels); one channel = its
-nuclei channel alone. Each frame time is the median of ``FRAMES`` full-quality frames after
-two warm-up frames (render + read-back).
+[methods] [pipelines]`` (default 64x128x128 voxels, a 256² image, ``local,shadow_volume``,
+``scene,lib``); prints a markdown table with, per view, the median wall-clock time and the
+median CPU time of this process (llvmpipe renders on this process's threads, so the CPU
+time counts the rendering work and moves far less than the wall time on a loaded machine),
+the ratios, and what each two-channel view's shader did with the lighting. Data: the
+built-in confocal phantom (uint16, 0.5 µm voxels). Each time is the median of ``FRAMES``
+full-quality frames after two warm-up frames (render + read-back).
 """
 
 from __future__ import annotations

@@ -62,8 +62,10 @@ def illuminate(
     multichannel_lighting
         Two to four independent components: ``"per_channel"`` (VTK's, every component lit with
         its own normal and material) or ``"shared"`` (components classified unlit, mixed, and
-        lit once per sample with the opacity-weighted normal and material: about the cost of
-        one component; :attr:`Illuminator.multichannel_lighting_state` says whether it applies).
+        lit once per sample with the opacity-weighted normal and material: cheaper with
+        ``"cone_traced"`` and ``"translucency"``, the same cost with ``"local"`` and
+        ``"shadow_volume"``; :attr:`Illuminator.multichannel_lighting_state` says whether it
+        applies).
         Later: ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
     **parameters
         Technique parameters (validated against its declaration; ``ValueError`` if bad).
