@@ -50,8 +50,9 @@ CHANNEL_LIGHTING_TIP = (
     "How several channels are lit. Per channel: VTK's, every channel with its own normal "
     "(exact). Shared: the channels' colours are mixed first and lit once per sample with the "
     "opacity-weighted normal of the channels — close to per channel (the same where one "
-    "channel shows). Faster with cone tracing and translucency; with local shading and the "
-    "shadow volume it costs the same. Shaded composite blending only")
+    "channel shows). Faster with several lights, cone tracing and translucency; with one "
+    "light and local shading or the shadow volume about the same cost. Shaded composite "
+    "blending only")
 CHANNEL_LIGHTING_MEDIUM_TIP = (
     " · The current technique lights a scattering medium (no normals): shared lights the "
     "mixed colour once, which looks the same and costs less")

@@ -63,9 +63,9 @@ def illuminate(
         Two to four independent components: ``"per_channel"`` (VTK's, every component lit with
         its own normal and material) or ``"shared"`` (components classified unlit, mixed, and
         lit once per sample with the opacity-weighted normal and material: cheaper with
-        ``"cone_traced"`` and ``"translucency"``, the same cost with ``"local"`` and
-        ``"shadow_volume"``; :attr:`Illuminator.multichannel_lighting_state` says whether it
-        applies).
+        several lights, ``"cone_traced"`` and ``"translucency"``, about the same cost with one
+        light and ``"local"`` or ``"shadow_volume"``;
+        :attr:`Illuminator.multichannel_lighting_state` says whether it applies).
         Later: ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
     **parameters
         Technique parameters (validated against its declaration; ``ValueError`` if bad).
