@@ -303,3 +303,92 @@ def test_gradient_opacity_keeps_per_channel_lighting(phantom):
     assert state == ("per_channel (gradient opacity or volumetric scattering take gradients "
                      "per channel)")
     assert np.array_equal(images["per_channel"], images["shared"])
+
+
+# -- the library path (issue 26) --------------------------------------------------------------
+def _host_build(source: str) -> set[str]:
+    """What the host put in a fragment shader: its section markers and ``VV_`` defines."""
+    return {line.strip() for line in source.splitlines()
+            if line.strip().startswith(("// vtkvol<", "#define VV_"))}
+
+
+def _library_source(data: VolumeData, method: str, lighting: str) -> tuple[str, str]:
+    """The fragment shader and state of a plain VTK pipeline given ``illuminate()``: two
+    independent components, per-component TFs, ``ShadeOn()`` (VTK: component 0 only), the
+    mapper's default (automatic) sample distance, the renderer's headlight."""
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk
+
+    from vtkvol import illuminate
+    from vtkvol.engine.offscreen import make_render_window
+
+    n, nz, ny, nx = data.array.shape
+    img = vtk.vtkImageData()
+    img.SetDimensions(nx, ny, nz)
+    img.SetSpacing(*data.voxel_size_um)
+    img.GetPointData().SetScalars(numpy_to_vtk(
+        np.ascontiguousarray(np.moveaxis(data.array, 0, -1)).reshape(-1, n), deep=True))
+    prop = vtk.vtkVolumeProperty()
+    prop.IndependentComponentsOn()
+    prop.SetInterpolationTypeToLinear()
+    prop.ShadeOn()
+    for c, channel in enumerate(scene_for(data).channels):
+        ctf, otf = vtk.vtkColorTransferFunction(), vtk.vtkPiecewiseFunction()
+        for value, r, g, b in channel.tf.colors:
+            ctf.AddRGBPoint(value, r, g, b)
+        for value, alpha in channel.tf.opacity:
+            otf.AddPoint(value, alpha)
+        prop.SetColor(c, ctf)
+        prop.SetScalarOpacity(c, otf)
+    mapper = vtk.vtkOpenGLGPUVolumeRayCastMapper()
+    mapper.SetInputData(img)
+    volume = vtk.vtkVolume()
+    volume.SetMapper(mapper)
+    volume.SetProperty(prop)
+    rw = make_render_window((64, 64))
+    ren = vtk.vtkRenderer()
+    rw.AddRenderer(ren)
+    ren.AddVolume(volume)
+    ren.ResetCamera()
+    il = illuminate(volume, ren, method=method, multichannel_lighting=lighting)
+    try:
+        grab(rw)
+        grab(rw)  # the source is captured on the frame after a build
+        return il.fragment_source, il.multichannel_lighting_state
+    finally:
+        il.release()
+        rw.Finalize()
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("method", ["local", "shadow_volume", "translucency"])
+@pytest.mark.parametrize("lighting", ["per_channel", "shared"])
+def test_library_pipeline_builds_the_scenes_multichannel_shader(phantom, method, lighting):
+    """Issue 26: a plain VTK pipeline given illuminate() gets the host's multi-channel sample
+    and, asked for, the shared lighting: the same host sections and defines as the app's scene
+    path, so a frame costs what it costs there (docs/benchmarks.md, "Shared lighting")."""
+    library, state = _library_source(phantom, method, lighting)
+    _image, scene_source, scene_state = render(phantom, method, lighting)
+    assert state == scene_state == lighting
+    assert "vv_mcClassify(" in library  # the host's sample, not VTK's per-component loop
+    assert (SHARE_CALL in library) == (lighting == "shared")
+    assert _host_build(library) == _host_build(scene_source)
+
+
+@pytest.mark.gl
+def test_per_channel_lighting_already_shares_what_local_and_shadows_cost(phantom):
+    """Why shared lighting saves nothing measurable with local shading and the shadow volume
+    (docs/benchmarks.md): per-channel lighting already takes the six gradient fetches and the
+    transmittance towards each light once per sample (vv_mcLights), so the second channel's
+    lighting is arithmetic only. Translucency's shading looks its transmittance up per call,
+    i.e. per channel: there shared lighting removes a texture lookup per sample and light."""
+    for method in ("local", "shadow_volume"):
+        source, state = _library_source(phantom, method, "per_channel")
+        assert state == "per_channel"
+        assert "#define VV_MC_SHARE_GRADIENT 1" in source
+        assert "#define VV_MC_SHARE_LIGHT 1" in source
+        assert "  vv_mcLights();" in source
+        assert "vec3 transmittance = vv_mcTransmittance[i];" in source
+    source, _state = _library_source(phantom, "translucency", "per_channel")
+    assert "#define VV_MC_SHARE_GRADIENT 1" in source
+    assert "vec3 transmittance = vv_light_transmittance_rgb(i, g_dataPos, l);" in source

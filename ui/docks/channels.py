@@ -50,7 +50,8 @@ CHANNEL_LIGHTING_TIP = (
     "How several channels are lit. Per channel: VTK's, every channel with its own normal "
     "(exact). Shared: the channels' colours are mixed first and lit once per sample with the "
     "opacity-weighted normal of the channels — close to per channel (the same where one "
-    "channel shows), at about the cost of one channel's lighting. Shaded composite "
+    "channel shows). Faster with several lights, cone tracing and translucency; with one "
+    "light and local shading or the shadow volume about the same cost. Shaded composite "
     "blending only")
 CHANNEL_LIGHTING_MEDIUM_TIP = (
     " · The current technique lights a scattering medium (no normals): shared lights the "

@@ -62,10 +62,12 @@ def illuminate(
         ``"renderer"``: follow the renderer's lights at every frame (a camera light then
         recomputes precomputed illumination at every camera move).
     multichannel_lighting
-        None (default): ``"per_channel"`` at the first call. Two to four independent components:
-        ``"per_channel"`` (VTK's, every component lit with its own normal and material) or
-        ``"shared"`` (components classified unlit, mixed, and lit once per sample with the
-        opacity-weighted normal and material: about the cost of one component;
+        None (default): ``"per_channel"`` at the first call, unchanged at a later one. Two to
+        four independent components: ``"per_channel"`` (VTK's, every component lit with its
+        own normal and material) or ``"shared"`` (components classified unlit, mixed, and lit
+        once per sample with the opacity-weighted normal and material: cheaper with several
+        lights, ``"cone_traced"`` and ``"translucency"``, about the same cost with one light
+        and ``"local"`` or ``"shadow_volume"``;
         :attr:`Illuminator.multichannel_lighting_state` says whether it applies). Later:
         ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
     **parameters

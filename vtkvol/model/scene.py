@@ -297,7 +297,9 @@ class RenderSettings(EventedModel):
     #: unless channels' materials differ. No effect on one channel, on unshaded rendering, on
     #: blends other than composite, with 2-D transfer functions, gradient opacity or VTK's
     #: volumetric scattering (those keep per-channel lighting). docs/benchmarks.md,
-    #: "Multi-channel frames", has the cost and the measured image difference.
+    #: "Multi-channel frames", has the cost (lower with several lights, cone tracing and
+    #: translucency; about the same with one light and local shading or the shadow volume) and
+    #: the measured image difference.
     multichannel_lighting: MultichannelLighting = "per_channel"
 
     @field_validator("blend_mode", mode="before")
