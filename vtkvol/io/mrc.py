@@ -45,8 +45,10 @@ def read_mrc(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             handle = mrcfile.mmap(str(path), mode="r", permissive=False)
-    except (ValueError, OSError, EOFError) as exc:
-        raise VolumeReadError(path, f"not a valid MRC file ({exc})") from exc
+    except (ValueError, OSError, EOFError, OverflowError) as exc:
+        # OverflowError: numpy's memmap of a negative size from the header
+        raise VolumeReadError(path, f"not a valid MRC file ({' '.join(str(exc).split())})"
+                              ) from exc
     with handle as mrc:
         data = mrc.data
         if data is None:
