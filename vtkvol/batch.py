@@ -23,6 +23,7 @@ under the same names (a shared file system), as with any dask cluster.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import os
 import re
@@ -42,17 +43,24 @@ __all__ = [
     "RenderJob",
     "RenderOptions",
     "existing_outputs",
+    "max_local_workers",
     "parse_time_range",
     "plan_jobs",
     "render_job",
     "render_job_image",
     "run_batch",
+    "scheduler_address_problem",
 ]
 
 SESSION_SUFFIX = ".vtkvol.json"
 
 #: How long to wait for an existing scheduler to answer before giving up (seconds).
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
+#: Most images one batch renders (inputs × time points): checked before the jobs are listed
+#: (``--time 0:1000000000000`` listed 10¹² jobs into a MemoryError).
+MAX_JOBS = 100_000
+#: Schemes of a scheduler address that dask's TCP-like transports understand.
+SCHEDULER_SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
 
 ProgressCallback = Callable[[int, int, "JobResult"], None]
 """``progress(jobs_done, jobs_total, result_of_the_job_just_finished)``."""
@@ -130,7 +138,39 @@ def parse_time_range(text: str) -> range:
         raise ValueError(f"--time: the step must be at least 1, got {step}")
     if stop <= start:
         raise ValueError(f"--time {text}: STOP is excluded and must be greater than START")
-    return range(start, stop, step)
+    times = range(start, stop, step)
+    if len(times) > MAX_JOBS:
+        raise ValueError(f"--time {text} is {len(times)} time points; a batch renders at most "
+                         f"{MAX_JOBS} images")
+    return times
+
+
+def max_local_workers() -> int:
+    """Most worker processes of a local cluster: 4 per CPU core. Each worker is a process with
+    its own render context and volume in memory; more than that only queue for the cores
+    (``--workers 100000`` tried to start them all and hung)."""
+    return 4 * (os.cpu_count() or 1)
+
+
+def scheduler_address_problem(address: str) -> str | None:
+    """What is wrong with a scheduler address (one line), or None for ``[SCHEME://]HOST:PORT``
+    with SCHEME one of :data:`SCHEDULER_SCHEMES` and PORT 1…65535. Checked before connecting:
+    dask takes anything, waits out the timeout and prints a traceback as it shuts down."""
+    text = address.strip()
+    scheme, sep, rest = text.partition("://")
+    if not sep:
+        scheme, rest = "tcp", text
+    scheme = scheme.lower()
+    usage = f"--scheduler takes tcp://HOST:PORT, got {address!r}"
+    if scheme not in SCHEDULER_SCHEMES:
+        return f"{usage} (known schemes: {', '.join(SCHEDULER_SCHEMES)})"
+    match = re.fullmatch(r"(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9](?:[A-Za-z0-9.-]*[A-Za-z0-9])?)"
+                         r":(\d{1,5})/?", rest)
+    if not match:
+        return usage
+    if not 1 <= int(match.group(2)) <= 65535:
+        return f"--scheduler {address!r}: the port must be from 1 to 65535"
+    return None
 
 
 def _stem(source: str) -> str:
@@ -166,7 +206,12 @@ def plan_jobs(
         raise ValueError("no inputs to render")
     options = options or RenderOptions()
     out = Path(out_dir).expanduser().resolve()
-    time_list = None if times is None else list(times)
+    # At most MAX_JOBS + 1 time points are listed: a range of 10¹² is cheap, its list is not.
+    time_list = None if times is None else list(itertools.islice(times, MAX_JOBS + 1))
+    if time_list is not None and len(inputs) * len(time_list) > MAX_JOBS:
+        more = "+" if len(time_list) > MAX_JOBS else ""
+        raise ValueError(f"{len(inputs)} input(s) × {len(time_list)}{more} time points: a batch "
+                         f"renders at most {MAX_JOBS} images")
     jobs: list[RenderJob] = []
     claimed: dict[Path, str] = {}
     for item in inputs:
@@ -301,6 +346,9 @@ def _import_distributed():
 def connect(scheduler: str, timeout: float = DEFAULT_CONNECT_TIMEOUT_S):
     """A :class:`distributed.Client` of the scheduler at ``scheduler`` (``tcp://host:port``);
     :class:`BatchError` with one line if it does not answer within ``timeout`` seconds."""
+    problem = scheduler_address_problem(scheduler)
+    if problem:
+        raise BatchError(problem)
     distributed = _import_distributed()
     try:
         return distributed.Client(scheduler, timeout=timeout, set_as_default=False)
@@ -316,6 +364,9 @@ def local_cluster(workers: int, egl_devices: Sequence[int] | None = None):
     ``egl_devices[i % len]``. Returns ``(cluster, client)``."""
     if workers < 1:
         raise ValueError(f"--workers must be at least 1, got {workers}")
+    if workers > max_local_workers():
+        raise ValueError(f"--workers must be at most {max_local_workers()} (4 per CPU core), "
+                         f"got {workers}")
     distributed = _import_distributed()
     cluster = distributed.LocalCluster(
         n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,

@@ -5,10 +5,13 @@ pyramid from a large volume)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
 import os
+import signal
 import sys
-from collections.abc import Sequence
+import threading
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -55,12 +58,46 @@ def _parse_params(items: Sequence[str]) -> dict[str, Any] | str:
         name, sep, value = item.partition("=")
         if not sep:
             return f"--param needs NAME=VALUE, got {item!r}"
-        params[name] = _parse_value(value)
+        parsed = _parse_value(value)
+        if isinstance(parsed, float) and not math.isfinite(parsed):
+            return f"--param {name}: the value must be a finite number, got {value!r}"
+        params[name] = parsed
     return params
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, with its complaints as one ``vtkvol:`` line (not the usage block) naming the
+    command and the option."""
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        self.exit(2, f"vtkvol: {self.prog}: {message} (see {self.prog} --help)\n")
+
+
+#: The unit each float option is in, for its message when it is not a finite number.
+_FLOAT_UNITS = {"azimuth": " of degrees", "elevation": " of degrees", "turntable": " of degrees",
+                "fps": " of frames per second", "time_budget": " of seconds",
+                "connect_timeout": " of seconds"}
+
+
+def _non_finite_problem(args: argparse.Namespace) -> str | None:
+    """The first float option of any command that is NaN or infinite (argparse's ``float``
+    takes ``nan``, ``inf`` and ``1e999``; none of them is ever a meaningful value)."""
+    for name, value in vars(args).items():
+        values = value if isinstance(value, (list, tuple)) else [value]
+        floats = [v for v in values if isinstance(v, float)]
+        if all(math.isfinite(v) for v in floats):
+            continue
+        flag = "--" + name.replace("_", "-")
+        if name == "voxel_size":
+            return ("--voxel-size X Y Z must be three positive µm values, got "
+                    + " ".join(f"{v:g}" for v in values))
+        shown = " ".join(f"{v:g}" for v in values)
+        return f"{flag} must be a finite number{_FLOAT_UNITS.get(name, '')}, got {shown}"
+    return None
+
+
 def _parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="vtkvol",
         description="Volume rendering of microscopy data with real illumination.",
     )
@@ -261,9 +298,13 @@ def cmd_render(args: argparse.Namespace) -> int:
             return 2
         try:
             animation = read_keyframes(args.keyframes)
-            args.frames = animation.frame_count(args.fps)
         except KeyframeError as exc:
             print(f"vtkvol: {exc}", file=sys.stderr)
+            return 2
+        try:
+            args.frames = animation.frame_count(args.fps)
+        except KeyframeError as exc:
+            print(f"vtkvol: {Path(args.keyframes).name}: {exc}", file=sys.stderr)
             return 2
         if animation.animates_time and args.time:
             print("vtkvol: --time does not apply: the keyframes choose the time points",
@@ -326,13 +367,14 @@ def cmd_render(args: argparse.Namespace) -> int:
             how = "as asked"
         print(f"refined to {iterations} iterations in {seconds:.1f} s ({how})")
 
-    image = render_image(
-        data, model=model, size=tuple(args.size), method=args.method, preset=args.preset,
-        azimuth=args.azimuth, elevation=args.elevation, parameters=params or None,
-        iterations=args.iterations, max_seconds=args.time_budget,
-        on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
-        on_refined=refined,
-    )
+    with _signals.deferred():  # raises Terminated after the render if a signal came
+        image = render_image(
+            data, model=model, size=tuple(args.size), method=args.method, preset=args.preset,
+            azimuth=args.azimuth, elevation=args.elevation, parameters=params or None,
+            iterations=args.iterations, max_seconds=args.time_budget,
+            on_error=lambda message: print(f"vtkvol: {message}", file=sys.stderr),
+            on_refined=refined,
+        )
     try:
         _write_png(image, out, replace=args.overwrite)
     except FileExistsError:
@@ -369,10 +411,18 @@ def _show_labels(model, data) -> str | None:
 
 def _movie_problem(args: argparse.Namespace, out: Path) -> str | None:
     """What is wrong with the movie options, before anything is read or rendered."""
+    from vtkvol.model.keyframes import MAX_FRAMES
     from vtkvol.movie import encoder_problem, existing_outputs
 
+    # Before anything that lists the frames (the names of 10⁹ PNGs filled 2 GB of memory).
     if args.frames < 1:
         return f"--frames must be at least 1, got {args.frames}"
+    if args.frames > MAX_FRAMES:
+        return (f"--frames must be at most {MAX_FRAMES} (about 55 min at 30 fps), got "
+                f"{args.frames}")
+    if args.turntable is not None and abs(args.turntable) > MAX_TURNTABLE_DEGREES:
+        return (f"--turntable must be at most {MAX_TURNTABLE_DEGREES:g} degrees (100 turns) "
+                f"either way, got {args.turntable:g}")
     if not (args.fps > 0 and args.fps < 1000):
         return f"--fps must be between 0 and 1000, got {args.fps}"
     try:
@@ -386,6 +436,10 @@ def _movie_problem(args: argparse.Namespace, out: Path) -> str | None:
         more = f" (and {len(existing) - 1} more frame files)" if len(existing) > 1 else ""
         return f"{existing[0]} exists{more}; pass --overwrite to replace it"
     return None
+
+
+#: Largest turn of ``--turntable`` (degrees, either way): 100 full turns.
+MAX_TURNTABLE_DEGREES = 36000.0
 
 
 def _keyframe_option_problem(args: argparse.Namespace, out: Path) -> str | None:
@@ -466,8 +520,15 @@ def _write_movie(args: argparse.Namespace, out: Path, frames, size: tuple[int, i
         print(f"frame {done}/{total}", end=end if done < total else "\n", file=sys.stderr,
               flush=True)
 
-    written = write_movie(frames, out, n_frames=args.frames, fps=args.fps,
-                          overwrite=args.overwrite, progress=progress)
+    try:
+        with _signals.deferred():
+            written = write_movie(frames, out, n_frames=args.frames, fps=args.fps,
+                                  overwrite=args.overwrite, progress=progress,
+                                  cancel=lambda: _signals.received is not None)
+    except Exception:
+        # MovieCancelled, or ffmpeg killed by the same Ctrl-C: the signal is the reason
+        _signals.check()
+        raise
     where = out if len(written) == 1 else f"{written[0]} … {written[-1].name}"
     print(f"wrote {where} ({args.frames} frames, {size[0]}×{size[1]}, "
           f"{args.frames / args.fps:.2f} s at {args.fps:g} fps)")
@@ -499,7 +560,19 @@ def _write_png(image, path: Path, *, replace: bool = True) -> None:
     write_atomic(path, vtk_to_numpy(writer.GetResult()).tobytes(), replace=replace)
 
 
+def _voxel_size_problem(voxel_size: Sequence[float] | None) -> str | None:
+    """``--voxel-size`` of ``info``, ``open`` and ``convert``: three positive µm values."""
+    if voxel_size is not None and not all(math.isfinite(v) and v > 0 for v in voxel_size):
+        return ("--voxel-size X Y Z must be three positive µm values, got "
+                + " ".join(f"{v:g}" for v in voxel_size))
+    return None
+
+
 def cmd_info(args: argparse.Namespace) -> int:
+    problem = _voxel_size_problem(args.voxel_size)
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
+        return 2
     data = _load(args.file, args.voxel_size, budget=args.gpu_budget)
     print(data.describe())
     return 0
@@ -510,6 +583,10 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
     if args.time < 0:
         print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
+        return 2
+    problem = _voxel_size_problem(args.voxel_size)
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
         return 2
     channels = None if args.channels is None else [
         int(c) if c.isdigit() else c for c in args.channels]
@@ -526,7 +603,8 @@ def cmd_convert(args: argparse.Namespace) -> int:
             progress=progress)
     except ConvertError as exc:
         print(f"vtkvol: {exc}", file=sys.stderr)
-        return 2 if "exists" in str(exc) or "is the input" in str(exc) else 1
+        refused = ("exists", "is the input", "inside the input", "holds the input")
+        return 2 if any(text in str(exc) for text in refused) else 1
     c, z, y, x = result.levels[0]
     sx, sy, sz = result.voxel_size_um
     print(f"wrote {result.path}: {len(result.levels)} levels from {x}×{y}×{z} (x×y×z, "
@@ -552,6 +630,10 @@ def no_display_reason() -> str | None:
 
 
 def cmd_open(args: argparse.Namespace) -> int:
+    problem = _voxel_size_problem(args.voxel_size)
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
+        return 2
     if args.time is not None and args.time < 0:
         print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
         return 2
@@ -574,8 +656,14 @@ def cmd_open(args: argparse.Namespace) -> int:
 
 
 def cmd_bench(args: argparse.Namespace) -> int:
+    from vtkvol.bench.runner import check_size
     from vtkvol.bench.runner import main as bench_main
 
+    try:
+        check_size(args.size)  # before anything is made (a 100000³ phantom never finishes)
+    except ValueError as exc:
+        print(f"vtkvol: {exc}", file=sys.stderr)
+        return 2
     output = Path(args.output)
     if output.exists() and not output.is_dir():
         print(f"vtkvol: {output} is a file, not a folder for the results", file=sys.stderr)
@@ -605,9 +693,11 @@ def cmd_batch(args: argparse.Namespace) -> int:
         BatchError,
         RenderOptions,
         existing_outputs,
+        max_local_workers,
         parse_time_range,
         plan_jobs,
         run_batch,
+        scheduler_address_problem,
     )
 
     def fail(message: str) -> int:
@@ -629,12 +719,25 @@ def cmd_batch(args: argparse.Namespace) -> int:
                     f"got {args.connect_timeout}")
     if args.workers < 1:
         return fail(f"--workers must be at least 1, got {args.workers}")
+    if args.scheduler is None and args.workers > max_local_workers():
+        return fail(f"--workers must be at most {max_local_workers()} (4 per CPU core of this "
+                    f"machine), got {args.workers}; for more, start a cluster and pass "
+                    "--scheduler")
+    if args.scheduler is not None:
+        problem = scheduler_address_problem(args.scheduler)
+        if problem:
+            return fail(problem)
+    if args.voxel_size is not None and not all(v > 0 for v in args.voxel_size):
+        return fail("--voxel-size X Y Z must be three positive µm values, got "
+                    + " ".join(f"{v:g}" for v in args.voxel_size))
     devices = None
     if args.egl_devices:
         try:
             devices = [int(d) for d in args.egl_devices.split(",")]
         except ValueError:
             return fail(f"--egl-devices takes device numbers like 0,1,2, got {args.egl_devices!r}")
+        if any(d < 0 for d in devices):
+            return fail(f"--egl-devices takes device numbers >= 0, got {args.egl_devices!r}")
     out = Path(args.output)
     if out.exists() and not out.is_dir():
         return fail(f"{out} is a file, not a folder for the images")
@@ -683,17 +786,84 @@ def cmd_batch(args: argparse.Namespace) -> int:
     return 1 if failed else 0
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGINT arrived. Raised in the main thread, so that every ``finally`` and
+    ``except BaseException`` between here and the writer runs: movie writers and ``convert``
+    remove their hidden temporary files and folders (the default SIGTERM action ends the
+    process on the spot and leaves them behind). Not an Exception: the ``except Exception``
+    of a reader or renderer must not swallow it."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+class _Signals:
+    """SIGTERM and SIGINT of the commands that write files. Outside rendering the handler
+    raises :class:`Terminated` at once. While VTK renders (:meth:`deferred`) it only records
+    the signal: Python code then runs inside VTK's observer callbacks, where an exception is
+    printed as a traceback and swallowed by VTK. The movie loop checks :attr:`received`
+    before each frame (``write_movie``'s ``cancel``), a still image before it is written."""
+
+    def __init__(self) -> None:
+        self.received: int | None = None
+        self.defer = False
+
+    def handler(self, signum: int, frame: Any) -> None:
+        self.received = signum
+        if not self.defer:
+            raise Terminated(signum)
+
+    @contextlib.contextmanager
+    def deferred(self) -> Iterator[None]:
+        self.defer = True
+        try:
+            yield
+        finally:
+            self.defer = False
+        self.check()
+
+    def check(self) -> None:
+        """Raise :class:`Terminated` if a signal was recorded."""
+        if self.received is not None:
+            raise Terminated(self.received)
+
+
+_signals = _Signals()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    problem = _non_finite_problem(args)
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
+        return 2
     handlers = {"render": cmd_render, "info": cmd_info, "open": cmd_open, "bench": cmd_bench,
                 "batch": cmd_batch, "convert": cmd_convert}
+    previous: dict[int, Any] = {}
+    # Only the commands that write files; the app (open) has Qt's event loop, where a Python
+    # exception from a signal handler would land in some slot instead of ending the process.
+    # Handlers can be set only from the main thread (tests may call main from another).
+    if args.command in ("render", "convert", "batch") and \
+            threading.current_thread() is threading.main_thread():
+        _signals.received, _signals.defer = None, False
+        for signum in (signal.SIGTERM, signal.SIGINT):
+            previous[signum] = signal.signal(signum, _signals.handler)
     try:
         return handlers[args.command](args)
     except KeyboardInterrupt:
+        print("vtkvol: interrupted", file=sys.stderr)
         return 130
+    except Terminated as exc:
+        how = "interrupted" if exc.signum == signal.SIGINT else "terminated"
+        print(f"vtkvol: {how}; unfinished output removed", file=sys.stderr)
+        return 128 + exc.signum
     except (ValueError, OSError) as exc:  # VolumeReadError and SessionError are ValueErrors
         print(f"vtkvol: {exc}", file=sys.stderr)
         return 1
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ over :func:`vtkvol.io.read_volume` that keeps the last few.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import shutil
@@ -116,6 +117,15 @@ def encoder_problem(path: str | os.PathLike[str]) -> str | None:
     return None
 
 
+def _check_frame_count(n: int, name: str) -> None:
+    """A movie has 1 to :data:`~vtkvol.model.keyframes.MAX_FRAMES` frames, checked before any
+    work (a list of 10⁹ frame names alone filled 2 GB)."""
+    from vtkvol.model.keyframes import MAX_FRAMES
+
+    if not 1 <= n <= MAX_FRAMES:
+        raise ValueError(f"{name} must be from 1 to {MAX_FRAMES}, got {n}")
+
+
 def _frame_names(path: Path, n: int) -> tuple[Path, list[str]]:
     """The folder and the file names of a PNG sequence (see the module docstring)."""
     if movie_kind(path) == "folder":
@@ -159,8 +169,9 @@ def turntable_frames(
     """
     import vtk
 
-    if frames < 1:
-        raise ValueError(f"frames must be at least 1, got {frames}")
+    _check_frame_count(frames, "frames")
+    if not math.isfinite(degrees):
+        raise ValueError(f"degrees must be a finite number, got {degrees}")
     start: dict[str, Any] = {}
 
     def turn(scene: VolumeScene, i: int, has_camera: bool) -> None:
@@ -355,8 +366,7 @@ def write_movie(
     kind = movie_kind(path)
     if not fps > 0:
         raise ValueError(f"fps must be > 0, got {fps}")
-    if n_frames < 1:
-        raise ValueError(f"n_frames must be at least 1, got {n_frames}")
+    _check_frame_count(n_frames, "n_frames")
     existing = existing_outputs(path, n_frames)
     if existing and not overwrite:
         shown = existing[0] if len(existing) == 1 else f"{existing[0]} and {len(existing) - 1} more"

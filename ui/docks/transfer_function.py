@@ -25,6 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from pydantic import ValidationError
 from PySide6.QtCore import Qt
 from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
@@ -166,14 +167,38 @@ def write_tf_file(path: str | os.PathLike[str], tf: TransferFunction) -> Path:
     return write_atomic(target, json.dumps(document, indent=2) + "\n")
 
 
+#: Transfer-function files are a few KiB; anything larger is refused unread.
+TF_FILE_MAX_BYTES = 4 * 2**20
+#: Deepest nesting of JSON objects and lists a transfer-function file may have (real: 3).
+TF_FILE_MAX_NESTING = 16
+
+
 def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:
-    """Read a file written by :func:`write_tf_file`; ``ValueError`` says what is wrong."""
+    """Read a file written by :func:`write_tf_file`; ``ValueError`` says what is wrong, in one
+    line starting with the file's name (``OSError`` when it cannot be read at all)."""
+    from vtkvol.model.session import _finite_float, _nesting_depth, _reject_constant
+
     name = Path(path).name
+    if Path(path).stat().st_size > TF_FILE_MAX_BYTES:
+        raise ValueError(f"{name}: too large for a transfer-function file (at most "
+                         f"{TF_FILE_MAX_BYTES // 2**20} MiB)")
     try:
-        document = json.loads(Path(path).read_text(encoding="utf-8"))
+        text = Path(path).read_bytes().decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{name}: not a text file (not UTF-8 at byte {exc.start})") from None
+    try:
+        # no NaN, Infinity or 1e999 (the model would refuse them less clearly)
+        document = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
     except json.JSONDecodeError as exc:
         where = f"line {exc.lineno}, column {exc.colno}"
         raise ValueError(f"{name}: not valid JSON ({where})") from None
+    except ValueError as exc:
+        raise ValueError(f"{name}: not valid JSON ({exc})") from None
+    except RecursionError:
+        # json's C parser recurses once per bracket: 100 000 of them exhaust the stack
+        raise ValueError(f"{name}: nested too deeply to be a transfer-function file") from None
+    if _nesting_depth(document) > TF_FILE_MAX_NESTING:
+        raise ValueError(f"{name}: nested too deeply to be a transfer-function file")
     if not isinstance(document, dict) or document.get("format") != TF_FILE_FORMAT:
         raise ValueError(f"{name}: not a vtkvol transfer-function file")
     if document.get("version") != TF_FILE_VERSION:
@@ -181,8 +206,14 @@ def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:
     fields = {k: v for k, v in document.items() if k not in ("format", "version")}
     try:
         return TransferFunction.model_validate(fields)
+    except ValidationError as exc:
+        # pydantic's text spans several lines; the first problem, with its place, is enough
+        err = exc.errors()[0]
+        place = ".".join(str(p) for p in err["loc"])
+        message = str(err["msg"]).removeprefix("Value error, ")
+        raise ValueError(f"{name}: {place + ': ' if place else ''}{message}") from None
     except ValueError as exc:
-        raise ValueError(f"{name}: {exc}") from None
+        raise ValueError(f"{name}: {' '.join(str(exc).split())}") from None
 
 
 class TransferFunctionDock(ModelDock):

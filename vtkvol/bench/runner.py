@@ -779,10 +779,17 @@ def _time_load() -> dict[str, Any]:
             "shape_czyx": list(result["shape_czyx"]), "file_bytes": result["file_bytes"]}
 
 
+#: Largest ``--size`` of the benchmark scenes (voxels per side): 512³ float phantoms and their
+#: references already take minutes and gigabytes.
+MAX_SIZE = 512
+
+
 def check_size(size: int | None) -> None:
-    """``--size``: at least 16 voxels (``ValueError`` naming the value)."""
+    """``--size``: 16 to :data:`MAX_SIZE` voxels (``ValueError`` naming the value)."""
     if size is not None and size < 16:
         raise ValueError(f"--size must be at least 16 voxels, got {size}")
+    if size is not None and size > MAX_SIZE:
+        raise ValueError(f"--size must be at most {MAX_SIZE} voxels, got {size}")
 
 
 def bench_command(mode_flag: str, quick: bool, size: int | None, out: str,

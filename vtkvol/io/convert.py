@@ -20,6 +20,7 @@ import shutil
 import time
 import uuid
 from collections.abc import Callable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -84,6 +85,14 @@ def lazy_source(path: Path, *, time_index: int = 0,
     if reader.open_pyramid is not None:
         pyramid = reader.open_pyramid(path, time_index=time_index, channels=channels)
         level = pyramid.levels[0]
+        stored = getattr(pyramid, "has_stored_chunks", None)
+        if stored is not None and not stored(0):
+            # Every voxel would be the fill value: gigabytes of it, computed and written for
+            # nothing (a 6 GB declaration of an empty store).
+            pyramid.close()
+            raise VolumeReadError(path, f"its finest level ({level.name}) stores no chunks: "
+                                        "every voxel is the fill value, there is nothing to "
+                                        "convert")
         array = pyramid.to_dask(0, (1, max(1, pyramid.chunk_z(0)), CHUNK_XY, CHUNK_XY))
         return LazySource(array, tuple(level.voxel_size_um), list(pyramid.channel_names),
                           list(pyramid.notes))
@@ -220,6 +229,12 @@ def convert_to_ome_zarr(
         raise ConvertError(f"{out} is a file, not an OME-Zarr folder; it is not replaced")
     if src.exists() and out.resolve() == src.resolve():
         raise ConvertError(f"{out} is the input; choose another name for the output")
+    if src.exists() and src.resolve() in out.resolve().parents:
+        # the input would be read while the output grows inside it (and hold it afterwards)
+        raise ConvertError(f"{out} is inside the input {src}; choose a place outside it")
+    if src.exists() and out.resolve() in src.resolve().parents:
+        # --overwrite would delete the folder the input is in
+        raise ConvertError(f"{out} holds the input {src}; choose another name for the output")
     try:
         import dask
         import ome_zarr.format as ome_format
@@ -242,12 +257,15 @@ def convert_to_ome_zarr(
     chunks = (1, _z_chunk(shape, array.dtype.itemsize), CHUNK_XY, CHUNK_XY)
     report(0.0, f"writing {len(factors) + 1} levels of {shape[3]}×{shape[2]}×{shape[1]} "
                 f"(x×y×z, {shape[0]} channel{'s' if shape[0] != 1 else ''})")
+    # Two threads: each task holds a few chunks; more threads only add memory on a 2-core
+    # machine, and dask's default uses every core. Our own pool, so that an interrupted write
+    # (Ctrl-C, SIGTERM through the CLI) can wait for the chunks being written before the
+    # folder is removed: dask's shared pool would go on writing into a removed folder.
+    pool = ThreadPoolExecutor(2, thread_name_prefix="vtkvol-convert")
     try:
         group = zarr.open_group(str(partial), mode="w-", zarr_format=fmt.zarr_format)
         watcher = _DaskProgress(report, "writing the pyramid")
-        # Two threads: each task holds a few chunks; more threads only add memory on a
-        # 2-core machine, and dask's default uses every core.
-        with watcher.callback, dask.config.set(scheduler="threads", num_workers=2):
+        with watcher.callback, dask.config.set(scheduler="threads", pool=pool):
             writer.write_image(
                 array, group, axes="czyx", fmt=fmt, scale_factors=factors,
                 scale={"c": 1.0, "z": spacing[2], "y": spacing[1], "x": spacing[0]},
@@ -256,8 +274,10 @@ def convert_to_ome_zarr(
                 name=src.name,
                 omero={"channels": _omero_channels(lazy.channel_names, array.dtype)},
             )
+        pool.shutdown(wait=True)
         _replace_folder(partial, out)
     except BaseException as exc:
+        pool.shutdown(wait=True, cancel_futures=True)
         shutil.rmtree(partial, ignore_errors=True)
         if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
             raise ConvertError(f"{out}: the disk is full ({exc.strerror}); nothing was written "

@@ -57,6 +57,29 @@ def _number(attrs: Any, key: str, path: Path) -> float:
                                     "number") from None
 
 
+def _numbered(group: Any, prefix: str, path: Path) -> list[str]:
+    """The members of ``group`` named ``prefix`` + a whole number (``"TimePoint 3"``), by
+    number. A name with anything else after the prefix (``"TimePoint zero"``) is refused: it
+    is not Imaris' layout, and guessing its order would show the wrong time point."""
+    keys = [k for k in group if k.startswith(prefix)]
+    for key in keys:
+        if not key[len(prefix):].isdigit():
+            raise VolumeReadError(path, f"{group.name}/{key}: expected {prefix.strip()} "
+                                        f"followed by a whole number")
+    return sorted(keys, key=lambda k: int(k[len(prefix):]))
+
+
+def _group(h5py: Any, parent: Any, name: str, path: Path) -> Any:
+    """Member ``name`` of ``parent`` if it is an HDF5 group (None when absent); a dataset or
+    anything else where Imaris has a group is refused with the name."""
+    item = parent.get(name)
+    if item is not None and not isinstance(item, h5py.Group):
+        raise VolumeReadError(path, f"{parent.name.rstrip('/')}/{name} is an HDF5 "
+                                    f"{type(item).__name__.lower()}, not the group Imaris "
+                                    "stores there")
+    return item
+
+
 class ImarisPyramid(Pyramid):
     """An open Imaris file's resolution levels (h5py datasets, sliced lazily: HDF5 reads only
     the chunks a slice touches). Keeps the file open until :meth:`close`."""
@@ -112,6 +135,12 @@ def open_imaris(
         raise VolumeReadError(path, f"not a readable Imaris (HDF5) file ({exc})") from exc
     try:
         return _open_imaris(handle, path, time_index, channels)
+    except (OSError, KeyError, RuntimeError) as exc:
+        # h5py's errors for a damaged object or link inside an otherwise readable file
+        handle.close()
+        raise VolumeReadError(path, f"damaged Imaris (HDF5) file "
+                                    f"({' '.join(str(exc).split()) or type(exc).__name__})"
+                              ) from exc
     except BaseException:
         handle.close()
         raise
@@ -119,7 +148,10 @@ def open_imaris(
 
 def _open_imaris(f: Any, path: Path, time_index: int,
                  channels: Sequence[int | str] | None) -> ImarisPyramid:
-    if "DataSet" not in f or "DataSetInfo/Image" not in f:
+    import h5py
+
+    dataset_group = _group(h5py, f, "DataSet", path)
+    if dataset_group is None or "DataSetInfo/Image" not in f:
         raise VolumeReadError(path, "an HDF5 file without Imaris' DataSet and "
                                     "DataSetInfo/Image groups")
     info = f["DataSetInfo/Image"].attrs
@@ -127,19 +159,17 @@ def _open_imaris(f: Any, path: Path, time_index: int,
     if not all(np.isfinite(s) and s >= 1 and s == int(s) for s in size):
         raise VolumeReadError(path, f"image size X, Y, Z = {size} is not a positive integer")
     nx, ny, nz = (int(s) for s in size)
-    level0 = f["DataSet"].get("ResolutionLevel 0")
+    level0 = _group(h5py, dataset_group, "ResolutionLevel 0", path)
     if level0 is None:
         raise VolumeReadError(path, "no resolution level 0 in /DataSet")
-    times = sorted((k for k in level0 if k.startswith("TimePoint ")),
-                   key=lambda k: int(k.split()[-1]))
+    times = _numbered(level0, "TimePoint ", path)
     if not 0 <= time_index < len(times):
         raise VolumeReadError(
             path, f"time_index {time_index} is out of range: the file has {len(times)} "
                   "time point(s)"
         )
-    point = level0[times[time_index]]
-    channel_keys = sorted((k for k in point if k.startswith("Channel ")),
-                          key=lambda k: int(k.split()[-1]))
+    point = _group(h5py, level0, times[time_index], path)
+    channel_keys = _numbered(point, "Channel ", path)
     if not channel_keys:
         raise VolumeReadError(path, f"no channels in {times[time_index]}")
     names = []
@@ -156,14 +186,15 @@ def _open_imaris(f: Any, path: Path, time_index: int,
     if scale is None:
         notes.append(f"unknown length unit {unit!r} in the file: voxel size read as µm")
         scale = 1.0
-    level_numbers = sorted(int(k.split()[-1]) for k in f["DataSet"]
+    level_numbers = sorted(int(k.split()[-1]) for k in dataset_group
                            if k.startswith("ResolutionLevel ") and k.split()[-1].isdigit())
     levels: list[PyramidLevel] = []
     datasets: list[list[Any]] = []
     from_metadata = True
     for number in level_numbers:
         level_name = f"ResolutionLevel {number}"
-        lp = f["DataSet"][level_name].get(times[time_index])
+        lp = _group(h5py, _group(h5py, dataset_group, level_name, path), times[time_index],
+                    path)
         if lp is None:
             if number == 0:
                 raise VolumeReadError(path, f"{level_name} has no {times[time_index]}")
@@ -172,7 +203,7 @@ def _open_imaris(f: Any, path: Path, time_index: int,
         if number == 0:
             lsize: tuple[int, int, int] | None = (nx, ny, nz)
         else:
-            first = lp.get(channel_keys[chosen[0]])
+            first = _group(h5py, lp, channel_keys[chosen[0]], path)
             lsize = _level_size(first, path) if first is not None else None
             if lsize is None:
                 notes.append(f"{level_name} has no ImageSizeX/Y/Z attributes: level not used")
@@ -180,8 +211,11 @@ def _open_imaris(f: Any, path: Path, time_index: int,
         lx, ly, lz = lsize
         level_sets = []
         for c in chosen:
-            group = lp.get(channel_keys[c])
+            group = _group(h5py, lp, channel_keys[c], path)
             dataset = group.get("Data") if group is not None else None
+            if dataset is not None and not isinstance(dataset, h5py.Dataset):
+                raise VolumeReadError(path, f"{group.name}/Data is an HDF5 group, not the "
+                                            "voxel data")
             if dataset is None:
                 if number == 0:
                     raise VolumeReadError(path, f"{channel_keys[c]} has no Data")

@@ -45,8 +45,10 @@ def read_mrc(
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             handle = mrcfile.mmap(str(path), mode="r", permissive=False)
-    except (ValueError, OSError, EOFError) as exc:
-        raise VolumeReadError(path, f"not a valid MRC file ({exc})") from exc
+    except (ValueError, OSError, EOFError, OverflowError) as exc:
+        # OverflowError: numpy's memmap of a negative size from the header
+        raise VolumeReadError(path, f"not a valid MRC file ({' '.join(str(exc).split())})"
+                              ) from exc
     with handle as mrc:
         data = mrc.data
         if data is None:
@@ -69,8 +71,17 @@ def read_mrc(
         array = np.ascontiguousarray(volume)[np.newaxis].copy()  # independent of the mmap
         size = mrc.voxel_size
         angstrom = (float(size.x), float(size.y), float(size.z))
+        axis_map = tuple(int(mrc.header[k]) for k in ("mapc", "mapr", "maps"))
     progress(1.0, "reading MRC")
-    notes = [f"MRC header: {w.message}" for w in caught]
+    notes = [f"MRC header: {' '.join(str(w.message).split())}" for w in caught]
+    if sorted(axis_map) != [1, 2, 3]:
+        # mapc/mapr/maps say which axis (1 = x, 2 = y, 3 = z) the columns, rows and sections
+        # run along; anything but an order of 1, 2, 3 is a damaged header
+        raise VolumeReadError(path, f"impossible axis map (mapc, mapr, maps) = {axis_map}: it "
+                                    "must be an order of 1, 2, 3 (x, y, z)")
+    if axis_map != (1, 2, 3):
+        notes.append(f"MRC axis map (mapc, mapr, maps) = {axis_map}, not (1, 2, 3): shown in "
+                     "file order (columns as x, rows as y, sections as z)")
     spacing, from_metadata = spacing_or_default(
         [a * ANGSTROM_UM for a in angstrom],
         f"MRC voxel size {angstrom} Å is not set: using 1 × 1 × 1 µm", notes,

@@ -23,6 +23,7 @@ budget is never loaded (:mod:`vtkvol.io.pyramid`). The level read and why is in 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
@@ -184,6 +185,18 @@ class ZarrPyramid(Pyramid):
 
     def chunk_y(self, level: int) -> int:
         return int(self._arrays[level].chunks[self._pos["y"]])
+
+    def has_stored_chunks(self, level: int) -> bool:
+        """Whether the level's array has at least one chunk (or shard) file in the store; a
+        store with none holds only the fill value. Stops at the first file found; True when
+        the store is not a local folder (it cannot be listed cheaply)."""
+        array = self._arrays[level]
+        root = getattr(getattr(array, "store", None), "root", None)
+        if root is None:
+            return True
+        folder = Path(root) / str(getattr(array, "path", "") or "")
+        metadata = {"zarr.json", ".zarray", ".zattrs", ".zgroup", ".zmetadata"}
+        return any(name not in metadata for _, _, files in os.walk(folder) for name in files)
 
     def read_block(self, level: int, channel: int, z: slice, y: slice, x: slice) -> np.ndarray:
         index = {"t": self._time, "c": self._channels[channel], "z": z, "y": y, "x": x}

@@ -82,6 +82,10 @@ MAX_FRAMES = 100_000
 MAX_KEYFRAMES = 10_000
 #: Keyframe files are a few KiB; anything larger is refused unread.
 MAX_FILE_BYTES = 16 * 2**20
+#: Largest magnitude of a camera or light coordinate and of a parallel scale (µm, i.e. 1000
+#: km): far beyond any microscope, and small enough that differences, norms and cross
+#: products of such numbers stay finite (1e308 overflowed them into a misleading message).
+MAX_COORDINATE_UM = 1e12
 Easing = Literal["linear", "smooth"]
 EASINGS: tuple[str, ...] = ("linear", "smooth")
 TimeIndexMode = Literal["linear", "nearest", "hold"]
@@ -183,18 +187,29 @@ def _vec3(value: Any, what: str) -> Vec3:
     for v in value:
         if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
             raise KeyframeError(f"{what} must be 3 numbers (x, y, z), not {_show(value)}")
-        if not math.isfinite(float(v)):
+        try:
+            number = float(v)
+        except OverflowError:  # an integer of 400 digits (JSON allows it): too far out
+            number = 2 * MAX_COORDINATE_UM if v > 0 else -2 * MAX_COORDINATE_UM
+        if not math.isfinite(number):
             raise KeyframeError(f"{what} {_show(list(value))} must be finite")
-        out.append(float(v))
+        if abs(number) > MAX_COORDINATE_UM:
+            raise KeyframeError(f"{what} {_show(list(value))} is too far out: each coordinate "
+                                f"must lie within ±{MAX_COORDINATE_UM:g} µm")
+        out.append(number)
     return (out[0], out[1], out[2])
 
 
 def _number(value: Any, what: str) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise KeyframeError(f"{what} must be a number, not {_show(value)}")
-    if not math.isfinite(float(value)):
-        raise KeyframeError(f"{what} must be finite, not {value}")
-    return float(value)
+    try:
+        number = float(value)
+    except OverflowError:  # JSON allows an integer of 400 digits
+        raise KeyframeError(f"{what} must be a finite number, not {_show(value)}") from None
+    if not math.isfinite(number):
+        raise KeyframeError(f"{what} must be finite, not {_show(value)}")
+    return number
 
 
 @dataclass(frozen=True)
@@ -218,8 +233,9 @@ class CameraState:
         if not 0.0 < angle < 180.0:
             raise KeyframeError(f"camera.view_angle {angle:g}° must lie between 0 and 180")
         scale = _number(self.parallel_scale, "camera.parallel_scale")
-        if not scale > 0.0:
-            raise KeyframeError(f"camera.parallel_scale {scale:g} must be > 0")
+        if not 0.0 < scale <= MAX_COORDINATE_UM:
+            raise KeyframeError(f"camera.parallel_scale {scale:g} must be > 0 and at most "
+                                f"{MAX_COORDINATE_UM:g} µm")
         if not isinstance(self.parallel_projection, bool):
             raise KeyframeError(f"camera.parallel_projection must be true or false, not "
                                 f"{_show(self.parallel_projection)}")
@@ -401,11 +417,13 @@ class Animation:
         fps = _number(fps, "fps")
         if not fps > 0:
             raise KeyframeError(f"fps must be > 0, not {fps:g}")
-        count = round(self.duration * fps) + 1
-        if count > MAX_FRAMES:
+        # In floating point first: 1e308 s × 30 fps is infinite, which round() cannot take.
+        exact = self.duration * fps
+        if not exact + 1 <= MAX_FRAMES:
+            count = f"{exact + 1:.4g}" if math.isfinite(exact) else "too many"
             raise KeyframeError(f"{self.duration:g} s at {fps:g} fps is {count} frames; at most "
                                 f"{MAX_FRAMES} (check the keyframe times)")
-        return count
+        return round(exact) + 1
 
     def frame_times(self, fps: float) -> list[float]:
         """Seconds of each frame: ``i / fps``, the last clamped to the duration."""
