@@ -278,7 +278,7 @@ def convert_to_ome_zarr(
         _replace_folder(partial, out)
     except BaseException as exc:
         pool.shutdown(wait=True, cancel_futures=True)
-        shutil.rmtree(partial, ignore_errors=True)
+        _remove_unfinished(partial)
         if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
             raise ConvertError(f"{out}: the disk is full ({exc.strerror}); nothing was written "
                                "and an existing output is unchanged") from exc
@@ -310,6 +310,26 @@ def _omero_channels(names: Sequence[str], dtype: np.dtype) -> list[dict[str, Any
     window = {"start": lo, "end": hi, "min": lo, "max": hi}
     return [{"label": name, "color": _CHANNEL_COLORS[i % len(_CHANNEL_COLORS)],
              "active": True, "window": dict(window)} for i, name in enumerate(names)]
+
+
+def _remove_unfinished(partial: Path, *, settle_s: float = 0.5, limit_s: float = 10.0) -> None:
+    """Remove the unfinished output folder for good.
+
+    An interruption (SIGTERM, Ctrl-C) raised in the main thread while it waits for one of
+    zarr's writes does not stop that write: zarr runs it on its own I/O thread, which may
+    create files after a first removal. So remove until the folder has stayed away for
+    ``settle_s`` seconds (at most ``limit_s`` in all)."""
+    deadline = time.monotonic() + limit_s
+    gone_since: float | None = None
+    while time.monotonic() < deadline:
+        if partial.exists():
+            shutil.rmtree(partial, ignore_errors=True)
+            gone_since = None
+        elif gone_since is None:
+            gone_since = time.monotonic()
+        elif time.monotonic() - gone_since >= settle_s:
+            return
+        time.sleep(0.05)
 
 
 def _replace_folder(partial: Path, out: Path) -> None:
