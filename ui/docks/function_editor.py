@@ -39,6 +39,8 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
+from vtkvol.model.transfer_function import above
+
 Points = list[tuple[float, float]]
 
 #: Seed 002's "maximum settable value" d for the log opacity axis. Opacity here is a float,
@@ -240,7 +242,7 @@ class FunctionEditor(QWidget):
     def set_domain(self, lo: float, hi: float) -> None:
         """The displayed x window (data units for a TF, 0…1 for slice weights)."""
         if not hi > lo:
-            hi = lo + 1.0
+            hi = above(lo)
         if (lo, hi) != self._domain:
             self._domain = (float(lo), float(hi))
             self.update()
