@@ -125,3 +125,23 @@ def test_a_transfer_function_of_100000_points_opens_reduced_and_editable(
     t0 = time.perf_counter()
     editor.repaint()
     assert time.perf_counter() - t0 < 5.0
+
+
+def test_the_tf_editor_copes_with_100000_points_set_from_code(window, qtbot):
+    """A library user (or a TF file) may set such a function directly: the view renders it
+    reduced (the engine's MAX_POINTS) and the editor draws it in bounded time."""
+    from vtkvol.model.transfer_function import TransferFunction
+
+    tf = window.model.channels[0].tf
+    xs = np.linspace(*tf.value_span, 100_000)
+    t0 = time.perf_counter()
+    window.model.channels[0].tf = TransferFunction(
+        colors=[(float(x), 0.9, 0.5, 0.1) for x in xs],
+        opacity=[(float(x), float(i % 2)) for i, x in enumerate(xs)],
+        window=tf.window, window_range=tf.window_range)
+    window.viewport.screenshot()
+    editor = window.tf_dock.editor
+    editor.repaint()
+    seconds = time.perf_counter() - t0
+    assert len(editor.points("opacity")) == 100_000
+    assert seconds < 20, seconds  # 150 s before: QPainter drew a path of every point
