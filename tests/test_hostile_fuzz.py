@@ -4,8 +4,8 @@ from ``read_volume``, :class:`SessionError` from ``read_session``) or a valid re
 another exception.
 
 Bounded in time (a fixed number of examples, derandomised so CI sees the same ones; the whole
-module runs in about 30 s on a loaded 2-core machine). For a longer hunt: ``VTKVOL_FUZZ_EXAMPLES=5000 pytest
-tests/test_hostile_fuzz.py``, which also draws new examples.
+module runs in about 30 s on a loaded 2-core machine). For a longer hunt:
+``VTKVOL_FUZZ_EXAMPLES=5000 pytest tests/test_hostile_fuzz.py``, which also draws new examples.
 """
 
 from __future__ import annotations
