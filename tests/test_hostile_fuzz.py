@@ -32,7 +32,15 @@ from tests_support_hostile import lying_tiff, npy_with_header  # noqa: E402
 
 from vtkvol.io import VolumeData, VolumeReadError, read_volume  # noqa: E402
 from vtkvol.model.scene import SceneModel  # noqa: E402
-from vtkvol.model.session import Session, SessionError, read_session, save_session  # noqa: E402
+from vtkvol.model.session import (  # noqa: E402
+    MAX_COORDINATE_UM,
+    MAX_NESTING,
+    Session,
+    SessionError,
+    read_session,
+    save_session,
+)
+from vtkvol.model.transfer_function import MAX_POINTS  # noqa: E402
 
 EXAMPLES = int(os.environ.get("VTKVOL_FUZZ_EXAMPLES", "0"))
 FUZZ = settings(
@@ -70,15 +78,16 @@ def bounded_address_space():
         resource.setrlimit(resource.RLIMIT_AS, (soft, hard))
 
 
-def check_read(path: Path) -> None:
+def check_read(path: Path, *, must_refuse: bool = False) -> None:
     """``read_volume(path)`` either refuses with VolumeReadError (having allocated nothing
-    large) or returns a valid volume."""
+    large) or returns a valid volume; with ``must_refuse`` (a damaged file) it refuses."""
     try:
         data = read_volume(path)
     except VolumeReadError as exc:
         assert str(exc).startswith(f"{path.name}: "), str(exc)
         assert "not enough free memory" not in str(exc), f"allocated what it claims: {exc}"
         return
+    assert not must_refuse, f"a damaged file was read: {data.shape_zyx}, notes {data.notes}"
     assert isinstance(data, VolumeData)
     c, z, y, x = data.array.shape
     assert 1 <= c <= 4 and min(z, y, x) >= 1
@@ -104,22 +113,31 @@ sides = st.one_of(st.integers(0, 64), st.integers(0, 2**32 - 1))
     offset=st.one_of(st.none(), st.integers(0, 2**32 - 1)),
     count=st.one_of(st.none(), st.integers(0, 2**32 - 1)),
     data=st.binary(max_size=256), circular=st.booleans(),
+    loop_to=st.one_of(st.none(), st.integers(0, 3)),
 )
 @example(width=65535, height=65535, pages=4, bits=64, samples=4, compression=8, rows=None,
-         offset=None, count=None, data=b"x\x9c\x03\x00", circular=False)
+         offset=None, count=None, data=b"x\x9c\x03\x00", circular=False, loop_to=None)
 # Found by this test: a 15 GiB page from 100 bytes (decoded twice over: the run was OOM-killed)
 @example(width=63754, height=63754, pages=1, bits=16, samples=2, compression=50000, rows=None,
-         offset=None, count=None, data=bytes(100), circular=False)
+         offset=None, count=None, data=bytes(100), circular=False, loop_to=None)
 # … and 0-bit samples, allocated as float64
 @example(width=33, height=6742005, pages=1, bits=0, samples=3, compression=0, rows=None,
-         offset=None, count=None, data=b"", circular=False)
+         offset=None, count=None, data=b"", circular=False, loop_to=None)
+# A valid page whose chain loops back on itself (read as one page before it was refused)
+@example(width=4, height=4, pages=1, bits=8, samples=1, compression=1, rows=None, offset=None,
+         count=None, data=bytes(range(16)), circular=True, loop_to=None)
+@example(width=4, height=4, pages=3, bits=8, samples=1, compression=1, rows=None, offset=None,
+         count=None, data=bytes(range(16)), circular=False, loop_to=1)
 def test_fuzzed_tiff_tags(width, height, pages, bits, samples, compression, rows, offset, count,
-                          data, circular):
+                          data, circular, loop_to):
+    """Lying tags, and page chains that loop (``circular``: the last page points back at the
+    first; ``loop_to``: at that page, the last itself included): a loop is always refused."""
     folder = scratch()
     path = lying_tiff(folder / "fuzz.tif", width=width, height=height, pages=pages, bits=bits,
                       samples=samples, compression=compression, rows_per_strip=rows,
-                      strip_offset=offset, strip_bytes=count, data=data, circular=circular)
-    check_read(path)
+                      strip_offset=offset, strip_bytes=count, data=data, circular=circular,
+                      loop_to=loop_to)
+    check_read(path, must_refuse=circular or loop_to is not None)
 
 
 @pytest.fixture(scope="module")
@@ -272,14 +290,110 @@ def test_fuzzed_session_bytes(blob):
     check_session(path)
 
 
-def check_session(path: Path) -> None:
+#: Marks a number written as ``1e999`` (parsed as infinity by Python's JSON reader).
+OVERFLOW = 9.87654321e307
+coordinate = st.one_of(
+    st.floats(-1e3, 1e3), st.sampled_from([0.0, -0.0, 1e12, -1e13, 1e154, 1e200, 1e308,
+                                           -1e308, 5e-324, OVERFLOW]),
+    st.floats(allow_nan=True, allow_infinity=True),
+)
+vector = st.one_of(st.tuples(coordinate, coordinate, coordinate),
+                   st.sampled_from([(0.0, 0.0, 0.0), (7.5, 7.5, 7.5)]))
+
+
+@st.composite
+def points(draw, n: int, width: int) -> list[list[float]]:
+    xs = np.sort(np.asarray(draw(st.lists(st.floats(-1e6, 1e6), min_size=2, max_size=2))))
+    values = np.linspace(xs[0], xs[1], n)
+    return [[float(v), *([float(i % 2)] * (width - 1))] for i, v in enumerate(values)]
+
+
+def nested(depth: int, leaf: str) -> str:
+    """JSON text of ``leaf`` (JSON text) inside ``depth`` alternating arrays and objects, built
+    as text (json.dumps recurses, and stops far short of 50 000 levels)."""
+    opening = "".join('{"k": ' if level % 2 else "[" for level in range(depth))
+    closing = "".join("}" if level % 2 else "]" for level in reversed(range(depth)))
+    return opening + leaf + closing
+
+
+@FUZZ
+@given(
+    position=st.one_of(st.none(), vector), focal=st.one_of(st.none(), vector),
+    up=vector, direction=vector, light_position=vector,
+    parallel_scale=st.sampled_from([1.0, 1e12, 1e300]),
+    n_colors=st.sampled_from([1, 2, 17, MAX_POINTS, MAX_POINTS + 1, 1500]),
+    n_opacity=st.sampled_from([1, 2, 17, MAX_POINTS, MAX_POINTS + 1, 1500]),
+    data=st.data(),
+    depth=st.sampled_from([0, 0, 5, MAX_NESTING - 2, MAX_NESTING, 500, 50_000]),
+    where=st.sampled_from(["window", "scene.overlays", "scene.illumination.parameters",
+                           "scene.channels.0.tf"]),
+)
+@example(position=(1e308, 1e308, 1e308), focal=(0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0),
+         direction=(0.3, 0.5, 0.8), light_position=(0.0, 0.0, 1.0), parallel_scale=1.0,
+         n_colors=2, n_opacity=2, data=None, depth=0, where="window")
+@example(position=(7.5, 7.5, 7.5), focal=(7.5, 7.5, 7.5), up=(0.0, 0.0, 0.0),
+         direction=(1e200, 1e200, 1e200), light_position=(0.0, 0.0, 1.0), parallel_scale=1.0,
+         n_colors=100_000, n_opacity=100_000, data=None, depth=0, where="window")
+def test_fuzzed_session_views(session_document, position, focal, up, direction, light_position,
+                              parallel_scale, n_colors, n_opacity, data, depth, where):
+    """Non-finite, huge and degenerate cameras and lights, very large transfer functions and
+    deep nesting: refused with a SessionError, or read as a view that can be rendered."""
+    document = json.loads(json.dumps(session_document))
+    scene = document["scene"]
+    scene["camera"].update(position=position, focal_point=focal, view_up=up,
+                           parallel_scale=parallel_scale)
+    scene["lights"][0].update(direction=direction, position=light_position)
+    tf = scene["channels"][0]["tf"]
+    if data is None:  # an @example: a fixed span
+        tf["colors"] = [[float(x), 0.5, 0.5, 0.5] for x in np.linspace(0, 255, n_colors)]
+        tf["opacity"] = [[float(x), float(i % 2)] for i, x in
+                         enumerate(np.linspace(0, 255, n_opacity))]
+    else:
+        tf["colors"] = data.draw(points(n_colors, 4))
+        tf["opacity"] = data.draw(points(n_opacity, 2))
+    deep = ""
+    if depth:
+        *parents, key = where.split(".")
+        target = document
+        for part in parents:
+            target = target[int(part)] if isinstance(target, list) else target[part]
+        deep = nested(depth, json.dumps(target[key]))
+        target[key] = "__DEEP__"
+    text = json.dumps(document).replace(repr(OVERFLOW), "1e999")
+    text = text.replace('"__DEEP__"', deep)
+    path = scratch() / "view.vtkvol.json"
+    path.write_text(text, encoding="utf-8")
+    session = check_session(path)
+    if session is None:
+        return
+    camera = session.model.camera
+    for vec in (camera.position, camera.focal_point, session.model.lights[0].position):
+        assert vec is None or max(map(abs, vec)) <= MAX_COORDINATE_UM
+    assert camera.parallel_scale <= MAX_COORDINATE_UM
+    up_vec = np.asarray(camera.view_up, float)
+    up_vec = up_vec / np.abs(up_vec).max()
+    assert np.linalg.norm(up_vec) > 0
+    if camera.position is not None and camera.focal_point is not None:
+        forward = np.subtract(camera.focal_point, camera.position)
+        assert np.linalg.norm(forward) > 0
+        forward /= np.linalg.norm(forward)
+        assert np.linalg.norm(np.cross(up_vec / np.linalg.norm(up_vec), forward)) > 1e-6
+    assert np.isfinite(np.sum(np.square(session.model.lights[0].direction)))
+    for channel in session.model.channels:
+        assert len(channel.tf.colors) <= MAX_POINTS and len(channel.tf.opacity) <= MAX_POINTS
+
+
+def check_session(path: Path) -> Session | None:
+    """The session read (and applied to a fresh model), or None when it was refused with a
+    :class:`SessionError` naming the file; any other exception fails."""
     try:
         session = read_session(path)
     except SessionError as exc:
         assert str(exc).startswith(f"{path.name}: "), str(exc)
-        return
+        return None
     assert isinstance(session, Session)
     session.apply_to(SceneModel())  # a session that reads is one that applies
+    return session
 
 
 # -- NIfTI headers -------------------------------------------------------------------------

@@ -31,9 +31,12 @@ def lying_tiff(
     strip_bytes: int | None = None,
     data: bytes = b"\0" * 64,
     circular: bool = False,
+    loop_to: int | None = None,
 ) -> Path:
     """A little-endian classic TIFF whose pages each have one strip pointing at ``data``; every
-    tag says what the arguments say, whatever ``data`` really holds."""
+    tag says what the arguments say, whatever ``data`` really holds. ``circular``: the last
+    page's next-page offset points back at the first page; ``loop_to``: at that page instead
+    (the last page itself for ``pages - 1``)."""
     out = bytearray(b"II*\x00\x00\x00\x00\x00")
     data_offset = len(out)
     out += data
@@ -54,7 +57,11 @@ def lying_tiff(
             out += struct.pack("<HHI", tag, kind, 1) + packed
         out += b"\0\0\0\0"
     struct.pack_into("<I", out, 4, ifds[0])
-    following = [*ifds[1:], ifds[0] if circular else 0]
+    if loop_to is not None:
+        circular, ifds_loop = True, ifds[loop_to % pages]
+    else:
+        ifds_loop = ifds[0]
+    following = [*ifds[1:], ifds_loop if circular else 0]
     for ifd, nxt in zip(ifds, following, strict=True):
         struct.pack_into("<I", out, ifd + 2 + 12 * len(entries), nxt)
     path.write_bytes(bytes(out))

@@ -11,6 +11,7 @@ import os
 import signal
 import sys
 import threading
+import warnings
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -101,6 +102,9 @@ def _parser() -> argparse.ArgumentParser:
         prog="vtkvol",
         description="Volume rendering of microscopy data with real illumination.",
     )
+    parser.add_argument("--verbose", action="store_true",
+                        help="show warnings of the libraries vtkvol uses in full (by default "
+                             "each is one 'vtkvol: note:' line); may follow the command too")
     sub = parser.add_subparsers(dest="command", required=True)
 
     p_open = sub.add_parser("open", help="start the desktop app (optionally with a file)")
@@ -326,10 +330,26 @@ def cmd_render(args: argparse.Namespace) -> int:
     model = None
     if args.file.endswith(SESSION_SUFFIX):
         from vtkvol.model.session import load_session_with_data
+        from vtkvol.model.techniques import get_spec
 
-        model, data = load_session_with_data(args.file, time_index=args.time)
+        name = Path(args.file).name
+        notes: list[str] = []
+        model, data = load_session_with_data(args.file, time_index=args.time,
+                                             on_warning=notes.append)
+        if args.method is None:
+            try:
+                get_spec(model.illumination.method)
+            except ValueError as exc:  # the session's technique is not installed here
+                print(f"vtkvol: {name}: illumination.method: {exc} (or pass --method)",
+                      file=sys.stderr)
+                return 2
+        for note in notes:
+            print(f"vtkvol: {name}: {note}", file=sys.stderr)
     else:
         data = _load(args.file, args.voxel_size, args.time or 0, args.gpu_budget)
+    uniform = _uniform_note(data)
+    if uniform:
+        print(f"vtkvol: {uniform}", file=sys.stderr)
     inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
@@ -387,6 +407,15 @@ def cmd_render(args: argparse.Namespace) -> int:
         return 1
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")
     return 0
+
+
+def _uniform_note(data) -> str | None:
+    """The reader's note that every voxel has one value (the image then shows nothing but a
+    uniform block, or nothing), with the file name; None for data with contrast."""
+    for note in data.notes:
+        if note.startswith("every voxel of each channel has the same value"):
+            return f"{Path(data.source).name if data.source else 'the data'}: {note}"
+    return None
 
 
 def _show_labels(model, data) -> str | None:
@@ -832,8 +861,21 @@ class _Signals:
 _signals = _Signals()
 
 
+def _one_line_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """``warnings.showwarning`` for the command line: one ``vtkvol:`` line, no source path
+    and no source line (a library's warning is a note to the user, not a program listing)."""
+    text = " ".join(str(message).split())
+    if not issubclass(category, UserWarning):  # numpy's RuntimeWarning and the like
+        text = f"{category.__name__}: {text}"
+    print(f"vtkvol: note: {text}", file=sys.stderr if file is None else file)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    # --verbose may stand anywhere (``vtkvol render x.tif -o y.png --verbose``): it is taken
+    # out before the sub-command's parser sees it.
+    verbose = "--verbose" in argv
+    args = _parser().parse_args([a for a in argv if a != "--verbose"])
     problem = _non_finite_problem(args)
     if problem:
         print(f"vtkvol: {problem}", file=sys.stderr)
@@ -849,21 +891,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         _signals.received, _signals.defer = None, False
         for signum in (signal.SIGTERM, signal.SIGINT):
             previous[signum] = signal.signal(signum, _signals.handler)
-    try:
-        return handlers[args.command](args)
-    except KeyboardInterrupt:
-        print("vtkvol: interrupted", file=sys.stderr)
-        return 130
-    except Terminated as exc:
-        how = "interrupted" if exc.signum == signal.SIGINT else "terminated"
-        print(f"vtkvol: {how}; unfinished output removed", file=sys.stderr)
-        return 128 + exc.signum
-    except (ValueError, OSError) as exc:  # VolumeReadError and SessionError are ValueErrors
-        print(f"vtkvol: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        for signum, handler in previous.items():
-            signal.signal(signum, handler)
+    with warnings.catch_warnings():  # restores warnings.showwarning afterwards
+        if not verbose:
+            warnings.showwarning = _one_line_warning
+        try:
+            return handlers[args.command](args)
+        except KeyboardInterrupt:
+            print("vtkvol: interrupted", file=sys.stderr)
+            return 130
+        except Terminated as exc:
+            how = "interrupted" if exc.signum == signal.SIGINT else "terminated"
+            print(f"vtkvol: {how}; unfinished output removed", file=sys.stderr)
+            return 128 + exc.signum
+        except (ValueError, OSError) as exc:  # VolumeReadError and SessionError are ValueErrors
+            print(f"vtkvol: {exc}", file=sys.stderr)
+            return 1
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
 
 
 if __name__ == "__main__":

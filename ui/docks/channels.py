@@ -27,6 +27,7 @@ from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
 from vtkvol.model.techniques import technique_specs
+from vtkvol.model.transfer_function import above
 from vtkvol.ui.binding import Bindings, signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
 
@@ -321,7 +322,7 @@ class ChannelsDock(ModelDock):
         if self.data is not None and index < self.data.n_channels:
             dlo, dhi = self.data.channel_range(index)
             lo, hi = min(lo, dlo), max(hi, dhi)
-        return lo, hi if hi > lo else lo + 1.0
+        return lo, hi if hi > lo else above(lo)
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         # A new list or a renamed channel changes the rows themselves, not just their values.

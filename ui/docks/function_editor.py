@@ -39,6 +39,8 @@ from PySide6.QtGui import (
 )
 from PySide6.QtWidgets import QSizePolicy, QWidget
 
+from vtkvol.model.transfer_function import above
+
 Points = list[tuple[float, float]]
 
 #: Seed 002's "maximum settable value" d for the log opacity axis. Opacity here is a float,
@@ -240,7 +242,7 @@ class FunctionEditor(QWidget):
     def set_domain(self, lo: float, hi: float) -> None:
         """The displayed x window (data units for a TF, 0…1 for slice weights)."""
         if not hi > lo:
-            hi = lo + 1.0
+            hi = above(lo)
         if (lo, hi) != self._domain:
             self._domain = (float(lo), float(hi))
             self.update()
@@ -392,12 +394,28 @@ class FunctionEditor(QWidget):
         # Sample densely enough that the log axis shows the true (curved) shape of each
         # linear segment, and include every node inside the window.
         grid = np.linspace(lo, hi, max(64, int(r.width() // 3)))
-        inside = xs[(xs > lo) & (xs < hi)]
-        grid = np.union1d(grid, inside)
-        values = np.interp(grid, xs, ys)
+        within = (xs > lo) & (xs < hi)
+        inside = xs[within]
+        if len(inside) <= len(grid):
+            grid = np.union1d(grid, inside)
+            trace = [(float(gx), float(gy)) for gx, gy in zip(grid, np.interp(grid, xs, ys),
+                                                              strict=True)]
+        else:
+            # More nodes than sample columns (a function of 100 000 points, set from code):
+            # each column is drawn as the range of the nodes in it, so the path stays a few
+            # hundred elements (QPainter took minutes for 100 000) and fine detail shows as a
+            # band instead of vanishing.
+            column = np.clip(np.rint((inside - lo) / (hi - lo) * (len(grid) - 1)).astype(int),
+                             0, len(grid) - 1)
+            low = np.interp(grid, xs, ys)
+            high = low.copy()
+            np.minimum.at(low, column, ys[within])
+            np.maximum.at(high, column, ys[within])
+            trace = [(float(gx), float(gy)) for gx, a, b in zip(grid, low, high, strict=True)
+                     for gy in (a, b)]
         path = QPainterPath()
-        for i, (gx, gy) in enumerate(zip(grid, values, strict=True)):
-            pt = self.to_pixel(float(gx), float(gy), curve)
+        for i, (gx, gy) in enumerate(trace):
+            pt = self.to_pixel(gx, gy, curve)
             path.moveTo(pt) if i == 0 else path.lineTo(pt)
         color = QColor(curve.color)
         if not active:
@@ -405,7 +423,8 @@ class FunctionEditor(QWidget):
         p.setBrush(Qt.BrushStyle.NoBrush)
         p.setPen(QPen(color, 2.2 if active else 1.2))
         p.drawPath(path)
-        if active and self._mode == "points":
+        # Handles closer than 3 px apart would be one blob (and slow to draw): none then.
+        if active and self._mode == "points" and len(inside) <= r.width() / 3:
             for i, (x, y) in enumerate(curve.points):
                 if not lo <= x <= hi:
                     continue
@@ -697,6 +716,10 @@ class ColorBar(QWidget):
         p.drawRect(r)
         p.setRenderHint(QPainter.RenderHint.Antialiasing)
         lo, hi = self._domain
+        shown = sum(1 for point in self._colors if lo <= point[0] <= hi)
+        if shown > r.width() / 3:  # markers 3 px apart would be one blob (and slow): none
+            p.end()
+            return
         for value, red, green, blue in self._colors:
             if not lo <= value <= hi:
                 continue

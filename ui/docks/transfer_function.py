@@ -64,7 +64,12 @@ from vtkvol.model.gradient import gradient_axis_max
 from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
 from vtkvol.model.scene import SceneModel
 from vtkvol.model.tf_paint import MAX_BRUSH_RADIUS, TFPaintLayer, apply_stroke, stroke_mask
-from vtkvol.model.transfer_function import TFPrimitive, TransferFunction, TransferFunction2D
+from vtkvol.model.transfer_function import (
+    TFPrimitive,
+    TransferFunction,
+    TransferFunction2D,
+    above,
+)
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks import base as dock_base
@@ -692,7 +697,7 @@ class TransferFunctionDock(ModelDock):
         index = min(self._channel, self.data.n_channels - 1)
         lo, hi = self.data.channel_range(index)
         if hi <= lo:
-            hi = lo + 1.0
+            hi = above(lo)
         top = tf2d.gradient_max or gradient_axis_max((lo, hi), tuple(self.data.voxel_size_um))
         return (lo, hi), (0.0, top)
 

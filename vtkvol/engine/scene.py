@@ -419,17 +419,18 @@ class VolumeScene:
     def _apply_channel_tf(self, c: int) -> None:
         channel = self.model.channels[c]
         tf = self._effective_tf(channel)
+        tf = tf.reduced() or tf  # at most MAX_POINTS each: bounded time for any function
         ctf, otf = self._color_functions[c], self._opacity_functions[c]
+        # Bulk fills: AddPoint re-sorts the whole function per point (a TF of 100 000 points
+        # took minutes); the points are sorted already.
         ctf.RemoveAllPoints()
-        for value, r, g, b in tf.colors:
-            ctf.AddRGBPoint(value, r, g, b)
+        ctf.FillFromDataPointer(len(tf.colors), np.asarray(tf.colors, np.float64).ravel())
         otf.RemoveAllPoints()
         if len(self.model.channels) == 1 and not channel.visible:
             otf.AddPoint(-1e30, 0.0)  # a single channel cannot be weighted away: hide it here
             otf.AddPoint(1e30, 0.0)
         else:
-            for value, alpha in tf.opacity:
-                otf.AddPoint(value, alpha)
+            otf.FillFromDataPointer(len(tf.opacity), np.asarray(tf.opacity, np.float64).ravel())
 
     def _apply_channel_visibility(self, c: int) -> None:
         channel = self.model.channels[c]

@@ -551,8 +551,18 @@ def _nrrd_layout(
     if len(directions) == dimension:
         vecs = [directions[i] for i in spatial]
         if all(v is not None for v in vecs):
-            spacing = [float(np.linalg.norm(v)) for v in vecs if v is not None]
-            matrix = np.array([np.asarray(v) / np.linalg.norm(v) for v in vecs if v is not None])
+            # math.hypot: neither overflows for huge components nor warns (numpy's norm printed
+            # "RuntimeWarning: invalid value encountered in divide" for a zero vector).
+            spacing = [math.hypot(*v) for v in vecs if v is not None]
+            for axis, (vec, length) in enumerate(zip(vecs, spacing, strict=True)):
+                if not (math.isfinite(length) and length > 0.0):
+                    raise VolumeReadError(
+                        path,
+                        f"space direction {axis} of the NRRD header, {vec}, has length "
+                        f"{length:g}: a voxel's edge must be a finite length > 0",
+                    )
+            matrix = np.array([np.asarray(v) / n for v, n in zip(vecs, spacing, strict=True)
+                               if v is not None])
             if matrix.shape == (3, 3) and not np.allclose(np.abs(matrix), np.eye(3), atol=1e-6):
                 notes.append("the NRRD space directions are rotated; only their lengths are used")
             voxel_source = "NRRD space directions"

@@ -82,6 +82,11 @@ class _LogCapture(logging.Handler):
     def corruption(self) -> str | None:
         for record in self.records:
             message = record.getMessage()
+            if "circular reference" in message.lower():
+                # tifffile stops at the loop and returns the pages before it: a damaged file
+                # whose other pages are lost, not a shorter image.
+                return ("its chain of pages loops back on itself: "
+                        + _strip_logger_prefix(message))
             if any(hint in message.lower() for hint in _CORRUPTION_HINTS):
                 return _strip_logger_prefix(message)
         return None
@@ -856,11 +861,13 @@ def natural_sort_key(name: str) -> list[Any]:
     return [int(p) if i % 2 else p for i, p in enumerate(parts)]
 
 
-def _group_by_channel(files: list[Path]) -> tuple[list[str], list[list[Path]]]:
+def _group_by_channel(files: list[Path], folder: Path) -> tuple[list[str], list[list[Path]]]:
     """Split files into channels when every name carries a channel token (``_c0_``, ``ch1``).
 
-    Only when there are at least two channels with the same number of files each; otherwise
-    everything is one channel (a token like ``c0`` in all names is then just a name part).
+    Only when there are at least two channels; otherwise everything is one channel (a token
+    like ``c0`` in all names is then just a name part). Channels with different numbers of
+    files are refused (VolumeReadError naming each channel's count): which slice a channel
+    lacks is unknown, and stacking all files as one channel would mix channels into z.
     """
     tokens = [_CHANNEL_TOKEN.findall(f.stem) for f in files]
     if not all(tokens):
@@ -871,7 +878,14 @@ def _group_by_channel(files: list[Path]) -> tuple[list[str], list[list[Path]]]:
         return ["ch0"], [files]
     groups = [[f for f, lab in zip(files, labels, strict=True) if lab == d] for d in distinct]
     if len({len(g) for g in groups}) != 1:
-        return ["ch0"], [files]
+        counts = ", ".join(f"c{d}: {len(g)}" for d, g in zip(distinct, groups, strict=True))
+        raise VolumeReadError(
+            folder,
+            f"the file names give {len(groups)} channels with different numbers of slices "
+            f"({counts}); nothing was read, since which slices are missing is unknown and one "
+            "stack of every file would mix channels into z. Give each channel the same slices "
+            "(or move each channel to a folder of its own)",
+        )
 
     def z_key(f: Path) -> list[Any]:
         # Sort each channel's slices without the channel number getting in the way.
@@ -923,8 +937,8 @@ def read_tiff_folder(
 
     Files (``.tif``/``.tiff``, hidden files ignored) are sorted naturally, so ``z2`` comes
     before ``z10``. When every file name carries a channel token (``img_c0_z001.tif``,
-    ``ch1``, ``channel2``) and each channel has the same number of files, the channels are
-    read separately; RGB slices give three channels. Voxel size (x, y) comes from the first
+    ``ch1``, ``channel2``), the channels are read separately (channels with different numbers
+    of files are refused); RGB slices give three channels. Voxel size (x, y) comes from the first
     file's metadata; z from its ImageJ ``spacing`` if any, else it is assumed equal to x.
     """
     progress = progress or Progress()
@@ -945,7 +959,7 @@ def read_tiff_folder(
             f"time_index {time_index} is out of range: a folder of slices has 1 time point "
             "(index 0)",
         )
-    group_names, groups = _group_by_channel(files)
+    group_names, groups = _group_by_channel(files, folder)
     first = _read_slice(groups[0][0])
     per_file = first.shape[0]
     if per_file > 1:

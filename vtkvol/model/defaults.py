@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 from vtkvol.model.scene import Channel, SceneModel, VolumeSource
-from vtkvol.model.transfer_function import RGB, TransferFunction
+from vtkvol.model.transfer_function import RGB, TransferFunction, above
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -37,7 +37,7 @@ def contrast_limits(data: VolumeData, c: int) -> tuple[float, float]:
     if not hi > lo:  # sparse data: fall back to the full range
         lo, hi = rlo, rhi
     if not hi > lo:
-        hi = lo + 1.0
+        hi = above(lo)
     return lo, hi
 
 

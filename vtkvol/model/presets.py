@@ -12,7 +12,7 @@ from functools import cache
 from importlib import resources
 from typing import Any
 
-from vtkvol.model.transfer_function import RGB, TransferFunction
+from vtkvol.model.transfer_function import RGB, TransferFunction, above
 
 COLORMAP_SAMPLES = 9
 
@@ -54,7 +54,7 @@ def apply_preset(
     default: the TF's current value span). One change event."""
     lo, hi = limits if limits is not None else tf.value_span
     if not hi > lo:
-        hi = lo + 1.0
+        hi = above(lo)
     table = _table()
 
     def at(t: float) -> float:

@@ -136,7 +136,13 @@ class Light(EventedModel):
     @classmethod
     def _nonzero(cls, v: Vec3):
         _finite3(v, "light direction")
-        if sum(c * c for c in v) < 1e-12:
+        squared = sum(c * c for c in v)
+        if not math.isfinite(squared):
+            # Every consumer normalises it; with an infinite length the direction becomes
+            # (0, 0, 0) or NaN and the light silently vanishes.
+            raise ValueError(f"light direction {v} is too long (its squared length overflows); "
+                             "give a unit vector")
+        if squared < 1e-12:
             raise ValueError("light direction must not be the zero vector")
         return v
 

@@ -42,6 +42,7 @@ from vtkvol.model.migrations import FORMAT, VERSION, migrate
 from vtkvol.model.params import Param
 from vtkvol.model.scene import SceneModel
 from vtkvol.model.techniques import get_spec
+from vtkvol.model.transfer_function import MAX_POINTS
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -492,6 +493,8 @@ def read_session(path: str | os.PathLike[str]) -> Session:
         missing.sort(key=lambda p: p.count(".") + p.count("["))
         notes.append("missing from the file, defaults used: " + _listing(missing, 10))
 
+    _check_view(session_path, model, notes)
+    _reduce_transfer_functions(model, notes)
     parameters = _check_parameters(session_path, model.illumination.parameters, notes)
     if model.illumination.method not in parameters and not _technique_known(
         model.illumination.method
@@ -512,7 +515,13 @@ def read_session(path: str | os.PathLike[str]) -> Session:
         )
     data_path = None
     if stored:
-        data_path = _resolve_data_path(stored, session_path.parent.resolve(), notes)
+        try:
+            data_path = _resolve_data_path(stored, session_path.parent.resolve(), notes)
+        except (ValueError, OSError) as exc:  # a NUL character, a name too long for the OS
+            where = "data.path" if "data" in doc else "volume.path"
+            raise SessionError(
+                session_path, f"{where} = {_show(stored)} is not a usable path ({_path_error(exc)})"
+            ) from exc
 
     window = doc.get("window", {})
     if not isinstance(window, dict):
@@ -530,6 +539,9 @@ def read_session(path: str | os.PathLike[str]) -> Session:
 
 def _load_json(path: Path) -> dict[str, Any]:
     """The parsed top-level object of a session file, or a :class:`SessionError`."""
+    if "\x00" in str(path):  # pathlib raises a bare ValueError for it
+        raise SessionError(str(path).replace("\x00", "\\0"),
+                           "the path contains a NUL character, which no file name has")
     try:
         if path.is_dir():
             raise SessionError(path, "is a folder, not a session file")
@@ -656,6 +668,112 @@ def _listing(items: list[str], limit: int = _MAX_LISTED) -> str:
     shown = ", ".join(items[:limit])
     more = len(items) - limit
     return f"{shown} and {more} more" if more > 0 else shown
+
+
+# -- camera and lights --------------------------------------------------------------------------
+#: Largest coordinate (µm, on any axis) a session's camera or lights may have: 1000 km, far
+#: beyond any microscope's field, yet small enough that squared distances stay finite in the
+#: float32 arithmetic of the GPU (1e12² = 1e24 < 3.4e38). 1e308 µm made a blank image.
+MAX_COORDINATE_UM = 1e12
+
+
+def _check_view(session_path: Path, model: SceneModel, notes: list[str]) -> None:
+    """Refuse a camera or light that cannot describe a view; repair a degenerate view-up.
+
+    Refused (:class:`SessionError` naming the field): a position, focal point or parallel
+    scale beyond :data:`MAX_COORDINATE_UM`, a light position beyond it, a camera at its own
+    focal point (it looks in no direction). Repaired with a note: a view-up that is zero or
+    along the view direction (VTK then builds a degenerate view matrix and renders nothing).
+    """
+    cam = model.camera
+    fields = [(f"camera.{name}", getattr(cam, name)) for name in ("position", "focal_point")]
+    fields += [(f"lights[{i}].position", light.position) for i, light in enumerate(model.lights)]
+    for where, value in fields:
+        if value is not None and max(abs(c) for c in value) > MAX_COORDINATE_UM:
+            raise SessionError(
+                session_path,
+                f"{where} = {_show(list(value))} lies beyond ±{MAX_COORDINATE_UM:g} µm; no view "
+                "of the data is that far away",
+            )
+    if cam.parallel_scale > MAX_COORDINATE_UM:
+        raise SessionError(
+            session_path,
+            f"camera.parallel_scale = {_show(cam.parallel_scale)} is above "
+            f"{MAX_COORDINATE_UM:g} µm; no view of the data is that wide",
+        )
+    forward = None
+    if cam.position is not None and cam.focal_point is not None:
+        back = [p - f for p, f in zip(cam.position, cam.focal_point, strict=True)]
+        distance = math.sqrt(sum(c * c for c in back))  # < 2e12·√3: finite
+        scale = max(1.0, *(abs(c) for c in cam.focal_point))
+        if not distance > 1e-9 * scale:
+            raise SessionError(
+                session_path,
+                f"camera.position = {_show(list(cam.position))} is the camera.focal_point: the "
+                "camera looks in no direction (move it away from the focal point, or remove "
+                "both to frame the data)",
+            )
+        forward = [c / distance for c in back]
+    up = _perpendicular_up(cam.view_up, forward)
+    if up is not None:
+        notes.append(
+            f"camera.view_up = {_show(list(cam.view_up))} is "
+            f"{'zero' if not any(cam.view_up) else 'along the view direction'}; replaced by "
+            f"{_show([round(c, 6) for c in up])}"
+        )
+        cam.view_up = up
+
+
+def _perpendicular_up(
+    up: tuple[float, float, float], forward: list[float] | None
+) -> tuple[float, float, float] | None:
+    """A usable view-up when ``up`` is zero or (nearly) along the unit ``forward``; else None.
+
+    The replacement is the default (0, 1, 0), or (0, 0, 1) when that is along ``forward``,
+    with its part along ``forward`` removed and normalised.
+    """
+    largest = max(abs(c) for c in up)
+    if largest > 0.0:
+        scaled = [c / largest for c in up]  # no overflow for 1e200 components
+        length = math.sqrt(sum(c * c for c in scaled))
+        unit = [c / length for c in scaled]
+        if forward is None or _cross_norm(unit, forward) > 1e-6:
+            return None
+    if forward is None:
+        return (0.0, 1.0, 0.0)
+    for candidate in ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
+        along = sum(a * b for a, b in zip(candidate, forward, strict=True))
+        rest = [a - along * b for a, b in zip(candidate, forward, strict=True)]
+        length = math.sqrt(sum(c * c for c in rest))
+        if length > 1e-3:
+            return (rest[0] / length, rest[1] / length, rest[2] / length)
+    return (1.0, 0.0, 0.0)  # unreachable: forward cannot be along both y and z
+
+
+def _cross_norm(a: list[float], b: list[float]) -> float:
+    x = a[1] * b[2] - a[2] * b[1]
+    y = a[2] * b[0] - a[0] * b[2]
+    z = a[0] * b[1] - a[1] * b[0]
+    return math.sqrt(x * x + y * y + z * z)
+
+
+def _reduce_transfer_functions(model: SceneModel, notes: list[str]) -> None:
+    """Sample transfer functions longer than :data:`MAX_POINTS` down to it, with a note (the
+    renderer could not use more, and the app's editor would draw every point)."""
+    for c, channel in enumerate(model.channels):
+        reduced = channel.tf.reduced(MAX_POINTS)
+        if reduced is None:
+            continue
+        counts = [f"{len(points)} {what}" for what, points, new in (
+            ("colour", channel.tf.colors, reduced.colors),
+            ("opacity", channel.tf.opacity, reduced.opacity)) if len(points) != len(new)]
+        lo, hi = reduced.value_span
+        notes.append(
+            f"channels[{c}].tf: {' and '.join(counts)} points reduced to {MAX_POINTS} "
+            f"(the function sampled evenly over {lo:g}…{hi:g}; the renderer's tables have "
+            f"{MAX_POINTS} entries)"
+        )
+        channel.tf = reduced
 
 
 # -- technique parameters -----------------------------------------------------------------------
@@ -843,7 +961,8 @@ def load_session_with_data(
     Raises
     ------
     SessionError
-        As :func:`read_session`.
+        As :func:`read_session`; also for a ``data_path`` the operating system cannot use (a
+        NUL character, a name too long).
     MissingDataError
         The data file does not exist, or the session names none; retry with ``data_path``.
     DataMismatchError
@@ -854,10 +973,18 @@ def load_session_with_data(
     """
     session = read_session(path)
     model = session.model
-    target = (
-        Path(data_path).expanduser().resolve() if data_path is not None else session.data_path
-    )
-    if target is None or not target.exists():
+    try:
+        target = (
+            Path(data_path).expanduser().resolve() if data_path is not None else session.data_path
+        )
+        exists = target is not None and target.exists()
+    except (ValueError, OSError) as exc:  # a NUL character, a name too long for the OS
+        raise SessionError(
+            session.path,
+            f"the chosen data file {_show(str(data_path))} is not a usable path "
+            f"({_path_error(exc)})",
+        ) from exc
+    if target is None or not exists:
         raise MissingDataError(session.path, target, chosen=data_path is not None)
 
     vol = model.volume
@@ -895,6 +1022,13 @@ def load_session_with_data(
         else:
             warnings.warn(f"{session.path.name}: {note}", SessionWarning, stacklevel=2)
     return model, data
+
+
+def _path_error(exc: ValueError | OSError) -> str:
+    """Why the operating system refused a path, in words."""
+    if isinstance(exc, OSError):
+        return str(exc.strerror or exc).lower()
+    return "it contains a NUL character" if "null" in str(exc) else str(exc)
 
 
 def _as_tuple(value: Any) -> Any:

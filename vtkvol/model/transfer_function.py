@@ -20,6 +20,24 @@ from vtkvol.model.tf_paint import TFPaintLayer, check_range
 RGB = tuple[float, float, float]
 
 
+#: Most colour (and most opacity) points a transfer function is rendered with: the width of
+#: the renderer's classification tables (vtkvol.engine.tf2d.TABLE_SHAPE, the empty-space
+#: skipping table). A longer function (a session with 100 000 points took minutes to hand to
+#: VTK, which re-sorts its function on every point added) is sampled down to this many
+#: points: :meth:`TransferFunction.reduced`.
+MAX_POINTS = 1024
+
+
+def above(lo: float) -> float:
+    """A value just above ``lo`` (data units) to end a range that would otherwise be empty.
+
+    ``lo + 1`` for ordinary data; where 1 is below the float spacing (a uint64 volume near
+    2⁶⁴, whose values all round to one float) a step of one millionth of ``lo``, so the range
+    stays increasing in float32 too.
+    """
+    return lo + max(1.0, abs(lo) * 1e-6)
+
+
 class TransferFunction(EventedModel):
     """Per-channel colour and opacity mapping.
 
@@ -84,6 +102,26 @@ class TransferFunction(EventedModel):
             np.float32
         )
 
+    def reduced(self, max_points: int = MAX_POINTS) -> TransferFunction | None:
+        """A copy with at most ``max_points`` colour and at most ``max_points`` opacity points,
+        or None when this function has no more than that.
+
+        A list that is too long is replaced by the function sampled at ``max_points`` evenly
+        spaced values from its first to its last point (data units); the ends are kept
+        exactly, and a feature narrower than one sample spacing is smoothed over it, as the
+        renderer's table of :data:`MAX_POINTS` entries would smooth it anyway.
+        """
+        changes: dict[str, list[tuple[float, ...]]] = {}
+        if len(self.colors) > max_points:
+            xs = np.linspace(self.colors[0][0], self.colors[-1][0], max_points)
+            rgb = np.clip(self.color_at(xs).astype(np.float64), 0.0, 1.0)
+            changes["colors"] = [(float(x), *map(float, c)) for x, c in zip(xs, rgb, strict=True)]
+        if len(self.opacity) > max_points:
+            xs = np.linspace(self.opacity[0][0], self.opacity[-1][0], max_points)
+            alpha = np.clip(self.opacity_at(xs).astype(np.float64), 0.0, 1.0)
+            changes["opacity"] = [(float(x), float(a)) for x, a in zip(xs, alpha, strict=True)]
+        return type(self).model_validate({**self.model_dump(), **changes}) if changes else None
+
     def set_window(self, lo: float, hi: float) -> None:
         """Set the editor window, growing ``window_range`` if needed (one event)."""
         with self.batch():
@@ -125,8 +163,8 @@ class TransferFunction(EventedModel):
         """A linear ramp from transparent black at ``lo`` to ``color`` at ``hi``."""
         rlo, rhi = value_range if value_range is not None else (min(lo, 0.0), hi)
         if rhi <= rlo:
-            rhi = rlo + 1.0
-        hi = hi if hi > lo else lo + 1.0
+            rhi = above(rlo)
+        hi = hi if hi > lo else above(lo)
         return cls(
             colors=[(lo, 0.0, 0.0, 0.0), (hi, *color)],
             opacity=[(lo, 0.0), (hi, max_opacity)],
