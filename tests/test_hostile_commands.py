@@ -15,21 +15,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests_support_hostile import ROOT, run_child
+from tests_support_hostile import ROOT, assert_one_line, run_child
 
 from vtkvol.cli import main
 
 SMALL = ["--size", "32", "32"]
 
-
-def one_line(err: str, *parts: str) -> str:
-    """``err`` is exactly one ``vtkvol:`` line holding every part."""
-    lines = err.splitlines()
-    assert len(lines) == 1, err
-    assert lines[0].startswith("vtkvol: "), err
-    for part in parts:
-        assert part in lines[0], err
-    return lines[0]
 
 
 def cli_child(args: list[str], *, timeout: float = 60.0, memory_gib: float | None = None,
@@ -58,7 +49,7 @@ def test_a_billion_turntable_frames_are_refused_before_any_work(tmp_path, name):
     code, err, seconds = cli_child(["render", "sample", "-o", str(out), "--turntable", "360",
                                     "--frames", "1000000000", *SMALL], memory_gib=1.0)
     assert code == 2, err
-    one_line(err, "--frames must be at most 100000", "got 1000000000")
+    assert_one_line(err, "--frames must be at most 100000", "got 1000000000")
     assert seconds < 30
     assert list(tmp_path.iterdir()) == []
 
@@ -75,7 +66,7 @@ def test_a_turntable_of_no_finite_angle_is_refused(tmp_path, capsys, value, mess
     out = tmp_path / "spin.png"
     assert main(["render", "sample", "-o", str(out), f"--turntable={value}", "--frames", "2",
                  *SMALL]) == 2
-    assert one_line(capsys.readouterr().err) == f"vtkvol: {message}"
+    assert assert_one_line(capsys.readouterr().err) == f"vtkvol: {message}"
     assert list(tmp_path.iterdir()) == []
 
 
@@ -111,7 +102,7 @@ def test_every_numeric_option_refuses_what_it_cannot_use(tmp_path, capsys, args,
     before = sorted(p.name for p in tmp_path.iterdir())
     code = main([a.replace("{tmp}", str(tmp_path)) for a in args])
     assert code == 2
-    assert one_line(capsys.readouterr().err) == f"vtkvol: {message}"
+    assert assert_one_line(capsys.readouterr().err) == f"vtkvol: {message}"
     assert sorted(p.name for p in tmp_path.iterdir()) == before  # nothing written
 
 
@@ -122,8 +113,8 @@ def test_open_refuses_a_non_finite_voxel_size_before_the_display_check(tmp_path)
                            "1", "1"], capture_output=True, text=True, timeout=60, env=env_free,
                           cwd=ROOT)
     assert done.returncode == 2
-    assert one_line(done.stderr) == ("vtkvol: --voxel-size X Y Z must be three positive µm "
-                                     "values, got nan 1 1")
+    assert assert_one_line(done.stderr) == (
+        "vtkvol: --voxel-size X Y Z must be three positive µm values, got nan 1 1")
 
 
 @pytest.mark.parametrize(("args", "part"), [
@@ -137,7 +128,7 @@ def test_argument_errors_are_one_line_naming_the_option(capsys, args, part):
     with pytest.raises(SystemExit) as info:
         main(args)
     assert info.value.code == 2
-    line = one_line(capsys.readouterr().err, part)
+    line = assert_one_line(capsys.readouterr().err, part)
     assert line.endswith("--help)")
 
 
@@ -157,7 +148,7 @@ def test_a_batch_of_too_many_time_points_is_refused_before_listing(tmp_path, inp
     code, err, _ = cli_child(["batch", *files, "-o", str(tmp_path / "out"), "--time", time],
                              memory_gib=1.0, timeout=120)
     assert code == 2, err
-    one_line(err, part)
+    assert_one_line(err, part)
     assert not (tmp_path / "out").exists()
 
 
@@ -168,8 +159,8 @@ def test_too_many_local_workers_are_refused_at_once(tmp_path):
     code, err, seconds = cli_child(["batch", "sample", "-o", str(tmp_path / "out"),
                                     "--workers", "100000"], timeout=60)
     assert code == 2, err
-    one_line(err, f"--workers must be at most {max_local_workers()} (4 per CPU core",
-             "got 100000")
+    assert_one_line(err, f"--workers must be at most {max_local_workers()} (4 per CPU core",
+                    "got 100000")
     assert seconds < 30 and not (tmp_path / "out").exists()
     assert max_local_workers() == 4 * (os.cpu_count() or 1)
 
@@ -189,7 +180,7 @@ def test_a_scheduler_address_that_is_not_one_is_refused_without_waiting(tmp_path
     code, err, seconds = cli_child(["batch", "sample", "-o", str(tmp_path / "out"),
                                     "--scheduler", address], timeout=90)
     assert code == 2, err
-    one_line(err, part)
+    assert_one_line(err, part)
     assert seconds < 15
 
 
@@ -235,8 +226,9 @@ def test_a_store_without_chunks_is_refused_not_converted(tmp_path, capsys, shape
     start = time.perf_counter()
     assert main(["convert", str(src), str(tmp_path / "out.zarr")]) == 1
     assert time.perf_counter() - start < 20
-    one_line(capsys.readouterr().err, "empty.ome.zarr: its finest level (0) stores no chunks: "
-                                      "every voxel is the fill value")
+    assert_one_line(capsys.readouterr().err,
+                    "empty.ome.zarr: its finest level (0) stores no chunks: "
+                    "every voxel is the fill value")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["empty.ome.zarr"]
 
 
@@ -279,7 +271,7 @@ def test_convert_never_writes_inside_its_input_nor_over_it(tmp_path, capsys, lay
 
     before = snapshot(tmp_path)
     assert main(["convert", str(src), str(out), *extra]) == 2
-    one_line(capsys.readouterr().err, part)
+    assert_one_line(capsys.readouterr().err, part)
     assert snapshot(tmp_path) == before
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from tests_support_hostile import ROOT, read_in_child
+from tests_support_hostile import ROOT, assert_one_line, read_in_child
 
 from vtkvol.io import VolumeReadError, read_volume
 
@@ -29,15 +29,6 @@ def cli(*args: str, timeout: float = 120.0) -> subprocess.CompletedProcess[str]:
     return subprocess.run([sys.executable, "-m", "vtkvol.cli", *args], capture_output=True,
                           text=True, timeout=timeout, cwd=ROOT)
 
-
-def assert_one_line(stderr: str, *parts: str) -> str:
-    """stderr is exactly one ``vtkvol:`` line holding every part (no log line, no traceback)."""
-    lines = stderr.splitlines()
-    assert len(lines) == 1, stderr
-    assert lines[0].startswith("vtkvol: "), stderr
-    for part in parts:
-        assert part in lines[0], stderr
-    return lines[0]
 
 
 # -- NIfTI ------------------------------------------------------------------------------------

@@ -17,6 +17,17 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 
+def assert_one_line(stderr: str, *parts: str) -> str:
+    """``stderr`` is exactly one ``vtkvol:`` line holding every part (no log line, no
+    traceback); returns that line."""
+    lines = stderr.splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith("vtkvol: "), stderr
+    for part in parts:
+        assert part in lines[0], stderr
+    return lines[0]
+
+
 def lying_tiff(
     path: Path,
     *,
