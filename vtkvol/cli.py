@@ -347,9 +347,6 @@ def cmd_render(args: argparse.Namespace) -> int:
             print(f"vtkvol: {name}: {note}", file=sys.stderr)
     else:
         data = _load(args.file, args.voxel_size, args.time or 0, args.gpu_budget)
-    uniform = _uniform_note(data)
-    if uniform:
-        print(f"vtkvol: {uniform}", file=sys.stderr)
     inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
@@ -369,10 +366,6 @@ def cmd_render(args: argparse.Namespace) -> int:
     if isinstance(params, str):
         print(f"vtkvol: {params}", file=sys.stderr)
         return 2
-    if args.turntable is not None:
-        return _render_turntable(args, out, data, model, params)
-    if animation is not None:
-        return _render_keyframes(args, out, data, model, params, animation)
     if args.iterations is not None and args.iterations < 1:
         print(f"vtkvol: --iterations must be at least 1, got {args.iterations}", file=sys.stderr)
         return 2
@@ -380,6 +373,14 @@ def cmd_render(args: argparse.Namespace) -> int:
         print(f"vtkvol: --time-budget must be a number of seconds >= 0, got {args.time_budget}",
               file=sys.stderr)
         return 2
+    # Noted once every refusal is behind us: a refused command says one line, the refusal.
+    uniform = _uniform_note(data)
+    if uniform:
+        print(f"vtkvol: {uniform}", file=sys.stderr)
+    if args.turntable is not None:
+        return _render_turntable(args, out, data, model, params)
+    if animation is not None:
+        return _render_keyframes(args, out, data, model, params, animation)
 
     def refined(iterations: int, converged: bool, seconds: float) -> None:
         how = "converged" if converged else "stopped by the time budget"
