@@ -268,15 +268,21 @@ def _replace(document: Any, path: tuple, value: Any, delete: bool) -> Any:
     return copy
 
 
+def _edited(document: Any, edits: list[tuple[int, Any, bool]]) -> Any:
+    """``document`` with each edit applied in turn: (which value, by its index among all the
+    values' paths, modulo their count; the new value; or delete it)."""
+    for index, value, delete in edits:
+        paths = _paths(document)
+        document = _replace(document, paths[index % len(paths)], value, delete)
+    return document
+
+
 @FUZZ
 @given(edits=st.lists(st.tuples(st.integers(0, 10**6), json_values, st.booleans()), min_size=1,
                       max_size=4))
 def test_fuzzed_session_json(session_document, edits):
     """A valid session with values replaced by any JSON or keys removed, anywhere."""
-    document: Any = session_document
-    for index, value, delete in edits:
-        paths = _paths(document)
-        document = _replace(document, paths[index % len(paths)], value, delete)
+    document = _edited(session_document, edits)
     path = scratch() / "fuzz.vtkvol.json"
     path.write_text(json.dumps(document), encoding="utf-8")
     check_session(path)
@@ -550,10 +556,7 @@ def test_fuzzed_ome_zarr_metadata(ome_zarr_folder, edits):
     folder = scratch() / "fuzz.ome.zarr"
     shutil.copytree(ome_zarr_folder, folder)
     document: Any = json.loads((folder / "zarr.json").read_text())
-    for index, value, delete in edits:
-        paths = _paths(document["attributes"])
-        document["attributes"] = _replace(document["attributes"], paths[index % len(paths)],
-                                          value, delete)
+    document["attributes"] = _edited(document["attributes"], edits)
     (folder / "zarr.json").write_text(json.dumps(document))
     check_read(folder)
 
@@ -589,10 +592,7 @@ def test_fuzzed_keyframe_json(keyframe_document, edits):
 
     from vtkvol.model.keyframes import MAX_FRAMES, KeyframeError, read_keyframes
 
-    document: Any = keyframe_document
-    for index, value, delete in edits:
-        paths = _paths(document)
-        document = _replace(document, paths[index % len(paths)], value, delete)
+    document = _edited(keyframe_document, edits)
     path = scratch() / "fuzz.keyframes.json"
     path.write_text(json.dumps(document), encoding="utf-8")
     with warnings.catch_warnings():
@@ -626,10 +626,7 @@ def test_fuzzed_tf_json(edits, nest):
 
     path = write_tf_file(scratch() / "fuzz.tf.json",
                          TransferFunction.ramp(0.0, 100.0, (0.2, 0.9, 0.3)))
-    document: Any = json.loads(path.read_text())
-    for index, value, delete in edits:
-        paths = _paths(document)
-        document = _replace(document, paths[index % len(paths)], value, delete)
+    document = _edited(json.loads(path.read_text()), edits)
     path.write_text("[" * nest + json.dumps(document) + "]" * nest)
     try:
         tf = read_tf_file(path)
