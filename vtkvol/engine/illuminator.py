@@ -428,42 +428,35 @@ class Illuminator:
             self._capture_renderer = False
 
     def _renderer_lights(self, *, fixed: bool = False) -> list[Light]:
-        """The renderer's switched-on lights as world-space vtkvol lights (camera lights, the
-        headlight and light kits included, through their transformed positions).
+        """The renderer's switched-on lights as world-space vtkvol lights (the headlight and
+        camera lights, light kits included, placed from the current camera; scene lights
+        through their transformed positions).
 
         ``fixed``: the lights are taken once and stay put in the world. A lone headlight then
         becomes a key light (:func:`key_light_direction`), since shadows cast along the view
         direction fall straight behind what casts them, where the viewer cannot see them.
         """
-        out: list[Light] = []
         lights = self.renderer.GetLights()
         lights.InitTraversal()
-        switched_on = []
-        for _ in range(lights.GetNumberOfItems()):
-            light = lights.GetNextItem()
-            if light is not None and light.GetSwitch():
-                switched_on.append(light)
+        switched_on = [light for light in (lights.GetNextItem()
+                                           for _ in range(lights.GetNumberOfItems()))
+                       if light is not None and light.GetSwitch()]
         if not switched_on and self.renderer.GetAutomaticLightCreation():
             # Before its first render a renderer has no lights yet: it is about to make its
             # headlight (white, intensity 1), so take that one.
-            camera = self.renderer.GetActiveCamera()
-            if fixed:
-                return [Light(direction=key_light_direction(camera))]
-            to_camera = np.subtract(camera.GetPosition(), camera.GetFocalPoint())
-            if np.linalg.norm(to_camera) > 0:
-                return [Light(direction=tuple(float(v) for v in to_camera))]
-        for light in switched_on:
-            if len(out) == MAX_LIGHTS:
-                break
-            if fixed and len(switched_on) == 1 and light.LightTypeIsHeadlight():
-                color = tuple(float(min(max(c, 0.0), 1.0)) for c in light.GetDiffuseColor())
-                intensity = float(min(max(light.GetIntensity(), 0.0), 100.0))
-                out.append(Light(direction=key_light_direction(self.renderer.GetActiveCamera()),
-                                 color=color, intensity=intensity))
-                continue
-            position, focal = _light_world_geometry(light, self.renderer.GetActiveCamera())
+            headlight = vtk.vtkLight()
+            headlight.SetLightTypeToHeadlight()
+            switched_on = [headlight]
+        camera = self.renderer.GetActiveCamera()
+        out: list[Light] = []
+        for light in switched_on[:MAX_LIGHTS]:
             color = tuple(float(min(max(c, 0.0), 1.0)) for c in light.GetDiffuseColor())
             intensity = float(min(max(light.GetIntensity(), 0.0), 100.0))
+            if fixed and len(switched_on) == 1 and light.LightTypeIsHeadlight():
+                out.append(Light(direction=key_light_direction(camera), color=color,
+                                 intensity=intensity))
+                continue
+            position, focal = _light_world_geometry(light, camera)
             if light.GetPositional():
                 out.append(Light(kind="point", position=tuple(position), color=color,
                                  intensity=intensity))
