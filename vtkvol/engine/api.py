@@ -11,12 +11,12 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 import vtk
 
-from vtkvol.engine.illuminator import Illuminator
+from vtkvol.engine.illuminator import Illuminator, check_multichannel_lighting
 from vtkvol.engine.offscreen import grab, make_render_window
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.presets import apply_preset
-from vtkvol.model.scene import MULTICHANNEL_LIGHTINGS, Light, SceneModel
+from vtkvol.model.scene import Light, SceneModel
 from vtkvol.model.techniques import get_spec
 
 if TYPE_CHECKING:
@@ -105,9 +105,7 @@ def illuminate(
                              multichannel_lighting=multichannel_lighting)
         return existing
     multichannel_lighting = multichannel_lighting or "per_channel"
-    if multichannel_lighting not in MULTICHANNEL_LIGHTINGS:
-        raise ValueError("multichannel_lighting must be 'per_channel' or 'shared', not "
-                         f"{multichannel_lighting!r}")
+    check_multichannel_lighting(multichannel_lighting)  # before the volume is touched
     illuminator = Illuminator(volume, renderer, method=method,
                               lights="renderer_fixed" if lights is None else lights,
                               parameters=parameters,

@@ -306,10 +306,8 @@ class Illuminator:
         follow = isinstance(lights, str) and lights == "renderer"
         if lights is not None and not follow:
             self._check_lights(list(lights))
-        if (multichannel_lighting is not None
-                and multichannel_lighting not in MULTICHANNEL_LIGHTINGS):
-            raise ValueError("multichannel_lighting must be 'per_channel' or 'shared', not "
-                             f"{multichannel_lighting!r}")
+        if multichannel_lighting is not None:
+            check_multichannel_lighting(multichannel_lighting)
         cls = technique_class(method)
         cls.SPEC.validate({**self._values.get(cls.NAME, cls.defaults()), **(parameters or {})})
         self.set_method(method, parameters)
@@ -528,9 +526,7 @@ class Illuminator:
         (shaded surface lighting without gradient opacity, volumetric scattering or a 2-D
         transfer function; or a ``medium`` technique); elsewhere, one channel included, the
         image is unchanged (:attr:`multichannel_lighting_state` says what the last build did)."""
-        if mode not in MULTICHANNEL_LIGHTINGS:
-            raise ValueError(
-                f"multichannel_lighting must be 'per_channel' or 'shared', not {mode!r}")
+        check_multichannel_lighting(mode)
         self._multichannel_lighting = mode
 
     @property
@@ -1836,6 +1832,12 @@ def _no_collection() -> Iterator[None]:
     finally:
         if enabled:
             gc.enable()
+
+
+def check_multichannel_lighting(mode: str) -> None:
+    """``ValueError`` unless ``mode`` is a multi-channel lighting ("per_channel", "shared")."""
+    if mode not in MULTICHANNEL_LIGHTINGS:
+        raise ValueError(f"multichannel_lighting must be 'per_channel' or 'shared', not {mode!r}")
 
 
 def _light_world_geometry(light: vtk.vtkLight,
