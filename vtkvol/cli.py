@@ -89,9 +89,6 @@ def _non_finite_problem(args: argparse.Namespace) -> str | None:
         if all(math.isfinite(v) for v in floats):
             continue
         flag = "--" + name.replace("_", "-")
-        if name == "voxel_size":
-            return ("--voxel-size X Y Z must be three positive µm values, got "
-                    + " ".join(f"{v:g}" for v in values))
         shown = " ".join(f"{v:g}" for v in values)
         return f"{flag} must be a finite number{_FLOAT_UNITS.get(name, '')}, got {shown}"
     return None
@@ -268,10 +265,7 @@ def _render_option_problem(args: argparse.Namespace) -> str | None:
     problem = _view_option_problem(args)
     if problem:
         return problem
-    if args.voxel_size is not None:
-        if not all(math.isfinite(v) and v > 0 for v in args.voxel_size):
-            return ("--voxel-size X Y Z must be three positive µm values, got "
-                    + " ".join(f"{v:g}" for v in args.voxel_size))
+    if args.voxel_size is not None:  # positive and finite: checked in main()
         if args.file == "sample":
             return "--voxel-size does not apply to the built-in sample (it has its own)"
         if args.file.endswith(SESSION_SUFFIX):
@@ -591,7 +585,7 @@ def _write_png(image, path: Path, *, replace: bool = True) -> None:
 
 
 def _voxel_size_problem(voxel_size: Sequence[float] | None) -> str | None:
-    """``--voxel-size`` of ``info``, ``open`` and ``convert``: three positive µm values."""
+    """``--voxel-size`` of every command that has it: three positive, finite µm values."""
     if voxel_size is not None and not all(math.isfinite(v) and v > 0 for v in voxel_size):
         return ("--voxel-size X Y Z must be three positive µm values, got "
                 + " ".join(f"{v:g}" for v in voxel_size))
@@ -599,10 +593,6 @@ def _voxel_size_problem(voxel_size: Sequence[float] | None) -> str | None:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    problem = _voxel_size_problem(args.voxel_size)
-    if problem:
-        print(f"vtkvol: {problem}", file=sys.stderr)
-        return 2
     data = _load(args.file, args.voxel_size, budget=args.gpu_budget)
     print(data.describe())
     return 0
@@ -613,10 +603,6 @@ def cmd_convert(args: argparse.Namespace) -> int:
 
     if args.time < 0:
         print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
-        return 2
-    problem = _voxel_size_problem(args.voxel_size)
-    if problem:
-        print(f"vtkvol: {problem}", file=sys.stderr)
         return 2
     channels = None if args.channels is None else [
         int(c) if c.isdigit() else c for c in args.channels]
@@ -660,10 +646,6 @@ def no_display_reason() -> str | None:
 
 
 def cmd_open(args: argparse.Namespace) -> int:
-    problem = _voxel_size_problem(args.voxel_size)
-    if problem:
-        print(f"vtkvol: {problem}", file=sys.stderr)
-        return 2
     if args.time is not None and args.time < 0:
         print(f"vtkvol: --time must be a time point index >= 0, got {args.time}", file=sys.stderr)
         return 2
@@ -757,9 +739,6 @@ def cmd_batch(args: argparse.Namespace) -> int:
         problem = scheduler_address_problem(args.scheduler)
         if problem:
             return fail(problem)
-    if args.voxel_size is not None and not all(v > 0 for v in args.voxel_size):
-        return fail("--voxel-size X Y Z must be three positive µm values, got "
-                    + " ".join(f"{v:g}" for v in args.voxel_size))
     devices = None
     if args.egl_devices:
         try:
@@ -877,7 +856,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     # out before the sub-command's parser sees it.
     verbose = "--verbose" in argv
     args = _parser().parse_args([a for a in argv if a != "--verbose"])
-    problem = _non_finite_problem(args)
+    problem = (_voxel_size_problem(getattr(args, "voxel_size", None))
+               or _non_finite_problem(args))
     if problem:
         print(f"vtkvol: {problem}", file=sys.stderr)
         return 2
