@@ -50,7 +50,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import ValidationError
 
-from vtkvol.model.scene import Camera, Light
+from vtkvol.model.scene import MAX_COORDINATE_UM, Camera, Light
 
 __all__ = [
     "EASINGS",
@@ -82,10 +82,6 @@ MAX_FRAMES = 100_000
 MAX_KEYFRAMES = 10_000
 #: Keyframe files are a few KiB; anything larger is refused unread.
 MAX_FILE_BYTES = 16 * 2**20
-#: Largest magnitude of a camera or light coordinate and of a parallel scale (µm, i.e. 1000
-#: km): far beyond any microscope, and small enough that differences, norms and cross
-#: products of such numbers stay finite (1e308 overflowed them into a misleading message).
-MAX_COORDINATE_UM = 1e12
 Easing = Literal["linear", "smooth"]
 EASINGS: tuple[str, ...] = ("linear", "smooth")
 TimeIndexMode = Literal["linear", "nearest", "hold"]

@@ -245,6 +245,13 @@ class Illumination(EventedModel):
         self.parameters = params
 
 
+#: Largest magnitude of a camera or light coordinate and of a parallel scale that a session or
+#: keyframe file may hold (µm, i.e. 1000 km): far beyond any microscope's field, yet small
+#: enough that differences, norms and cross products stay finite, in float32 on the GPU too
+#: (1e12² = 1e24 < 3.4e38). 1e308 µm made a blank image or a misleading overflow message.
+MAX_COORDINATE_UM = 1e12
+
+
 class Camera(EventedModel):
     """Camera in world space (µm). ``None`` position means "reset to fit the volume"."""
 

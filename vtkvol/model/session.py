@@ -40,7 +40,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from vtkvol.io.atomic import write_atomic
 from vtkvol.model.migrations import FORMAT, VERSION, migrate
 from vtkvol.model.params import Param
-from vtkvol.model.scene import SceneModel
+from vtkvol.model.scene import MAX_COORDINATE_UM, SceneModel
 from vtkvol.model.techniques import get_spec
 from vtkvol.model.transfer_function import MAX_POINTS
 
@@ -671,10 +671,6 @@ def _listing(items: list[str], limit: int = _MAX_LISTED) -> str:
 
 
 # -- camera and lights --------------------------------------------------------------------------
-#: Largest coordinate (µm, on any axis) a session's camera or lights may have: 1000 km, far
-#: beyond any microscope's field, yet small enough that squared distances stay finite in the
-#: float32 arithmetic of the GPU (1e12² = 1e24 < 3.4e38). 1e308 µm made a blank image.
-MAX_COORDINATE_UM = 1e12
 
 
 def _check_view(session_path: Path, model: SceneModel, notes: list[str]) -> None:
