@@ -48,6 +48,7 @@ from PySide6.QtWidgets import (
 from superqt import QDoubleRangeSlider
 
 from vtkvol.io.atomic import write_atomic
+from vtkvol.model import strict_json
 from vtkvol.model.classification import (
     DEFAULT_OPACITY_SCALE,
     DEFAULT_RADIUS,
@@ -181,8 +182,6 @@ TF_FILE_MAX_NESTING = 16
 def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:
     """Read a file written by :func:`write_tf_file`; ``ValueError`` says what is wrong, in one
     line starting with the file's name (``OSError`` when it cannot be read at all)."""
-    from vtkvol.model.session import _finite_float, _nesting_depth, _reject_constant
-
     name = Path(path).name
     if Path(path).stat().st_size > TF_FILE_MAX_BYTES:
         raise ValueError(f"{name}: too large for a transfer-function file (at most "
@@ -193,7 +192,7 @@ def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:
         raise ValueError(f"{name}: not a text file (not UTF-8 at byte {exc.start})") from None
     try:
         # no NaN, Infinity or 1e999 (the model would refuse them less clearly)
-        document = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
+        document = strict_json.loads(text)
     except json.JSONDecodeError as exc:
         where = f"line {exc.lineno}, column {exc.colno}"
         raise ValueError(f"{name}: not valid JSON ({where})") from None
@@ -202,7 +201,7 @@ def read_tf_file(path: str | os.PathLike[str]) -> TransferFunction:
     except RecursionError:
         # json's C parser recurses once per bracket: 100 000 of them exhaust the stack
         raise ValueError(f"{name}: nested too deeply to be a transfer-function file") from None
-    if _nesting_depth(document) > TF_FILE_MAX_NESTING:
+    if strict_json.nesting_depth(document) > TF_FILE_MAX_NESTING:
         raise ValueError(f"{name}: nested too deeply to be a transfer-function file")
     if not isinstance(document, dict) or document.get("format") != TF_FILE_FORMAT:
         raise ValueError(f"{name}: not a vtkvol transfer-function file")

@@ -50,6 +50,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import ValidationError
 
+from vtkvol.model import strict_json
 from vtkvol.model.scene import MAX_COORDINATE_UM, Camera, Light
 
 __all__ = [
@@ -592,8 +593,6 @@ def animation_to_json(animation: Animation) -> dict[str, Any]:
 def read_keyframes(path: str | os.PathLike[str]) -> Animation:
     """Read a ``*.keyframes.json`` file. Every problem is a :class:`KeyframeError` whose
     one-line message starts with the file's name."""
-    from vtkvol.model.session import _finite_float, _nesting_depth, _reject_constant
-
     path = Path(path)
     name = path.name
 
@@ -619,7 +618,7 @@ def read_keyframes(path: str | os.PathLike[str]) -> Animation:
     except UnicodeDecodeError as exc:
         raise fail(f"is not a text file (not UTF-8 at byte {exc.start})") from None
     try:
-        raw = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
+        raw = strict_json.loads(text)
     except json.JSONDecodeError as exc:
         raise fail(f"is not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}"
                    ) from None
@@ -627,7 +626,7 @@ def read_keyframes(path: str | os.PathLike[str]) -> Animation:
         raise fail(f"is not valid JSON: {exc}") from None
     except RecursionError:
         raise fail("is nested too deeply to be a keyframe file") from None
-    if _nesting_depth(raw) > 16:
+    if strict_json.nesting_depth(raw) > 16:
         raise fail("is nested too deeply to be a keyframe file")
     try:
         return animation_from_json(raw)

@@ -38,6 +38,7 @@ import pydantic
 from pydantic import BaseModel, ConfigDict, Field
 
 from vtkvol.io.atomic import write_atomic
+from vtkvol.model import strict_json
 from vtkvol.model.migrations import FORMAT, VERSION, migrate
 from vtkvol.model.params import Param
 from vtkvol.model.scene import MAX_COORDINATE_UM, SceneModel
@@ -567,7 +568,7 @@ def _load_json(path: Path) -> dict[str, Any]:
             path, f"is not a text file (not UTF-8 at byte {exc.start}); is this a data file?"
         ) from exc
     try:
-        raw = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float)
+        raw = strict_json.loads(text)
     except json.JSONDecodeError as exc:
         raise SessionError(
             path, f"is not valid JSON: {exc.msg} at line {exc.lineno}, column {exc.colno}"
@@ -576,7 +577,7 @@ def _load_json(path: Path) -> dict[str, Any]:
         raise SessionError(path, f"is not valid JSON: {exc}") from exc
     except RecursionError as exc:
         raise SessionError(path, "is nested too deeply to be a session file") from exc
-    if _nesting_depth(raw) > MAX_NESTING:
+    if strict_json.nesting_depth(raw, MAX_NESTING) > MAX_NESTING:
         # copying and validating a deeper document recurses past Python's limit
         raise SessionError(path, f"is nested more than {MAX_NESTING} levels deep, which no "
                                  "session file is")
@@ -590,32 +591,6 @@ def _load_json(path: Path) -> dict[str, Any]:
 
 #: Deepest nesting of objects and lists a session file may have (real ones have under 10).
 MAX_NESTING = 64
-
-
-def _nesting_depth(value: Any) -> int:
-    """How deeply JSON objects and lists nest in ``value`` (counted without recursion)."""
-    deepest, stack = 0, [(value, 1)]
-    while stack:
-        item, depth = stack.pop()
-        if isinstance(item, dict | list):
-            deepest = max(deepest, depth)
-            if depth > MAX_NESTING:
-                break
-            children = item.values() if isinstance(item, dict) else item
-            stack.extend((child, depth + 1) for child in children)
-    return deepest
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"{name} is not a number JSON allows")
-
-
-def _finite_float(text: str) -> float:
-    # 1e999 parses to infinity without complaint; a session never needs it.
-    value = float(text)
-    if not math.isfinite(value):
-        raise ValueError(f"{text} is too large a number")
-    return value
 
 
 def _json_kind(value: Any) -> str:
