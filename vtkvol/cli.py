@@ -234,11 +234,13 @@ def _parse_value(text: str):
 
 def _load(path: str, voxel_size, time_index: int = 0, budget: int | None = None):
     from vtkvol.io import confocal_phantom, read_volume
+    from vtkvol.io.remote import fetch_progress, is_remote
 
     if path == "sample":
         return confocal_phantom()
     return read_volume(path, voxel_size_um=voxel_size, time_index=time_index,
-                       memory_budget_bytes=budget)
+                       memory_budget_bytes=budget,
+                       progress=fetch_progress(path) if is_remote(path) else None)
 
 
 #: Largest image side `vtkvol render` makes (pixels): an 8192² window is ~0.5 GiB of colour and

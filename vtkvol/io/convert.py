@@ -66,21 +66,25 @@ class ConvertResult:
     notes: list[str]
 
 
-def lazy_source(path: Path, *, time_index: int = 0,
+def lazy_source(path: Path | str, *, time_index: int = 0,
                 channels: Sequence[int | str] | None = None) -> LazySource:
     """``path`` as a :class:`LazySource` (see the module docstring for how each format is
     wrapped). Raises VolumeReadError for a file vtkvol cannot read."""
     da = require("dask.array", "a volume as a lazy array", path)
     from vtkvol.io.registry import get_reader
+    from vtkvol.io.remote import is_remote, remote_reader
 
-    path = Path(path)
-    if not path.exists():
-        raise VolumeReadError(path, f"no such file or folder: {path}")
-    check_path(path)
-    reader = get_reader(path)
+    if is_remote(path):  # an OME-Zarr store on a server: its chunks are fetched as needed
+        reader = remote_reader(str(path))
+    else:
+        path = Path(path)
+        if not path.exists():
+            raise VolumeReadError(path, f"no such file or folder: {path}")
+        check_path(path)
+        reader = get_reader(path)
     if reader is None:
         raise VolumeReadError(path, "not a volume vtkvol reads (unknown file type)")
-    if reader.name == "tiff" and path.is_file():
+    if reader.name == "tiff" and Path(path).is_file():
         return _lazy_tiff(path, time_index, channels, da)
     if reader.open_pyramid is not None:
         pyramid = reader.open_pyramid(path, time_index=time_index, channels=channels)
@@ -219,7 +223,12 @@ def convert_to_ome_zarr(
     unreadable source).
     """
     start = time.perf_counter()
-    src, out = Path(source).expanduser(), Path(output).expanduser()
+    from vtkvol.io.remote import is_remote
+
+    out = Path(output).expanduser()
+    # An address stays a string (Path() would fold its "//"); it is never a local path.
+    src = source if is_remote(source) else Path(source).expanduser()
+    local = isinstance(src, Path)
     report = progress or (lambda fraction, message: None)
     if version not in ("0.4", "0.5"):
         raise ConvertError(f"NGFF version {version!r} is not written; use 0.4 or 0.5")
@@ -227,12 +236,12 @@ def convert_to_ome_zarr(
         raise ConvertError(f"{out} exists; pass --overwrite to replace it")
     if out.exists() and not out.is_dir():
         raise ConvertError(f"{out} is a file, not an OME-Zarr folder; it is not replaced")
-    if src.exists() and out.resolve() == src.resolve():
+    if local and src.exists() and out.resolve() == src.resolve():
         raise ConvertError(f"{out} is the input; choose another name for the output")
-    if src.exists() and src.resolve() in out.resolve().parents:
+    if local and src.exists() and src.resolve() in out.resolve().parents:
         # the input would be read while the output grows inside it (and hold it afterwards)
         raise ConvertError(f"{out} is inside the input {src}; choose a place outside it")
-    if src.exists() and out.resolve() in src.resolve().parents:
+    if local and src.exists() and out.resolve() in src.resolve().parents:
         # --overwrite would delete the folder the input is in
         raise ConvertError(f"{out} holds the input {src}; choose another name for the output")
     try:
@@ -271,7 +280,7 @@ def convert_to_ome_zarr(
                 scale={"c": 1.0, "z": spacing[2], "y": spacing[1], "x": spacing[0]},
                 axes_units={"z": "micrometer", "y": "micrometer", "x": "micrometer"},
                 storage_options={"chunks": chunks},
-                name=src.name,
+                name=Path(str(src).rstrip("/")).name,
                 omero={"channels": _omero_channels(lazy.channel_names, array.dtype)},
             )
         pool.shutdown(wait=True)

@@ -40,5 +40,7 @@ def display_name(source: str | PathLike[str] | None) -> str:
     """The short name used at the start of error messages and notes (file name only)."""
     if source is None:
         return "array"
+    if "://" in str(source):  # an address (vtkvol.io.remote): the host matters, say it all
+        return str(source)
     name = Path(source).name
     return name or str(source)

@@ -205,22 +205,29 @@ class ZarrPyramid(Pyramid):
 
 
 def open_ome_zarr(
-    path: Path,
+    path: Path | str,
     *,
     time_index: int = 0,
     channels: Sequence[int | str] | None = None,
+    group: Any = None,
+    pyramid_type: type[ZarrPyramid] = ZarrPyramid,
 ) -> ZarrPyramid:
     """Open an OME-Zarr image as a :class:`~vtkvol.io.pyramid.Pyramid` (metadata only; no
-    voxel is read). Raises VolumeReadError for anything that is not a readable image."""
-    path = Path(path)
-    zarr = require("zarr", "OME-Zarr images", path)
-    root = _zarr_root(path)
-    try:
-        group = zarr.open_group(str(root), mode="r")
-        attrs = dict(group.attrs)
-    except Exception as exc:  # zarr raises many types for a folder that is not a group
-        raise VolumeReadError(path, f"not a readable Zarr group ({type(exc).__name__}: "
-                                    f"{exc})") from exc
+    voxel is read). Raises VolumeReadError for anything that is not a readable image.
+
+    ``group``: an already opened zarr group (a remote store, :mod:`vtkvol.io.remote`); then
+    ``path`` is only its name in messages and ``source`` (an address stays a string).
+    ``pyramid_type``: the :class:`ZarrPyramid` subclass to return."""
+    if group is None:
+        path = Path(path)
+        zarr = require("zarr", "OME-Zarr images", path)
+        root = _zarr_root(path)
+        try:
+            group = zarr.open_group(str(root), mode="r")
+        except Exception as exc:  # zarr raises many types for a folder that is not a group
+            raise VolumeReadError(path, f"not a readable Zarr group ({type(exc).__name__}: "
+                                        f"{exc})") from exc
+    attrs = dict(group.attrs)
     notes: list[str] = []
     multiscales, version = _multiscales(attrs)
     if multiscales is None and "0" in group:
@@ -351,7 +358,7 @@ def open_ome_zarr(
     levels = [PyramidLevel(lv.name, lv.shape_czyx, lv.voxel_size_um,
                            tuple(o - b for o, b in zip(lv.offset_um, base, strict=True)))  # type: ignore[arg-type]
               for lv in levels]
-    return ZarrPyramid(
+    return pyramid_type(
         arrays, pos, names_axes, time_index, chosen,
         source=path,
         levels=levels,

@@ -305,13 +305,15 @@ def read_pyramid(
     # decoded twice): whole z-slabs, or, when one row of chunks is larger, y-strips of it.
     # Memory: the result plus one block and the chunks it decodes.
     row_bytes = x_n * itemsize
+    # A remote store reports progress per row of chunks (its slab_bytes is small).
+    slab_bytes = getattr(pyramid, "slab_bytes", SLAB_BYTES)
     chunk_z, chunk_y = max(1, pyramid.chunk_z(index)), max(1, pyramid.chunk_y(index))
-    z_step = chunk_z * max(1, SLAB_BYTES // max(1, y_n * row_bytes * chunk_z))
+    z_step = chunk_z * max(1, slab_bytes // max(1, y_n * row_bytes * chunk_z))
     z_edges = _aligned_edges(sz, z_step)
     try:
         for k in range(c_n):
             for z0, z1 in itertools.pairwise(z_edges):
-                y_step = chunk_y * max(1, SLAB_BYTES // max(1, (z1 - z0) * row_bytes * chunk_y))
+                y_step = chunk_y * max(1, slab_bytes // max(1, (z1 - z0) * row_bytes * chunk_y))
                 for y0, y1 in itertools.pairwise(_aligned_edges(sy, y_step)):
                     block = pyramid.read_block(index, k, slice(z0, z1), slice(y0, y1), sx)
                     out[k, z0 - sz.start:z1 - sz.start, y0 - sy.start:y1 - sy.start] = block
