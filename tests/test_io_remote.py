@@ -15,48 +15,24 @@ pytest.importorskip("aiohttp")
 writer = pytest.importorskip("ome_zarr.writer")
 ome_format = pytest.importorskip("ome_zarr.format")
 
-from tests_support_http import CountingServer, chunk_files  # noqa: E402
+from tests_support_http import (  # noqa: E402
+    SIDE,
+    VOXEL,
+    CountingServer,
+    chunk_files,
+    phantom,
+    write_served_stores,
+)
 
 from vtkvol import cli  # noqa: E402
 from vtkvol.io import VolumeReadError, read_volume  # noqa: E402
 from vtkvol.io import remote as remote_module  # noqa: E402
 from vtkvol.io.remote import is_remote  # noqa: E402
 
-SIDE = 64
-CHUNK = 16
-VOXEL = {"z": 1.0, "y": 0.5, "x": 0.5}
-WINDOW = {"start": 0, "end": 4000, "min": 0, "max": 65535}
-
-
-def _phantom() -> np.ndarray:
-    """2 channels of 64³ uint16 (the writer halves x and y per level, not z): noise (so that
-    chunks do not compress to nothing) on an off-centre ball in channel 0 and a slab in
-    channel 1."""
-    rng = np.random.default_rng(3)
-    z, y, x = np.mgrid[:SIDE, :SIDE, :SIDE]
-    ball = ((x - 20) ** 2 + (y - 40) ** 2 + (z - 30) ** 2 < 15 ** 2) * 3000
-    slab = (x > 44) * 2000
-    noise = rng.integers(0, 400, size=(2, SIDE, SIDE, SIDE))
-    return (np.stack([ball, slab]) + noise).astype(np.uint16)
-
 
 @pytest.fixture(scope="module")
 def store(tmp_path_factory) -> Path:
-    """``cells.ome.zarr`` (NGFF 0.4, 5 levels, 16³ chunks) and ``plain.zarr`` (a Zarr group
-    that is not an OME-Zarr image) in one served folder."""
-    root = tmp_path_factory.mktemp("served")
-    fmt = ome_format.FormatV04()
-    group = zarr.open_group(str(root / "cells.ome.zarr"), mode="w", zarr_format=2)
-    writer.write_image(
-        _phantom(), group, axes="czyx", fmt=fmt, scale_factors=(2, 4, 8, 16),
-        scale={"c": 1.0, **VOXEL}, axes_units={a: "micrometer" for a in "zyx"},
-        storage_options={"chunks": (1, CHUNK, CHUNK, CHUNK)},
-        omero={"channels": [{"label": label, "color": color, "window": WINDOW}
-                            for label, color in (("DAPI", "0000FF"), ("GFP", "00FF00"))]},
-    )
-    plain = zarr.open_group(str(root / "plain.zarr"), mode="w", zarr_format=2)
-    plain.create_array("data", shape=(4, 4), dtype="u1")
-    return root
+    return write_served_stores(tmp_path_factory.mktemp("served"))
 
 
 @pytest.fixture
@@ -79,7 +55,7 @@ def test_default_open_fetches_only_the_chosen_levels_chunks(server, store):
     data = read_volume(f"{server.url}/cells.ome.zarr")
     assert data.metadata["level"] == 0  # 1 MiB fits the default GPU budget
     assert data.source == f"{server.url}/cells.ome.zarr"
-    np.testing.assert_array_equal(data.array, _phantom())
+    np.testing.assert_array_equal(data.array, phantom())
     assert data.channel_names == ["DAPI", "GFP"]
     assert data.voxel_size_um == pytest.approx((0.5, 0.5, 1.0))
     chosen = _level_bytes(store, "s0")
@@ -113,7 +89,7 @@ def test_refining_a_quarter_fetches_that_quarters_chunks(server, store):
     data = read_volume(url, region_um=region)
     assert data.metadata["level"] == 0
     assert data.array.shape == (2, SIDE, SIDE // 2, SIDE // 2)
-    np.testing.assert_array_equal(data.array, _phantom()[:, :, :32, :32])
+    np.testing.assert_array_equal(data.array, phantom()[:, :, :32, :32])
     files = chunk_files(store / "cells.ome.zarr" / "s0")
     inside = sum(f.stat().st_size for (c, z, y, x), f in files.items() if y < 2 and x < 2)
     sent = server.total()
@@ -159,7 +135,7 @@ def test_cli_convert_copies_the_remote_image(server, tmp_path, capsys):
     assert code == 0, err
     assert "wrote" in out and "64×64×64" in out
     copy = read_volume(out_path)
-    np.testing.assert_array_equal(copy.array, _phantom())
+    np.testing.assert_array_equal(copy.array, phantom())
     assert copy.channel_names == ["DAPI", "GFP"]
 
 

@@ -11,6 +11,8 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
+import numpy as np
+
 
 class CountingServer:
     """Serves ``root`` at ``http://127.0.0.1:<port>/``; use as a context manager.
@@ -127,3 +129,42 @@ def chunk_files(level_folder: Path) -> dict[tuple[int, ...], Path]:
                 parts = parts[1:]
             out[tuple(int(p) for p in parts)] = f
     return out
+
+
+SIDE = 64
+CHUNK = 16
+VOXEL = {"z": 1.0, "y": 0.5, "x": 0.5}
+WINDOW = {"start": 0, "end": 4000, "min": 0, "max": 65535}
+
+
+def phantom() -> np.ndarray:
+    """2 channels of 64³ uint16 (the writer halves x and y per level, not z): noise (so that
+    chunks do not compress to nothing) on an off-centre ball in channel 0 and a slab in
+    channel 1."""
+    rng = np.random.default_rng(3)
+    z, y, x = np.mgrid[:SIDE, :SIDE, :SIDE]
+    ball = ((x - 20) ** 2 + (y - 40) ** 2 + (z - 30) ** 2 < 15 ** 2) * 3000
+    slab = (x > 44) * 2000
+    noise = rng.integers(0, 400, size=(2, SIDE, SIDE, SIDE))
+    return (np.stack([ball, slab]) + noise).astype(np.uint16)
+
+
+def write_served_stores(root: Path) -> Path:
+    """``cells.ome.zarr`` (NGFF 0.4, 5 levels, 16³ chunks) and ``plain.zarr`` (a Zarr group
+    that is not an OME-Zarr image) in one served folder."""
+    import ome_zarr.format as ome_format
+    import ome_zarr.writer as writer
+    import zarr
+
+    fmt = ome_format.FormatV04()
+    group = zarr.open_group(str(root / "cells.ome.zarr"), mode="w", zarr_format=2)
+    writer.write_image(
+        phantom(), group, axes="czyx", fmt=fmt, scale_factors=(2, 4, 8, 16),
+        scale={"c": 1.0, **VOXEL}, axes_units={a: "micrometer" for a in "zyx"},
+        storage_options={"chunks": (1, CHUNK, CHUNK, CHUNK)},
+        omero={"channels": [{"label": label, "color": color, "window": WINDOW}
+                            for label, color in (("DAPI", "0000FF"), ("GFP", "00FF00"))]},
+    )
+    plain = zarr.open_group(str(root / "plain.zarr"), mode="w", zarr_format=2)
+    plain.create_array("data", shape=(4, 4), dtype="u1")
+    return root

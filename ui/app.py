@@ -59,6 +59,7 @@ from PySide6.QtWidgets import (
 from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
 from vtkvol.io.atomic import write_atomic
 from vtkvol.io.pyramid import parse_bytes
+from vtkvol.io.remote import is_remote
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
@@ -431,6 +432,8 @@ class MainWindow(QMainWindow):
                                         "Open a volume file (TIFF, NumPy, raw, NRRD, VTK…)")
         self.open_folder_action = self._action("Open &folder…", self.choose_folder, None,
                                                "Open a folder of single-slice TIFF files")
+        self.open_url_action = self._action("Open &URL…", self.choose_url, None,
+                                            "Open an OME-Zarr image on a web server or in S3")
         self.open_sample_action = self._action("Open &sample", self.open_sample, None,
                                                "Open the built-in synthetic confocal stack")
         self.open_session_action = self._action(
@@ -489,6 +492,7 @@ class MainWindow(QMainWindow):
         file_menu = bar.addMenu("&File")
         file_menu.addAction(self.open_action)
         file_menu.addAction(self.open_folder_action)
+        file_menu.addAction(self.open_url_action)
         self.recent_menu = file_menu.addMenu("Open &recent")
         file_menu.addAction(self.open_sample_action)
         file_menu.addSeparator()
@@ -754,7 +758,7 @@ class MainWindow(QMainWindow):
                           "All files (*)"])
 
     def _start_dir(self) -> str:
-        recent = self.recent_files()
+        recent = [p for p in self.recent_files() if not is_remote(p)]
         return str(Path(recent[0]).parent) if recent else str(Path.home())
 
     def choose_file(self) -> None:
@@ -767,6 +771,14 @@ class MainWindow(QMainWindow):
         path = QFileDialog.getExistingDirectory(self, "Open folder of slices", self._start_dir())
         if path:
             self.open_path(path)
+
+    def choose_url(self) -> None:
+        """File → Open URL…: an OME-Zarr store's address, opened like a file."""
+        from vtkvol.ui.open_url import OpenUrlDialog
+
+        dialog = OpenUrlDialog(self)
+        if dialog.exec():
+            self.open_path(dialog.url())
 
     def choose_session(self) -> None:
         path, _ = QFileDialog.getOpenFileName(self, "Open session", self._start_dir(),
@@ -1104,7 +1116,8 @@ class MainWindow(QMainWindow):
         return [str(v) for v in (value or [])]
 
     def _add_recent(self, path: str) -> None:
-        absolute = str(Path(path).absolute())
+        # An address (Open URL…) is kept as it is: Path() would fold its "//".
+        absolute = path if is_remote(path) else str(Path(path).absolute())
         entries = [absolute, *(p for p in self.recent_files() if p != absolute)][:MAX_RECENT]
         self.settings.setValue(RECENT_KEY, entries)
         self._refresh_recent()
@@ -1112,7 +1125,7 @@ class MainWindow(QMainWindow):
     def _refresh_recent(self) -> None:
         """Rebuild Open recent; entries whose file vanished are removed, with a message."""
         entries = self.recent_files()
-        present = [p for p in entries if Path(p).exists()]
+        present = [p for p in entries if is_remote(p) or Path(p).exists()]
         vanished = [p for p in entries if p not in present]
         if vanished:
             self.settings.setValue(RECENT_KEY, present)
