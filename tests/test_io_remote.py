@@ -222,3 +222,18 @@ def test_server_without_range_requests(store, capsys):
 def test_library_raises_volume_read_error(server):
     with pytest.raises(VolumeReadError, match=r"^http://127\.0\.0\.1:\d+/missing\.zarr: no Zarr"):
         read_volume(f"{server.url}/missing.zarr")
+
+
+def test_session_keeps_the_address_and_reopens_it(server, tmp_path):
+    from vtkvol.model.defaults import scene_for
+    from vtkvol.model.session import load_session_with_data, read_session, save_session
+
+    url = f"{server.url}/cells.ome.zarr"
+    data = read_volume(url, memory_budget_bytes=2 * 64 * 16 * 16 * 2)
+    model = scene_for(data)
+    model.volume.level = 2
+    saved = save_session(tmp_path / "remote.vtkvol.json", model, data=data)
+    assert read_session(saved).data_path == url
+    _, again = load_session_with_data(saved)
+    assert again.source == url and again.metadata["level"] == 2
+    np.testing.assert_array_equal(again.array, data.array)

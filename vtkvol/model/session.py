@@ -38,6 +38,7 @@ import pydantic
 from pydantic import BaseModel, ConfigDict, Field
 
 from vtkvol.io.atomic import write_atomic
+from vtkvol.io.remote import is_remote
 from vtkvol.model import strict_json
 from vtkvol.model.migrations import FORMAT, VERSION, migrate
 from vtkvol.model.params import Param
@@ -254,7 +255,8 @@ def save_session(
     record = _data_record(model, data)
     session_dir = folder.resolve()
     data_abs = None if record["path"] is None else Path(record["path"])
-    stored_path = None if data_abs is None else _stored_path(data_abs, session_dir)
+    stored_path = None if data_abs is None else (
+        record["path"] if is_remote(record["path"]) else _stored_path(data_abs, session_dir))
 
     # Technique values are the model's only free-form (Any) field; pydantic cannot dump a
     # numpy scalar a slider may have put there, so they are converted separately.
@@ -374,7 +376,8 @@ def _data_record(model: SceneModel, data: VolumeData | None) -> dict[str, Any]:
     if data is None:
         # Keep what was recorded when the data was loaded: re-hashing the file now would
         # hide a change made to it since.
-        path = None if vol.path is None else str(Path(vol.path).expanduser().resolve())
+        path = None if vol.path is None else (
+            vol.path if is_remote(vol.path) else str(Path(vol.path).expanduser().resolve()))
         return {
             "path": path,
             "size_bytes": vol.size_bytes,
@@ -382,6 +385,9 @@ def _data_record(model: SceneModel, data: VolumeData | None) -> dict[str, Any]:
             "shape_zyx": None if vol.shape_zyx is None else list(vol.shape_zyx),
             "channels": vol.channels,
         }
+    if is_remote(data.source):  # an address: kept as it is, no file to fingerprint
+        return {"path": data.source, "size_bytes": None, "sha256_head": None,
+                "shape_zyx": [int(n) for n in data.shape_zyx], "channels": int(data.n_channels)}
     source = None if data.source is None else Path(data.source).expanduser().resolve()
     size, digest = _fingerprint(source) if source is not None and source.exists() else (None, None)
     return {
@@ -600,7 +606,10 @@ def _json_kind(value: Any) -> str:
 
 
 def _resolve_data_path(stored: str, session_dir: Path, notes: list[str]) -> Path:
-    """Absolute data path; falls back to a same-named file next to the session."""
+    """Absolute data path; falls back to a same-named file next to the session. An address
+    (http(s)://, s3://) is returned as it is, a string."""
+    if is_remote(stored):
+        return stored  # type: ignore[return-value]
     candidate = Path(stored).expanduser()
     if not candidate.is_absolute():
         candidate = session_dir / candidate
@@ -948,7 +957,7 @@ def load_session_with_data(
         target = (
             Path(data_path).expanduser().resolve() if data_path is not None else session.data_path
         )
-        exists = target is not None and target.exists()
+        exists = target is not None and (is_remote(target) or target.exists())
     except (ValueError, OSError) as exc:  # a NUL character, a name too long for the OS
         raise SessionError(
             session.path,
