@@ -9,7 +9,7 @@ from setuptools import setup
 ROOT = Path(__file__).resolve().parent
 CORE = [
     "vtkvol", "vtkvol.io", "vtkvol.model", "vtkvol.engine", "vtkvol.reference", "vtkvol.bench",
-    "vtkvol.ui", "vtkvol.ui.docks", "vtkvol.resources", "vtkvol.plugins",
+    "vtkvol.ui", "vtkvol.ui.docks", "vtkvol.resources", "vtkvol.plugins", "vtkvol.napari",
 ]
 PLUGINS = sorted(
     f"vtkvol.plugins.{init.parent.name}" for init in (ROOT / "plugins").glob("*/__init__.py")
