@@ -37,7 +37,8 @@ __all__ = ["IlluminatedRenderWidget", "open_in_vtkvol", "render_viewer", "viewer
 def _image_layers(viewer: Any) -> list[Any]:
     from napari.layers import Image
 
-    return [ly for ly in viewer.layers if isinstance(ly, Image) and ly.visible]
+    # RGB layers (such as a render this widget added) are pictures, not channels.
+    return [ly for ly in viewer.layers if isinstance(ly, Image) and ly.visible and not ly.rgb]
 
 
 def viewer_scene(viewer: Any, *, size: tuple[int, int], method: str | None = None,
@@ -47,7 +48,11 @@ def viewer_scene(viewer: Any, *, size: tuple[int, int], method: str | None = Non
     layers = _image_layers(viewer)
     data, model = layers_to_scene(layers)
     translate = tuple(float(v) for v in layers[0].translate[-3:])
-    model.camera = camera_from_napari(viewer.camera, data, canvas_height_px=size[1],
+    # napari's zoom is canvas pixels per µm: the world height shown is its canvas height
+    # over the zoom, whatever the size rendered here.
+    canvas = getattr(viewer, "_canvas_size", None)
+    height = float(canvas[0]) if canvas is not None and canvas[0] > 1 else float(size[1])
+    model.camera = camera_from_napari(viewer.camera, data, canvas_height_px=height,
                                       translate_zyx=translate)  # type: ignore[arg-type]
     if method:
         model.illumination.method = method
@@ -67,17 +72,18 @@ def render_viewer(viewer: Any, *, size: tuple[int, int] = (256, 256), method: st
     return render_image(data, model=model, size=size, method=model.illumination.method)
 
 
-def open_in_vtkvol(viewer: Any, folder: str | Path | None = None, *,
-                   start: bool = True) -> tuple[Path, subprocess.Popen | None]:
+def open_in_vtkvol(viewer: Any, folder: str | Path | None = None, *, start: bool = True,
+                   size: tuple[int, int] = (800, 600)) -> tuple[Path, subprocess.Popen | None]:
     """Write a session of the viewer (layers → channels, camera, scale) and start the vtkvol
     app on it in a separate process (napari's and vtkvol's Qt bindings must not share one).
     Layers read by vtkvol from one file refer to that file; others are saved as a ``.npy``
-    beside the session, with the voxel size in the session."""
+    beside the session, with the voxel size in the session. ``size`` (w, h): the image the
+    camera's zoom is measured against (the app's view, or the widget's render size)."""
     from vtkvol.model.session import save_session
 
     folder = Path(folder or tempfile.mkdtemp(prefix="vtkvol-napari-"))
     folder.mkdir(parents=True, exist_ok=True)
-    data, model = viewer_scene(viewer, size=(800, 600))
+    data, model = viewer_scene(viewer, size=size)
     if data.source is None:
         array_path = folder / "napari_layers.npy"
         np.save(array_path, np.asarray(data.array))
@@ -132,7 +138,8 @@ class IlluminatedRenderWidget(QWidget):
         self.render_button.clicked.connect(self.render)
         layout.addWidget(self.render_button)
         self.open_button = QPushButton("Open in vtkvol")
-        self.open_button.clicked.connect(lambda: open_in_vtkvol(self.viewer))
+        self.open_button.clicked.connect(
+            lambda: open_in_vtkvol(self.viewer, size=self._options()["size"]))
         layout.addWidget(self.open_button)
         self.progress = QProgressBar()
         layout.addWidget(self.progress)
