@@ -91,11 +91,15 @@ def open_in_vtkvol(viewer: Any, folder: str | Path | None = None, *, start: bool
         model.volume.voxel_size_um = tuple(data.voxel_size_um)  # the .npy has no voxel size
     model.volume.path = data.source
     session = save_session(folder / "napari.vtkvol.json", model, data=data)
-    process = None
-    if start:
-        process = subprocess.Popen([sys.executable, "-m", "vtkvol.cli", "open", str(session)],
-                                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    process = _start_app([sys.executable, "-m", "vtkvol.cli", "open", str(session)]) \
+        if start else None
     return session, process
+
+
+def _start_app(argv: list[str]) -> subprocess.Popen:
+    """Start the vtkvol app as a process of its own (its PySide6 never meets napari's Qt)."""
+    return subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
 
 
 class IlluminatedRenderWidget(QWidget):

@@ -280,3 +280,73 @@ def test_a_napari_camera_rotation_is_the_same_view_in_the_render(make_napari_vie
     print(f"angles {angles}: napari {napari_offset}, vtkvol {vtkvol_offset}")
     assert np.abs(napari_offset - vtkvol_offset).max() < 0.08
     assert np.abs(napari_offset).max() > 0.05  # the ball is off-centre in the view
+
+
+@pytest.mark.gl
+def test_dock_writes_png_and_turntable_mp4_with_progress(make_napari_viewer, tmp_path):
+    pytest.importorskip("imageio_ffmpeg")
+    from PIL import Image
+
+    from vtkvol.napari._widget import IlluminatedRenderWidget
+
+    viewer = make_napari_viewer()
+    _open(viewer, _two_channel_tiff(tmp_path / "two.tif"))
+    viewer.dims.ndisplay = 3
+    widget = IlluminatedRenderWidget(viewer)
+    widget.method.setCurrentText("local")
+    widget.width_px.setValue(64)
+    widget.height_px.setValue(48)
+    widget.output.setCurrentText("PNG")
+    widget.path.setText(str(tmp_path / "view.png"))
+    image = widget.render()
+    saved = np.asarray(Image.open(tmp_path / "view.png").convert("RGB"))
+    np.testing.assert_array_equal(saved, image)
+    assert len(viewer.layers) == 2  # no layer added for a PNG
+
+    seen: list[int] = []
+    widget.progress.valueChanged.connect(seen.append)
+    widget.output.setCurrentText("Turntable MP4")
+    widget.path.setText(str(tmp_path / "turn.mp4"))
+    widget.frames.setValue(6)
+    widget.render()
+    movie = tmp_path / "turn.mp4"
+    assert movie.stat().st_size > 1000 and movie.read_bytes()[4:8] == b"ftyp"
+    assert seen[-1] == 6 and len(set(seen)) >= 3  # the bar moved frame by frame
+    assert widget.status.text() == f"wrote {movie} (6 frames)"
+
+
+def test_open_in_vtkvol_writes_the_session_and_starts_the_app_apart(make_napari_viewer,
+                                                                   tmp_path, monkeypatch):
+    import sys
+
+    from vtkvol.model.session import load_session_with_data
+    from vtkvol.napari import _widget
+    from vtkvol.napari._widget import open_in_vtkvol
+
+    started: list[list[str]] = []
+    monkeypatch.setattr(_widget, "_start_app", started.append)
+    path = _two_channel_tiff(tmp_path / "two.tif")
+    viewer = make_napari_viewer()
+    layers = _open(viewer, path)
+    viewer.dims.ndisplay = 3
+    viewer.camera.angles = (0.0, 0.0, 90.0)
+    layers[0].contrast_limits = (200.0, 1800.0)
+    session, _ = open_in_vtkvol(viewer, tmp_path / "s")
+    assert started == [[sys.executable, "-m", "vtkvol.cli", "open", str(session)]]
+    model, data = load_session_with_data(session)
+    assert Path(data.source) == path and data.array.shape == (2, 24, 32, 40)
+    assert model.channels[0].tf.opacity[0][0] == pytest.approx(200.0)
+    assert model.channels[0].tf.opacity[-1][0] == pytest.approx(1800.0)
+    assert model.camera.focal_point is not None
+    view = np.subtract(model.camera.focal_point, model.camera.position)
+    np.testing.assert_allclose(view / np.linalg.norm(view),
+                               np.asarray(viewer.camera.view_direction)[::-1], atol=1e-6)
+
+    # Layers that no vtkvol file holds are saved beside the session, voxel size and all.
+    viewer2 = make_napari_viewer()
+    viewer2.add_image(np.ones((4, 5, 6), np.float32), scale=(2.0, 1.0, 0.5))
+    viewer2.dims.ndisplay = 3
+    session2, _ = open_in_vtkvol(viewer2, tmp_path / "s2")
+    _, data2 = load_session_with_data(session2)
+    assert Path(data2.source).name == "napari_layers.npy"
+    assert data2.voxel_size_um == pytest.approx((0.5, 1.0, 2.0))
