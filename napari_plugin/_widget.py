@@ -41,6 +41,16 @@ def _image_layers(viewer: Any) -> list[Any]:
     return [ly for ly in viewer.layers if isinstance(ly, Image) and ly.visible and not ly.rgb]
 
 
+def _canvas_height(viewer: Any) -> float | None:
+    """napari's canvas height in pixels (the zoom's reference), or None without a window."""
+    try:
+        height = float(viewer.window._qt_viewer.canvas.size[0])
+    except (AttributeError, TypeError, IndexError):
+        canvas = getattr(viewer, "_canvas_size", None)
+        height = float(canvas[0]) if canvas is not None else 0.0
+    return height if height > 1 else None
+
+
 def viewer_scene(viewer: Any, *, size: tuple[int, int], method: str | None = None,
                  light_azimuth: float | None = None, light_elevation: float | None = None):
     """``(data, model)`` for the viewer's visible image layers and 3-D camera (see
@@ -50,8 +60,7 @@ def viewer_scene(viewer: Any, *, size: tuple[int, int], method: str | None = Non
     translate = tuple(float(v) for v in layers[0].translate[-3:])
     # napari's zoom is canvas pixels per µm: the world height shown is its canvas height
     # over the zoom, whatever the size rendered here.
-    canvas = getattr(viewer, "_canvas_size", None)
-    height = float(canvas[0]) if canvas is not None and canvas[0] > 1 else float(size[1])
+    height = _canvas_height(viewer) or float(size[1])
     model.camera = camera_from_napari(viewer.camera, data, canvas_height_px=height,
                                       translate_zyx=translate)  # type: ignore[arg-type]
     if method:
