@@ -4,6 +4,7 @@ make_napari_viewer, under Xvfb), the napari→vtkvol mapping, the dock widget's 
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -356,3 +357,14 @@ def test_open_in_vtkvol_writes_the_session_and_starts_the_app_apart(make_napari_
     _, data2 = load_session_with_data(session2)
     assert Path(data2.source).name == "napari_layers.npy"
     assert data2.voxel_size_um == pytest.approx((0.5, 1.0, 2.0))
+
+
+def test_readers_and_mapping_import_no_qt_and_the_widget_no_pyside6():
+    from test_layers import imported_after
+
+    loaded = imported_after(["vtkvol.napari._reader", "vtkvol.napari._mapping"])
+    assert sorted(m for m in loaded if m.startswith(("PySide6", "PyQt", "qtpy", "napari"))) == []
+    root = Path(__file__).resolve().parents[1] / "napari_plugin"
+    imports = re.compile(r"^\s*(from|import)\s+(PySide6|PyQt5|PyQt6)\b", re.M)
+    for source in root.glob("*.py"):
+        assert not imports.search(source.read_text(encoding="utf-8")), source
