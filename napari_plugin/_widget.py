@@ -31,7 +31,8 @@ from qtpy.QtWidgets import (
 
 from vtkvol.napari._mapping import MappingError, camera_from_napari, layers_to_scene
 
-__all__ = ["IlluminatedRenderWidget", "open_in_vtkvol", "render_viewer", "viewer_scene"]
+__all__ = ["IlluminatedRenderWidget", "napari_camera", "open_in_vtkvol", "render_viewer",
+           "viewer_scene"]
 
 
 def _image_layers(viewer: Any) -> list[Any]:
@@ -39,6 +40,14 @@ def _image_layers(viewer: Any) -> list[Any]:
 
     # RGB layers (such as a render this widget added) are pictures, not channels.
     return [ly for ly in viewer.layers if isinstance(ly, Image) and ly.visible and not ly.rgb]
+
+
+def napari_camera(viewer: Any) -> Any:
+    """The viewer's 3-D camera: ``viewer.scene.camera`` (napari ≥ 0.9), else the older
+    ``viewer.camera``."""
+    scene = getattr(viewer, "scene", None)
+    camera = getattr(scene, "camera", None)
+    return camera if camera is not None else viewer.camera
 
 
 def _canvas_height(viewer: Any) -> float | None:
@@ -61,7 +70,7 @@ def viewer_scene(viewer: Any, *, size: tuple[int, int], method: str | None = Non
     # napari's zoom is canvas pixels per µm: the world height shown is its canvas height
     # over the zoom, whatever the size rendered here.
     height = _canvas_height(viewer) or float(size[1])
-    model.camera = camera_from_napari(viewer.camera, data, canvas_height_px=height,
+    model.camera = camera_from_napari(napari_camera(viewer), data, canvas_height_px=height,
                                       translate_zyx=translate)  # type: ignore[arg-type]
     if method:
         model.illumination.method = method

@@ -20,7 +20,7 @@ from PIL import Image
 from qtpy.QtWidgets import QApplication
 
 from vtkvol.io import confocal_phantom
-from vtkvol.napari._widget import IlluminatedRenderWidget
+from vtkvol.napari._widget import IlluminatedRenderWidget, napari_camera
 
 OUT = Path(__file__).resolve().parents[1] / "docs" / "screenshots" / "napari-dock.png"
 
@@ -40,7 +40,7 @@ def main() -> int:
     viewer.dims.ndisplay = 3
     QApplication.processEvents()  # the canvas takes its size: the view fits the volume to it
     viewer.reset_view()
-    viewer.camera.angles = (10.0, -30.0, 60.0)
+    napari_camera(viewer).angles = (10.0, -30.0, 60.0)
     widget = IlluminatedRenderWidget(viewer)
     viewer.window.add_dock_widget(widget, name="Illuminated render", area="right")
     widget.method.setCurrentText("shadow_volume")

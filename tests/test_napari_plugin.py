@@ -26,6 +26,7 @@ from vtkvol.napari._mapping import (  # noqa: E402
     layers_to_scene,
     transfer_function,
 )
+from vtkvol.napari._widget import napari_camera  # noqa: E402
 
 pytestmark = pytest.mark.gui
 
@@ -221,7 +222,7 @@ def test_dock_render_equals_vtkvol_render_of_the_session(make_napari_viewer, tmp
     layers = _open(viewer, path)
     assert [tuple(ly.scale) for ly in layers] == [pytest.approx((1.0, 0.5, 0.5))] * 2
     viewer.dims.ndisplay = 3
-    viewer.camera.angles = (15.0, -25.0, 70.0)
+    napari_camera(viewer).angles = (15.0, -25.0, 70.0)
     layers[1].gamma = 0.7
     layers[0].contrast_limits = (100.0, 2500.0)
     widget = IlluminatedRenderWidget(viewer)
@@ -256,10 +257,11 @@ def _bright_centroid(image: np.ndarray) -> np.ndarray:
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("angles", [(0.0, 0.0, 90.0), (0.0, 60.0, 90.0), (40.0, -30.0, 120.0)])
-@pytest.mark.parametrize("depth", ["away", "towards"])
+@pytest.mark.parametrize(("depth", "angles"), [
+    ("away", (0.0, 0.0, 90.0)), ("away", (40.0, -30.0, 120.0)), ("towards", (0.0, 60.0, 90.0)),
+])
 def test_a_napari_camera_rotation_is_the_same_view_in_the_render(make_napari_viewer, tmp_path,
-                                                                 angles, depth):
+                                                                 depth, angles):
     from qtpy.QtWidgets import QApplication
 
     from vtkvol.napari._widget import render_viewer
@@ -275,8 +277,8 @@ def test_a_napari_camera_rotation_is_the_same_view_in_the_render(make_napari_vie
     viewer.reset_view()
     # "away": a right-handed view, as vtkvol's; "towards" (napari's default) is left-handed,
     # the mirror image of the sample, so the render is napari's canvas mirrored left-right.
-    viewer.camera.orientation = (depth, "down", "right")
-    viewer.camera.angles = angles
+    napari_camera(viewer).orientation = (depth, "down", "right")
+    napari_camera(viewer).angles = angles
     shot = viewer.screenshot(canvas_only=True)  # as napari shows it, canvas pixels
     h, w = shot.shape[:2]
     # Half the canvas, same aspect: the world shown is the same, in fewer pixels.
@@ -336,7 +338,7 @@ def test_open_in_vtkvol_writes_the_session_and_starts_the_app_apart(make_napari_
     viewer = make_napari_viewer()
     layers = _open(viewer, path)
     viewer.dims.ndisplay = 3
-    viewer.camera.angles = (0.0, 0.0, 90.0)
+    napari_camera(viewer).angles = (0.0, 0.0, 90.0)
     layers[0].contrast_limits = (200.0, 1800.0)
     session, _ = open_in_vtkvol(viewer, tmp_path / "s")
     assert started == [[sys.executable, "-m", "vtkvol.cli", "open", str(session)]]
@@ -347,7 +349,7 @@ def test_open_in_vtkvol_writes_the_session_and_starts_the_app_apart(make_napari_
     assert model.camera.focal_point is not None
     view = np.subtract(model.camera.focal_point, model.camera.position)
     np.testing.assert_allclose(view / np.linalg.norm(view),
-                               np.asarray(viewer.camera.view_direction)[::-1], atol=1e-6)
+                               np.asarray(napari_camera(viewer).view_direction)[::-1], atol=1e-6)
 
     # Layers that no vtkvol file holds are saved beside the session, voxel size and all.
     viewer2 = make_napari_viewer()
