@@ -370,3 +370,20 @@ def test_readers_and_mapping_import_no_qt_and_the_widget_no_pyside6():
     imports = re.compile(r"^\s*(from|import)\s+(PySide6|PyQt5|PyQt6)\b", re.M)
     for source in root.glob("*.py"):
         assert not imports.search(source.read_text(encoding="utf-8")), source
+
+
+def test_an_ome_zarr_address_opens_in_napari(make_napari_viewer, tmp_path):
+    pytest.importorskip("ome_zarr.writer")
+    pytest.importorskip("aiohttp")
+    from tests_support_http import CountingServer, phantom, write_served_stores
+
+    root = write_served_stores(tmp_path)
+    with CountingServer(root) as server:
+        viewer = make_napari_viewer()
+        layers = _open(viewer, f"{server.url}/cells.ome.zarr")
+        assert [ly.name for ly in layers] == ["DAPI", "GFP"]
+        assert all(ly.multiscale and len(ly.data) == 5 for ly in layers)
+        coarsest = read_volume(root / "cells.ome.zarr", level=4).array[0]
+        np.testing.assert_array_equal(np.asarray(layers[0].data[4]), coarsest)
+        np.testing.assert_array_equal(np.asarray(layers[1].data[0][:, :8, :8]),
+                                      phantom()[1, :, :8, :8])
