@@ -140,6 +140,8 @@ def _pyramid_layers(path: str, pyramid: Any) -> list[LayerData]:
 
     coarsest = read_pyramid(pyramid, level=len(pyramid.levels) - 1)
     coarsest.source = path
+    # The pyramid stays open (an Imaris HDF5 handle, a remote store) as long as the layers'
+    # dask arrays live: napari computes their chunks while the user browses.
     levels = [pyramid.to_dask(i) for i in range(len(pyramid.levels))]
     base = pyramid.levels[0]
     data = VolumeData(coarsest.array, base.voxel_size_um, list(pyramid.channel_names),
