@@ -34,6 +34,7 @@ import numpy as np
 import vtk
 
 from vtkvol.engine.gl import Texture3D, gl
+from vtkvol.engine.illuminator import _no_collection
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -354,7 +355,10 @@ class BesideRenderer:
             return
         t0 = time.perf_counter()
         try:
-            self._frame(window)
+            # No cyclic GC inside VTK's render: collecting a forgotten render window here
+            # leaves no context current (the host guards its StartEvent the same way).
+            with _no_collection():
+                self._frame(window)
         except Exception as exc:  # a GL failure must not take the view down: stop drawing
             logger.exception("the %s renderer failed", self.NAME)
             self.last_error = f"vtkvol: the {self.NAME} renderer failed ({exc})"
