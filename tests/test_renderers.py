@@ -421,3 +421,79 @@ def test_two_channels_mix_by_opacity_and_dependent_rgb_is_refused():
                                          r"channels only; dependent 2-component colour data"):
         set_renderer(host, "path_tracer")
     host.release()
+
+
+# -- command line, library call, scene model ----------------------------------------------------
+def test_cli_render_with_the_path_tracer_and_slicing(tmp_path, capsys):
+    from PIL import Image
+
+    from vtkvol.cli import main
+
+    raycast, pt, sl = (tmp_path / f"{n}.png" for n in ("raycast", "pt", "sl"))
+    common = ["--size", "64", "64"]
+    assert main(["render", "sample", "-o", str(raycast), *common]) == 0
+    assert main(["render", "sample", "-o", str(pt), *common, "--renderer", "path_tracer",
+                 "--iterations", "8"]) == 0
+    assert "refined to 8 iterations" in capsys.readouterr().out
+    assert main(["render", "sample", "-o", str(sl), *common, "--renderer", "slicing"]) == 0
+    ray = np.asarray(Image.open(raycast), float)
+    # Slicing draws the ray caster's scene (same lighting model): close on average; the path
+    # tracer draws it differently (no ambient, shadows) but draws it.
+    assert np.abs(np.asarray(Image.open(sl), float) - ray).mean() < 3
+    assert np.asarray(Image.open(pt), float).std() > 5
+    capsys.readouterr()
+
+
+@pytest.mark.parametrize(("argv", "message"), [
+    (["--renderer", "slicing", "--method", "shadow_volume"],
+     "vtkvol: --renderer slicing: the slicing renderer shades with local lighting only; "
+     "method 'shadow_volume' needs the raycast renderer\n"),
+    (["--renderer", "path_tracer", "--blend", "mip"],
+     "vtkvol: --renderer path_tracer: the path_tracer renderer composites emission and "
+     "absorption only; blend mode 'mip' needs the raycast renderer\n"),
+    (["--renderer", "half_angle"],
+     "vtkvol: --renderer half_angle: the half_angle renderer is not available in this version "
+     "of vtkvol; use translucency with the raycast renderer\n"),
+])
+def test_cli_refuses_unsupported_renderer_combinations_in_one_line(tmp_path, capsys, argv,
+                                                                     message):
+    from vtkvol.cli import main
+
+    out = tmp_path / "x.png"
+    assert main(["render", "sample", "-o", str(out), "--size", "32", "32", *argv]) == 2
+    assert capsys.readouterr().err == message
+    assert not out.exists()
+
+
+def test_illuminate_volume_renderer_and_refusal_leave_the_volume_as_it_was():
+    rw, ren, vol = simple_volume_scene(ball(16), size=(32, 32))
+    with pytest.raises(ValueError, match=r"^vtkvol: the slicing renderer shades with local"):
+        vtkvol.illuminate(vol, ren, method="shadow_volume", volume_renderer="slicing")
+    assert vtkvol.Illuminator.host_of(vol) is None and vol.GetVisibility() == 1
+    host = vtkvol.illuminate(vol, ren, method="local", volume_renderer="slicing")
+    assert host.beside.NAME == "slicing" and vol.GetVisibility() == 0
+    assert grab(rw).mean() > 1
+    vtkvol.illuminate(vol, ren, method="local", volume_renderer="raycast")
+    assert host.beside is None and vol.GetVisibility() == 1
+    host.release()
+
+
+def test_scene_follows_the_model_and_falls_back_with_the_reason():
+    """VolumeScene: render.renderer draws with the renderer; switching the method to one
+    slicing cannot shade goes back to the ray caster and says why, once."""
+    from vtkvol.engine.api import offscreen_view
+    from vtkvol.io import confocal_phantom
+
+    with offscreen_view(confocal_phantom(), size=(48, 48)) as (rw, scene, _):
+        errors = []
+        scene.error.connect(errors.append)
+        scene.model.render.renderer = "slicing"
+        rw.Render()
+        assert scene.illuminator.beside is not None and scene.vtk_volume.GetVisibility() == 0
+        scene.model.illumination.method = "shadow_volume"
+        rw.Render()
+        assert scene.illuminator.beside is None and scene.vtk_volume.GetVisibility() == 1
+        assert errors == ["vtkvol: the slicing renderer shades with local lighting only; "
+                          "method 'shadow_volume' needs the raycast renderer"]
+        scene.model.illumination.method = "local"
+        assert scene.illuminator.beside is not None

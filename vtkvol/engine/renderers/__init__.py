@@ -19,7 +19,7 @@ if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
     from vtkvol.engine.renderers.base import BesideRenderer
 
-__all__ = ["RENDERERS", "check_renderer", "renderer_class", "set_renderer"]
+__all__ = ["RENDERERS", "apply_renderer", "check_renderer", "renderer_class", "set_renderer"]
 
 
 def renderer_class(name: str) -> type[BesideRenderer]:
@@ -68,3 +68,25 @@ def set_renderer(host: Illuminator, name: str, **options: Any) -> BesideRenderer
     renderer = renderer_class(name)(host, **options)
     host.beside = renderer
     return renderer
+
+
+def apply_renderer(host: Illuminator, name: str, on_refused: Any = None,
+                   options: dict[str, Any] | None = None) -> str:
+    """Make ``host`` draw with ``name`` if the combination is supported, else with VTK's ray
+    caster, telling ``on_refused`` the one-line reason (once per reason). For views that
+    follow a model (:class:`vtkvol.engine.scene.VolumeScene`): called again after every edit
+    that can change what is supported (method, blend mode, lights). Returns what draws now."""
+    current = host.beside.NAME if host.beside is not None else "raycast"
+    try:
+        check_renderer(host, name)
+    except ValueError as exc:
+        if host.beside is not None:
+            set_renderer(host, "raycast")
+        if on_refused is not None and getattr(host, "_renderer_refusal", None) != str(exc):
+            on_refused(str(exc))
+        host._renderer_refusal = str(exc)  # type: ignore[attr-defined]
+        return "raycast"
+    host._renderer_refusal = None  # type: ignore[attr-defined]
+    if current != name:
+        set_renderer(host, name, **(options or {}))
+    return name
