@@ -497,3 +497,36 @@ def test_scene_follows_the_model_and_falls_back_with_the_reason():
                           "method 'shadow_volume' needs the raycast renderer"]
         scene.model.illumination.method = "local"
         assert scene.illuminator.beside is not None
+
+
+def test_slicing_local_lighting_follows_the_light():
+    """Shaded slicing (Phong from the opacity gradient, the host's lights): with a light from
+    +x the ball's +x half is brighter than its −x half by > 1.5×, and the other way round with
+    the light from −x; unshaded, the halves are within 5 %."""
+    def halves(shade, direction):
+        rw, _ren, vol, host = scene(n=24, size=48, shade=shade,
+                                    lights=[vtkvol.Light(direction=direction)])
+        vol.GetProperty().SetShade(int(shade))  # the host switched shading on for its lights
+        vol.GetProperty().SetAmbient(0.1)
+        vol.GetProperty().SetDiffuse(0.9)
+        vol.GetProperty().SetSpecular(0.0)
+        ren = host.renderer
+        ren.GetActiveCamera().SetPosition(11.5, -80, 11.5)
+        ren.GetActiveCamera().SetFocalPoint(11.5, 11.5, 11.5)
+        ren.GetActiveCamera().SetViewUp(0, 0, 1)
+        ren.ResetCameraClippingRange()
+        set_renderer(host, "slicing")
+        img = grab(rw).astype(float).mean(-1)
+        host.release()
+        ball_px = img > img[0, 0] + 3
+        left, right = ball_px.copy(), ball_px.copy()
+        left[:, 24:] = False
+        right[:, :24] = False
+        return img[left].mean(), img[right].mean()  # image left = −x, right = +x
+
+    left, right = halves(True, (1.0, 0.0, 0.0))
+    assert right > 1.5 * left, (left, right)
+    left, right = halves(True, (-1.0, 0.0, 0.0))
+    assert left > 1.5 * right, (left, right)
+    left, right = halves(False, (1.0, 0.0, 0.0))
+    assert abs(left - right) < 0.05 * left, (left, right)

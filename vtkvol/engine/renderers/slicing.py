@@ -15,7 +15,8 @@ colour texture of :mod:`.base`; both are interpolated after classification per v
 TF edges differ from VTK's post-classified ray caster by a few levels at the edge (seed-audit
 §1.2). Shading (the property's ``Shade`` flag of component 0): local Phong lighting with the
 host's lights, the normal from the opacity gradient, the property's ambient, diffuse, specular
-and specular power; unshaded, emission and absorption of the TF colour.
+and specular power; unshaded, emission and absorption of the TF colour. Two compiled
+variants: a lighting call left in the loop behind a uniform switch cost ~3× on llvmpipe.
 """
 
 from __future__ import annotations
@@ -39,7 +40,6 @@ in vec2 texCoord;
 uniform vec3 viewDir;          // unit, dataset space, away from the camera
 uniform float sliceStart;      // dot(viewDir, x) of the first plane (µm)
 uniform float sliceStep;       // µm between planes
-uniform int shade;
 uniform vec4 material;         // ambient, diffuse, specular, specular power
 uniform int numLights;
 uniform vec4 lightVec[4];      // xyz: towards the light or position; w: 1 = point
@@ -84,7 +84,9 @@ void main() {
     if (au <= 0.0) continue;
     float a = 1.0 - pow(1.0 - au, delta / unitDistance);
     vec3 c = colourAt(p);
-    if (shade == 1) c = lit(c, p, d);
+#ifdef VV_SHADE
+    c = lit(c, p, d);
+#endif
     acc += (1.0 - acc.a) * vec4(c * a, a);
   }
   gl_FragData[0] = acc;                      // premultiplied; blended ONE, ONE_MINUS_SRC_ALPHA
@@ -104,6 +106,7 @@ class ViewAlignedSlicing(BesideRenderer):
         self.slices_per_voxel = float(slices_per_voxel)
         self._slicer: Any = None
         self._slicer_prog: Any = None
+        self._slicer_shade = False
         self.slices = 0  #: slices drawn in the last frame
         super().__init__(host)
 
@@ -113,8 +116,16 @@ class ViewAlignedSlicing(BesideRenderer):
     def draw(self, opacity: Texture3D, uniforms: dict[str, Any]) -> float | None:
         window = self.renderer.GetRenderWindow()
         G = gl(window)
-        if self._slicer is None:
-            self._slicer, self._slicer_prog = quad_program(window, FS)
+        prop = self.volume.GetProperty()
+        shade = bool(prop.GetShade(0))
+        if self._slicer is None or self._slicer_shade != shade:
+            # Two variants: a lighting call in the loop costs ~3× even when a uniform
+            # switches it off (llvmpipe, measured), so the unshaded program has none.
+            self._release_slicer()
+            source = FS.replace("//VTK::System::Dec", "//VTK::System::Dec\n#define VV_SHADE", 1
+                                ) if shade else FS
+            self._slicer, self._slicer_prog = quad_program(window, source)
+            self._slicer_shade = shade
         img = self.host.image
         spacing = np.abs(np.array(img.GetSpacing(), float))
         step = float(spacing.min()) / self.slices_per_voxel
@@ -125,7 +136,6 @@ class ViewAlignedSlicing(BesideRenderer):
                             for z in (origin[2], hi[2])])
         s = corners @ view
         self.slices = min(MAX_SLICES, int(np.ceil((s.max() - s.min()) / step)) + 1)
-        prop = self.volume.GetProperty()
         specs = self.host.light_specs()[:MAX_LIGHTS]
         vec = np.zeros((MAX_LIGHTS, 4), np.float32)
         col = np.zeros((MAX_LIGHTS, 3), np.float32)
@@ -143,7 +153,6 @@ class ViewAlignedSlicing(BesideRenderer):
             values.update({
                 "opacityTex": opacity.activate(), "colourTex": colour.activate(),
                 "viewDir": tuple(view), "sliceStart": float(s.min()), "sliceStep": step,
-                "shade": int(bool(prop.GetShade(0))),
                 "material": (prop.GetAmbient(0), prop.GetDiffuse(0), prop.GetSpecular(0),
                              prop.GetSpecularPower(0)),
                 "numLights": len(specs),
@@ -175,10 +184,13 @@ class ViewAlignedSlicing(BesideRenderer):
         v = unproject(1.0) - unproject(-1.0)
         return v / np.linalg.norm(v)
 
-    def release_gl(self) -> None:
+    def _release_slicer(self) -> None:
         if self._window is not None and self._slicer is not None:
             self._window.MakeCurrent()
             self._slicer.ReleaseGraphicsResources(self._window)
             self._slicer = None
             self._window.GetShaderCache().ReleaseCurrentShader()
+
+    def release_gl(self) -> None:
+        self._release_slicer()
         super().release_gl()
