@@ -530,3 +530,50 @@ def test_slicing_local_lighting_follows_the_light():
     assert left > 1.5 * right, (left, right)
     left, right = halves(False, (1.0, 0.0, 0.0))
     assert abs(left - right) < 0.05 * left, (left, right)
+
+
+def test_camera_paths_agree_with_the_object_space_reference_in_multiple_scattering():
+    """The two truths at the estimator level: the camera-path estimate of two pixels (numpy
+    twin, 12 000 paths, GPU = twin is tested above) equals the host's medium model evaluated
+    by quadrature along the pixel's ray with the object-space reference's light — the exact
+    direct transmittance plus :func:`vtkvol.reference.inscattered_mc` (1024 paths per point,
+    all orders) — within 3 % (both standard errors are under 1 %). Albedo 0.9, g = 0, white."""
+    from vtkvol.reference import inscattered_mc, transmittance
+    from vtkvol.reference.camera_paths import _Medium
+    from vtkvol.reference.lights import DirectionalLight
+
+    op = ball(16) * 0.6
+    spacing, origin, unit = (1.0, 1.0, 1.0), (0.0, 0.0, 0.0), 1.0
+    white = np.ones((*op.shape, 3), np.float32)
+    light = (0.26, -0.23, 0.94)
+    cam = vtk.vtkCamera()
+    cam.SetPosition(7.5 + 40 * 0.5, -40.0, 7.5 + 40 * 0.3)
+    cam.SetFocalPoint(7.5, 7.5, 7.5)
+    m = cam.GetCompositeProjectionTransformMatrix(1.0, -1, 1)
+    ndc_to_data = np.linalg.inv(np.array([[m.GetElement(i, j) for j in range(4)]
+                                          for i in range(4)]))
+    med = _Medium(op, white, spacing, origin, unit)
+    for k, px in enumerate(((16, 16), (13, 19))):
+        L, _ = camera_path_samples(op, white, spacing=spacing, origin=origin, unit_distance=unit,
+                                   ndc_to_data=ndc_to_data, viewport=(32, 32), pixel=px,
+                                   lights=[("directional", light, (1, 1, 1), 0.0, 0.0)],
+                                   albedo=0.9, n_paths=12000, seed=k)
+        ndc = 2 * (np.array(px) + 0.5) / 32 - 1
+        q0, q1 = (ndc_to_data @ np.array([ndc[0], ndc[1], z, 1.0]) for z in (-1.0, 1.0))
+        o = q0[:3] / q0[3]
+        d = q1[:3] / q1[3] - o
+        d /= np.linalg.norm(d)
+        t0, t1 = (v[0] for v in med.box(o[None], d[None]))
+        step = 0.25
+        pts = o[None] + (np.arange(t0, t1, step) + step / 2)[:, None] * d[None]
+        sig = med.sigma(pts)
+        keep = sig > 0
+        T = np.exp(-np.concatenate([[0.0], np.cumsum(sig * step)[:-1]]))[keep]
+        w = T * (1 - np.exp(-sig[keep] * step)) * 0.9
+        lt = DirectionalLight(direction=light)
+        direct = transmittance(op, spacing, lt, points=pts[keep], unit_distance=unit)
+        scattered = inscattered_mc(op, spacing, lt, albedo=0.9, n_paths=1024, max_bounces=256,
+                                   points=pts[keep], unit_distance=unit, seed=k)
+        host = float((w * (direct + scattered)).sum())
+        camera = float(L[:, 0].mean())
+        assert camera > 0.05 and abs(camera - host) < 0.03 * host, (px, camera, host)
