@@ -79,13 +79,15 @@ def test_engine_refuses_mip_and_keeps_the_ray_caster():
 def test_path_tracer_gpu_equals_numpy_twin(scattering):
     """GPU mean of 256 paths per pixel vs the numpy twin's 2048 paths at 6 seeded pixels, two
     lights (a directional one and a sized point light with inverse-square fall-off), RGB
-    albedo, g = 0.3: every channel and the coverage within 4.5 combined standard errors."""
+    albedo, g = 0.3, ambient 0.2: every channel and the coverage within 4.5 combined standard
+    errors."""
     lights = [vtkvol.Light(direction=(0.3, -0.6, 0.75)),
               vtkvol.Light(kind="point", position=(30.0, -10.0, 30.0), size=2.0,
                            falloff="inverse_square", color=(0.5, 0.7, 1.0))]
     rw, _ren, vol, host = scene(lights=lights)
     needs_compute(rw)
     host.set_material(albedo=0.9, phase_g=0.3)
+    vol.GetProperty().SetAmbient(0.2)
     pt = set_renderer(host, "path_tracer", scattering=scattering, samples=256, seed=1)
     frames = host.converge(max_frames=400)
     assert pt.iteration == 256 and frames == 256 and pt.last_error is None
@@ -99,8 +101,8 @@ def test_path_tracer_gpu_equals_numpy_twin(scattering):
         L, hit = camera_path_samples(
             op, col, spacing=host.spacing, origin=host.image.GetOrigin(),
             unit_distance=host.unit_distance, ndc_to_data=u["ndcToData"], viewport=(48, 48),
-            pixel=px, lights=light_tuples(host), albedo=0.9, g=0.3, scattering=scattering,
-            n_paths=2048, seed=10 + k)
+            pixel=px, lights=light_tuples(host), albedo=0.9, g=0.3, ambient=0.2,
+            scattering=scattering, n_paths=2048, seed=10 + k)
         cpu = np.r_[L.mean(0), hit.mean()]
         se = np.r_[L.std(0), hit.std()] * np.sqrt(1 / 256 + 1 / 2048) + 1e-6
         worst = max(worst, float(np.abs((res[px[1], px[0]] - cpu) / se).max()))
@@ -109,7 +111,7 @@ def test_path_tracer_gpu_equals_numpy_twin(scattering):
 
 
 def test_path_tracer_agrees_with_ray_caster_medium_model():
-    """Two truths: single scattering, one directional light, ambient 0 — the camera path
+    """Two truths: single scattering, one directional light, ambient 0.2 — the camera path
     tracer's image vs the ray caster shading the medium model with the exact direct light
     (``path_traced`` with ``scattering=single``: transmittance computed exactly on the grid).
     Mean |difference| ≤ 1.5 levels and the mean signed difference ≤ 0.75 levels (the
@@ -117,7 +119,7 @@ def test_path_tracer_agrees_with_ray_caster_medium_model():
     steps and grid transmittance add under one level)."""
     rw, _ren, vol, host = scene(size=48)
     needs_compute(rw)
-    vol.GetProperty().SetAmbient(0.0)
+    vol.GetProperty().SetAmbient(0.2)
     host.set_method("path_traced", {"scattering": "single"})
     host.set_material(albedo=0.8, phase_g=0.0)
     ray = grab(rw).astype(float)

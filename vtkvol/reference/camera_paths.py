@@ -6,7 +6,8 @@ clipped to the voxel-centre box and, where given, to an opaque depth; delta trac
 **one global majorant** (the GPU walks per-brick majorants; both are unbiased, so agreement
 also checks the brick walk); at each real collision the throughput is multiplied by the RGB
 albedo a·colour(x) and next-event estimation adds, per light, E·T·4π·p_g(cos θ) with T by
-ratio tracking; Henyey–Greenstein directions; Russian roulette from the third collision with
+ratio tracking, and at the camera ray's collision the host's ambient term k_a (``ambient``,
+ambient visibility 1); Henyey–Greenstein directions; Russian roulette from the third collision with
 survival q = min(max throughput, 0.95) and reweighting. ``single`` scattering stops after the
 first collision's estimate.
 
@@ -193,6 +194,7 @@ def camera_path_samples(
     lights: Sequence[tuple[Any, ...]],
     albedo: float = 1.0,
     g: float = 0.0,
+    ambient: float = 0.0,
     scattering: str = "multiple",
     n_paths: int = 1024,
     depth: float | None = None,
@@ -235,6 +237,8 @@ def camera_path_samples(
             break
         thr *= albedo * medium.albedo_rgb(p)
         L[idx] += thr * _next_event(rng, medium, p, dd, lights, g)
+        if k == 0:
+            L[idx] += thr * ambient  # the host's k_a·A(x) with A = 1
         if k + 1 >= max_bounces:
             break
         if k >= 2:

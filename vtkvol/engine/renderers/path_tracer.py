@@ -7,8 +7,10 @@ RGBA32F accumulation buffer (radiance, coverage); the composite divides by the f
 opacity texture; every real collision scatters with the RGB albedo a·colour(x) (a: the
 material's single-scattering albedo, colour: the TF colour), so throughput is multiplied by it;
 next-event estimation at each collision towards every light, weighted like the host's
-medium shading: E_l · T_l · 4π·p_g(cos θ) (T_l by ratio tracking; 4π p = 1 for g = 0; the host's
-ambient term has no light source here and is left out). Free flights by delta tracking against
+medium shading: E_l · T_l · 4π·p_g(cos θ) (T_l by ratio tracking; 4π p = 1 for g = 0), plus
+the host's ambient term k_a·A(x) with A = 1 (unoccluded, as the medium model and its reference
+use it) at the camera ray's collision, where the host adds it to every sample (k_a: the
+property's ambient coefficient of component 0). Free flights by delta tracking against
 a majorant per 8³ brick of the opacity texture (max σ over the brick dilated by one voxel,
 since trilinear reads reach the neighbours), or one global majorant when fewer than
 :data:`MIN_EMPTY_BRICKS` of the bricks are empty (brick walking then costs more than it saves).
@@ -60,6 +62,7 @@ uniform vec4 lightVec[4];        // xyz: direction towards the light, or positio
 uniform vec4 lightColour[4];     // rgb: colour x intensity; w: size (rad or µm)
 uniform float lightFalloff[4];   // d0 (µm) or 0
 uniform float albedo;            // single-scattering albedo a
+uniform float ambient;           // host's ambient coefficient ka (ambient visibility 1)
 uniform float g;                 // Henyey-Greenstein asymmetry
 uniform int frame;
 uniform int seed;
@@ -169,6 +172,7 @@ void main() {
         vec3 p = o + t * d;
         thr *= albedo * colourAt(p);
         L += thr * nextEvent(p, d);
+        if (k == 0) L += thr * ambient;              // the host's ka * A(x), A = 1
         if (k + 1 >= maxBounces) break;
         if (k >= 2) {                                // Russian roulette, reweighted
           float q = min(max(thr.r, max(thr.g, thr.b)), 0.95);
@@ -285,6 +289,7 @@ class PathTracer(BesideRenderer):
             "brick": float(BRICK), "useGlobal": int(self.use_global),
             "globalMajorant": self.global_majorant, "numLights": lights["numLights"],
             "albedo": float(self.host.albedo), "g": float(self.host.phase_g),
+            "ambient": float(self.volume.GetProperty().GetAmbient(0)),
             "frame": int(self.iteration),
             "maxBounces": 1 if self.scattering == "single" else MAX_BOUNCES,
         })
