@@ -558,6 +558,11 @@ class Illuminator:
         per-edit lookup)."""
         return dict(self._ess_stats)
 
+    @property
+    def slice_weights(self) -> np.ndarray | None:
+        """The (3, W) slice weights set by :meth:`set_slice_weights` (None: none)."""
+        return self._weights
+
     def set_slice_weights(self, weights: np.ndarray | None) -> None:
         """Per-axis slice-contribution weights, shape (3, W) for x, y, z over 0…1 (or None)."""
         if weights is not None:

@@ -33,8 +33,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import Texture3D, gl
-from vtkvol.engine.illuminator import _no_collection
+from vtkvol.engine.gl import Texture2D, Texture3D, gl
+from vtkvol.engine.illuminator import _gradient_opacity_on, _no_collection
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -45,6 +45,11 @@ logger = logging.getLogger(__name__)
 #: read the frame (screenshots, timing) see the volume drawn.
 END_PRIORITY = 1.0
 
+#: Entries of the post-classification tables (VTK samples a TF into at least this many).
+TABLE_SIZE = 1024
+#: Defines that switch the shared GLSL to post-classification (inserted after the version).
+POST_DEFINES = f"#define VV_POST\n#define TABLE_SIZE {TABLE_SIZE}.0\n"
+
 #: GLSL shared by every beside-renderer: dataset-space rays, the box, the classified medium.
 COMMON_GLSL = """
 uniform mat4 ndcToData;        // NDC -> dataset µm (column-major)
@@ -53,15 +58,30 @@ uniform vec3 dSpacing;         // µm per voxel
 uniform vec3 dims;             // voxels (nx, ny, nz)
 uniform float unitDistance;    // µm the opacity texture's alpha refers to
 uniform vec4 viewport;         // renderer's viewport in window pixels (x, y, w, h)
+uniform sampler2D depthTex;    // VTK's opaque depth, whole window
+vec3 toTex(vec3 p) { return ((p - dOrigin) / dSpacing + 0.5) / dims; }
+#ifdef VV_POST
+// Post-classified, as VTK's ray caster: the scalar is interpolated, then looked up.
+uniform sampler3D opacityTex;  // r32f scalar, 0..1 over the transfer-function table's range
+uniform sampler2D tableTex;    // 4 rows of TABLE_SIZE: opacity per unit distance, r, g, b
+float tableAt(float s, float row) {
+  return texture(tableTex, vec2((clamp(s, 0.0, 1.0) * (TABLE_SIZE - 1.0) + 0.5) / TABLE_SIZE,
+                                (row + 0.5) / 4.0)).r;
+}
+float alphaAt(vec3 p) { return tableAt(texture(opacityTex, toTex(p)).r, 0.0); }
+vec3 colourAt(vec3 p) {
+  float s = texture(opacityTex, toTex(p)).r;
+  return vec3(tableAt(s, 1.0), tableAt(s, 2.0), tableAt(s, 3.0));
+}
+#else
+// Pre-classified: the host's classified opacity and our colour per voxel, interpolated.
 uniform sampler3D opacityTex;  // host's r32f opacity per unit distance
 uniform sampler3D colourTex;   // rgba32f TF colour per voxel (opacity-weighted channel mix)
-uniform sampler2D depthTex;    // VTK's opaque depth, whole window
-
-vec3 toTex(vec3 p) { return ((p - dOrigin) / dSpacing + 0.5) / dims; }
 float alphaAt(vec3 p) { return texture(opacityTex, toTex(p)).r; }
+vec3 colourAt(vec3 p) { return texture(colourTex, toTex(p)).rgb; }
+#endif
 // Extinction per µm.
 float sigmaAt(vec3 p) { return -log(max(1.0 - alphaAt(p), 1e-6)) / unitDistance; }
-vec3 colourAt(vec3 p) { return texture(colourTex, toTex(p)).rgb; }
 vec3 unproject(vec3 ndc) { vec4 q = ndcToData * vec4(ndc, 1.0); return q.xyz / q.w; }
 // Ray parameters where o + t d is inside the voxel-centre box [origin, origin + (dims-1) spacing].
 bool boxHit(vec3 o, vec3 d, out float t0, out float t1) {
@@ -199,6 +219,12 @@ class BesideRenderer:
         self.result: Any = None  # vtkTextureObject RGBA32F, renderer-sized
         self._colour: Texture3D | None = None
         self._colour_key: tuple | None = None
+        self._post: tuple[Texture3D, Texture2D] | None = None
+        self._post_key_value: tuple | None = None
+        self.post_table: np.ndarray | None = None
+        self.post_scalars: np.ndarray | None = None
+        #: Why the last frame classified before interpolation (None: after, as VTK does).
+        self.classification_reason: str | None = None
         self._view_key: tuple | None = None
         self._content_key: tuple | None = None
         self._was_visible = bool(self.volume.GetVisibility())
@@ -304,6 +330,84 @@ class BesideRenderer:
             self._colour.tex.Deactivate()
             self._colour_key = key
         return self._colour
+
+    # -- classification -------------------------------------------------------------------------
+    def post_classification_reason(self) -> str | None:
+        """Why the medium is classified before interpolation (the host's opacity texture), or
+        None: classified after it, as VTK's ray caster does (the scalar interpolated, then the
+        TF looked up), which needs one channel, a 1-D TF without gradient opacity, and no crop,
+        clipping plane or slice weights (those live in the host's texture only). With a
+        sharp TF the two differ by ~10 levels at the edges (docs/architecture.md)."""
+        prop = self.volume.GetProperty()
+        mapper = self.volume.GetMapper()
+        scalars = self.host.image.GetPointData().GetScalars()
+        if scalars is None or scalars.GetNumberOfComponents() != 1:
+            return "more than one channel"
+        if prop.GetTransferFunctionMode() != vtk.vtkVolumeProperty.TF_1D:
+            return "a 2-D transfer function"
+        if _gradient_opacity_on(prop, 0):
+            return "gradient opacity"
+        if mapper.GetCropping():
+            return "cropping"
+        planes = mapper.GetClippingPlanes()
+        if planes is not None and planes.GetNumberOfItems() > 0:
+            return "clipping planes"
+        if self.host.slice_weights is not None:
+            return "slice weights"
+        return None
+
+    def _post_key(self) -> tuple:
+        prop = self.volume.GetProperty()
+        img = self.host.image
+        return (img.GetMTime(), prop.GetScalarOpacity(0).GetMTime(),
+                prop.GetRGBTransferFunction(0).GetMTime(), prop.GetScalarOpacityUnitDistance(0))
+
+    def _post_textures(self, window: vtk.vtkRenderWindow) -> tuple[Texture3D, Texture2D]:
+        """(scalar texture normalised to the table range, 4 × TABLE_SIZE table texture)."""
+        key = self._post_key()
+        if self._post is not None and self._post_key_value == key:
+            return self._post
+        from vtk.util.numpy_support import vtk_to_numpy
+
+        img = self.host.image
+        scalars = img.GetPointData().GetScalars()
+        lo, hi = scalars.GetRange(0)
+        hi = hi if hi > lo else lo + 1.0
+        nx, ny, nz = img.GetDimensions()
+        values = vtk_to_numpy(scalars).reshape(nz, ny, nx).astype(np.float32)
+        normalised = (values - np.float32(lo)) / np.float32(hi - lo)
+        prop = self.volume.GetProperty()
+        xs = np.linspace(lo, hi, TABLE_SIZE)
+        table = np.empty((4, TABLE_SIZE), np.float32)
+        table[0] = [prop.GetScalarOpacity(0).GetValue(v) for v in xs]
+        table[1:] = np.array([prop.GetRGBTransferFunction(0).GetColor(v) for v in xs]).T
+        self._release_post()
+        scalar_tex = Texture3D(window, (nz, ny, nx), data=normalised)
+        scalar_tex.tex.Deactivate()
+        table_tex = Texture2D(window, table)
+        table_tex.tex.Deactivate()
+        self._post = (scalar_tex, table_tex)
+        self._post_key_value = key
+        self.post_table = table
+        self.post_scalars = normalised
+        return self._post
+
+    def _release_post(self) -> None:
+        if self._post is not None:
+            for t in self._post:
+                t.release()
+            self._post = None
+            self._post_key_value = None
+
+    def medium_textures(self, window: vtk.vtkRenderWindow, opacity: Texture3D
+                        ) -> tuple[bool, Texture3D, Any]:
+        """(post-classified?, the texture for ``opacityTex``, the colour input: the table
+        (post) or the colour volume (pre))."""
+        self.classification_reason = self.post_classification_reason()
+        if self.classification_reason is None:
+            scalar_tex, table_tex = self._post_textures(window)
+            return True, scalar_tex, table_tex
+        return False, opacity, self._colour_texture(window)
 
     def _ensure_buffers(self, window: vtk.vtkRenderWindow) -> None:
         if self._quad is None:
@@ -467,6 +571,7 @@ class BesideRenderer:
         if self._colour is not None:
             self._colour.release()
             self._colour = None
+        self._release_post()
 
     def release(self) -> None:
         """Detach: VTK's volume visible again (as it was), proxy and observer removed."""

@@ -34,7 +34,7 @@ import numpy as np
 
 from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
 from vtkvol.engine.occupancy import BRICK
-from vtkvol.engine.renderers.base import COMMON_GLSL, BesideRenderer
+from vtkvol.engine.renderers.base import COMMON_GLSL, POST_DEFINES, BesideRenderer
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -210,6 +210,28 @@ def brick_majorants(opacity: np.ndarray, unit_distance: float, brick: int = BRIC
     return out
 
 
+def post_brick_majorants(scalars: np.ndarray, opacity_table: np.ndarray, unit_distance: float,
+                         brick: int = BRICK) -> np.ndarray:
+    """Max extinction (per µm) per brick when the TF is applied after interpolation: the
+    largest table entry over the range of the brick's normalised scalars (dilated by one
+    voxel), widened by one entry each side (the table is interpolated linearly)."""
+    n = len(opacity_table)
+    sigma_table = -np.log(np.maximum(1.0 - opacity_table.astype(np.float64), 1e-6)) / (
+        unit_distance)
+    pad = np.pad(scalars, 1, mode="edge")
+    nb = [-(-s // brick) for s in scalars.shape]
+    out = np.zeros(nb, np.float32)
+    for bz in range(nb[0]):
+        for by in range(nb[1]):
+            for bx in range(nb[2]):
+                block = pad[bz * brick:bz * brick + brick + 2, by * brick:by * brick + brick + 2,
+                            bx * brick:bx * brick + brick + 2]
+                lo = max(0, int(np.floor(np.clip(block.min(), 0, 1) * (n - 1))) - 1)
+                hi = min(n - 1, int(np.ceil(np.clip(block.max(), 0, 1) * (n - 1))) + 1)
+                out[bz, by, bx] = sigma_table[lo:hi + 1].max()
+    return out
+
+
 class PathTracer(BesideRenderer):
     """Progressive camera path tracer (see the module docstring)."""
 
@@ -225,6 +247,7 @@ class PathTracer(BesideRenderer):
         self.scattering = scattering
         self.seed = int(seed)
         self._program: ComputeProgram | None = None
+        self._program_post = False
         self._majorants: Texture3D | None = None
         self._majorant_key: tuple | None = None
         self.global_majorant = 0.0
@@ -239,13 +262,18 @@ class PathTracer(BesideRenderer):
     def result_scale(self) -> float:
         return 1.0 / max(1, self.iteration)
 
-    def _update_majorants(self, window: Any, opacity: Texture3D) -> None:
-        key = (self.host.opacity_signature(), self.host.unit_distance)
+    def _update_majorants(self, window: Any, opacity: Texture3D, post: bool) -> None:
+        key = (post, self._post_key() if post else self.host.opacity_signature(),
+               self.host.unit_distance)
         if key == self._majorant_key and self._majorants is not None:
             return
-        alpha = opacity.download()
-        opacity.tex.Deactivate()
-        maj = brick_majorants(alpha, self.host.unit_distance)
+        if post:
+            maj = post_brick_majorants(self.post_scalars, self.post_table[0],
+                                       self.host.unit_distance)
+        else:
+            alpha = opacity.download()
+            opacity.tex.Deactivate()
+            maj = brick_majorants(alpha, self.host.unit_distance)
         self.global_majorant = float(maj.max()) if maj.size else 0.0
         self.empty_bricks = float((maj == 0).mean()) if maj.size else 1.0
         self.use_global = self.empty_bricks < MIN_EMPTY_BRICKS
@@ -273,17 +301,23 @@ class PathTracer(BesideRenderer):
     def draw(self, opacity: Texture3D, uniforms: dict[str, Any]) -> float:
         window = self.renderer.GetRenderWindow()
         G = gl(window)
-        if self._program is None:
-            self._program = ComputeProgram(window, CS, "camera path tracer")
-        self._update_majorants(window, opacity)
-        colour = self._colour_texture(window)
+        post, opacity, colour = self.medium_textures(window, opacity)
+        if self._program is None or self._program_post != post:
+            if self._program is not None:
+                self._program.release()
+            source = CS.replace("#version 430\n", "#version 430\n" + POST_DEFINES, 1
+                                ) if post else CS
+            self._program = ComputeProgram(window, source, "camera path tracer")
+            self._program_post = post
+        self._update_majorants(window, opacity, post)
         lights = self._light_uniforms()
         p = self._program.use()
         units = [opacity.activate(), colour.activate(), self._majorants.activate()]
         self._depth.Activate()
         values = dict(uniforms)
         values.update({
-            "opacityTex": units[0], "colourTex": units[1], "majorantTex": units[2],
+            "opacityTex": units[0], "tableTex" if post else "colourTex": units[1],
+            "majorantTex": units[2],
             "depthTex": self._depth.GetTextureUnit(), "accum": 0,
             "brickDims": tuple(float(s) for s in self._majorants.shape[::-1]),
             "brick": float(BRICK), "useGlobal": int(self.use_global),

@@ -26,7 +26,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from vtkvol.engine.gl import Texture3D, gl
-from vtkvol.engine.renderers.base import COMMON_GLSL, BesideRenderer, quad_program
+from vtkvol.engine.renderers.base import (
+    COMMON_GLSL,
+    POST_DEFINES,
+    BesideRenderer,
+    quad_program,
+)
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -106,7 +111,7 @@ class ViewAlignedSlicing(BesideRenderer):
         self.slices_per_voxel = float(slices_per_voxel)
         self._slicer: Any = None
         self._slicer_prog: Any = None
-        self._slicer_shade = False
+        self._slicer_variant: tuple[bool, bool] | None = None
         self.slices = 0  #: slices drawn in the last frame
         super().__init__(host)
 
@@ -118,14 +123,15 @@ class ViewAlignedSlicing(BesideRenderer):
         G = gl(window)
         prop = self.volume.GetProperty()
         shade = bool(prop.GetShade(0))
-        if self._slicer is None or self._slicer_shade != shade:
-            # Two variants: a lighting call in the loop costs ~3× even when a uniform
-            # switches it off (llvmpipe, measured), so the unshaded program has none.
+        post, opacity, colour = self.medium_textures(window, opacity)
+        if self._slicer is None or self._slicer_variant != (shade, post):
+            # Variants, not uniforms: a lighting call in the loop costs ~3× even when a
+            # uniform switches it off (llvmpipe, measured), so the unshaded program has none.
             self._release_slicer()
-            source = FS.replace("//VTK::System::Dec", "//VTK::System::Dec\n#define VV_SHADE", 1
-                                ) if shade else FS
+            defines = ("#define VV_SHADE\n" if shade else "") + (POST_DEFINES if post else "")
+            source = FS.replace("//VTK::System::Dec", "//VTK::System::Dec\n" + defines, 1)
             self._slicer, self._slicer_prog = quad_program(window, source)
-            self._slicer_shade = shade
+            self._slicer_variant = (shade, post)
         img = self.host.image
         spacing = np.abs(np.array(img.GetSpacing(), float))
         step = float(spacing.min()) / self.slices_per_voxel
@@ -143,7 +149,6 @@ class ViewAlignedSlicing(BesideRenderer):
             vec[i, :3] = spec.vector
             vec[i, 3] = 1.0 if spec.is_point else 0.0
             col[i] = spec.color
-        colour = self._colour_texture(window)
         state = window.GetState()
         state.Push()
         try:
@@ -151,7 +156,8 @@ class ViewAlignedSlicing(BesideRenderer):
             p = self._slicer_prog
             values = dict(uniforms)
             values.update({
-                "opacityTex": opacity.activate(), "colourTex": colour.activate(),
+                "opacityTex": opacity.activate(),
+                "tableTex" if post else "colourTex": colour.activate(),
                 "viewDir": tuple(view), "sliceStart": float(s.min()), "sliceStep": step,
                 "material": (prop.GetAmbient(0), prop.GetDiffuse(0), prop.GetSpecular(0),
                              prop.GetSpecularPower(0)),
