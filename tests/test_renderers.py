@@ -167,14 +167,18 @@ def test_path_tracer_resets_on_camera_tf_and_light_edits_and_reports_progress():
 
 
 # -- view-aligned slicing -----------------------------------------------------------------------
-def test_slicing_reproduces_ray_caster():
+@pytest.mark.parametrize("opacity", [((0.0, 0.0), (0.2, 0.0), (1.0, 0.3)),
+                                     ((0.0, 0.0), (0.5, 0.0), (0.55, 0.8), (1.0, 0.8))])
+def test_slicing_reproduces_ray_caster(opacity):
     """8 slices per voxel (4× the ray caster's 2 samples per voxel): mean ≤ 1 level, max ≤ 8,
-    on a TF with a sharp onset (opacity 0 below 0.2)."""
-    rw, _ren, vol, host = scene(n=32, size=96, opacity=((0.0, 0.0), (0.2, 0.0), (1.0, 0.3)))
+    on a TF with an onset and on a step (opacity 0 → 0.8 within 5 % of the range): the
+    scalar is interpolated, then classified, as in VTK (the host's pre-classified texture
+    gave a mean of 10 levels on the step)."""
+    rw, _ren, vol, host = scene(n=32, size=96, opacity=opacity)
     ray = grab(rw).astype(int)
-    set_renderer(host, "slicing", slices_per_voxel=8)
+    sl = set_renderer(host, "slicing", slices_per_voxel=8)
     img = grab(rw).astype(int)
-    assert vol.GetVisibility() == 0
+    assert vol.GetVisibility() == 0 and sl.classification_reason is None
     d = np.abs(img - ray)
     assert d.mean() <= 1.0 and d.max() <= 8, (d.mean(), d.max())
     # Without it (the volume hidden, nothing drawn) the check fails by far.
@@ -353,8 +357,12 @@ def test_slicing_honours_crop_clip_and_weights_like_the_ray_caster():
         apply()
         set_renderer(host, "raycast")
         ray = grab(rw).astype(int)
-        set_renderer(host, "slicing", slices_per_voxel=4)
+        sl = set_renderer(host, "slicing", slices_per_voxel=4)
         img = grab(rw).astype(int)
+        # These live in the host's classified texture: slicing classifies before
+        # interpolation while they are on, and says so.
+        assert sl.classification_reason == {"crop": "cropping", "clip": "clipping planes",
+                                             "weights": "slice weights"}[name]
         assert np.abs(img - ray).mean() <= 1.0, (name, np.abs(img - ray).mean())
         changed = np.abs(img - full).max(-1) > 8
         assert changed.mean() > 0.1, name
