@@ -587,3 +587,21 @@ def test_camera_paths_agree_with_the_object_space_reference_in_multiple_scatteri
         host = float((w * (direct + scattered)).sum())
         camera = float(L[:, 0].mean())
         assert camera > 0.05 and abs(camera - host) < 0.03 * host, (px, camera, host)
+
+
+def test_a_method_switch_behind_the_renderers_back_hands_the_volume_back():
+    """Library users may switch the host's method directly: slicing then stops drawing (it
+    shades with local lighting only), says why through on_error, and VTK's ray caster draws
+    the volume from the next frame on."""
+    rw, _ren, vol, host = scene(n=16, size=32)
+    errors = []
+    host.on_error = errors.append
+    set_renderer(host, "slicing")
+    rw.Render()
+    host.set_method("shadow_volume")
+    rw.Render()
+    assert host.beside is None and vol.GetVisibility() == 1
+    assert errors == ["vtkvol: the slicing renderer shades with local lighting only; method "
+                      "'shadow_volume' needs the raycast renderer"]
+    assert grab(rw).mean() > 1
+    host.release()

@@ -472,6 +472,20 @@ class BesideRenderer:
         self.last_pass_ms = (time.perf_counter() - t0) * 1e3
 
     def _frame(self, window: vtk.vtkRenderWindow) -> None:
+        from vtkvol.engine.renderers import check_renderer
+
+        try:  # the host's method, blend mode or lights may have changed since attach
+            check_renderer(self.host, self.NAME)
+        except ValueError as exc:
+            # Never draw a combination this renderer does not support: hand the volume back
+            # to VTK's ray caster (from the next frame on) and say why.
+            self.last_error = str(exc)
+            if self.host.on_error is not None:
+                self.host.on_error(self.last_error)
+            if self.host.beside is self:
+                self.host.beside = None
+            self.release()
+            return
         self._update_proxy()
         self._ensure_buffers(window)
         view, content = self.view_signature(), self.content_signature()
