@@ -250,18 +250,21 @@ def exact_over_sphere(renderer, host, pixel, centre, radius, size):
     return out
 
 
-@pytest.mark.parametrize("name", ["slicing", "path_tracer"])
-def test_opaque_sphere_through_the_volume_occludes(name):
+@pytest.mark.parametrize(("name", "msaa"), [("slicing", 0), ("path_tracer", 0),
+                                           ("slicing", 4)])
+def test_opaque_sphere_through_the_volume_occludes(name, msaa):
     """A sphere half inside the volume: on its pixels each renderer shows exactly the volume in
     front of it. Truth: a numpy ray march to the analytic sphere (not VTK's ray caster, which
     draws ~4 levels more volume in front of a surface inside the volume than this integral;
     slicing agrees with the integral within a level). Slicing: its image composited over the
     sphere-only image within 2 levels (mean) at 12 sphere pixels; path tracer: its coverage
     (1 − T, 256 paths) within 4.5 binomial standard errors. At those pixels the volume behind
-    the sphere would add > 0.1 opacity, so ignoring VTK's depth fails both checks."""
+    the sphere would add > 0.1 opacity, so ignoring VTK's depth fails both checks. Also with a
+    4× multisampled window (the app's view), whose depth the blit resolves."""
     size = 64
     centre, radius = (15.5, 8.0, 15.5), 6.0
     rw, ren, vol, host = scene(n=32, size=size, opacity=((0.0, 0.0), (1.0, 0.3)))
+    rw.SetMultiSamples(msaa)  # the app's view is multisampled: VTK's depth is resolved
     if name == "path_tracer":
         needs_compute(rw)
     ren.AddActor(sphere_actor(centre, radius))
@@ -294,7 +297,9 @@ def test_opaque_sphere_through_the_volume_occludes(name):
             errors.append(abs(cov - a_front) / se)
     assert min(behind) > 0.1
     if name == "slicing":
-        assert np.mean(errors) <= 2.0 and max(errors) <= 4, errors
+        # Multisampled, the resolved depth is one sample's: near the steep rim a pixel's
+        # samples differ in depth, hence the looser maximum there.
+        assert np.mean(errors) <= 2.0 and max(errors) <= (4 if msaa == 0 else 6), errors
     else:
         assert max(errors) < 4.5, errors
     assert r.last_error is None
