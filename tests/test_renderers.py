@@ -271,6 +271,7 @@ def test_opaque_sphere_through_the_volume_occludes(name, msaa):
     ren.ResetCamera()
     vol.VisibilityOff()
     only = grab(rw).astype(float)
+    assert (rw.GetRenderFramebuffer().GetMultiSamples() > 1) == (msaa > 0)
     vol.VisibilityOn()
     sphere = np.abs(only - only[0, 0]).max(-1) > 30
     sphere[1:] &= sphere[:-1]
