@@ -75,8 +75,10 @@ def test_engine_refuses_mip_and_keeps_the_ray_caster():
 
 
 # -- path tracer --------------------------------------------------------------------------------
-@pytest.mark.parametrize("scattering", ["single", "multiple"])
-def test_path_tracer_gpu_equals_numpy_twin(scattering):
+@pytest.mark.parametrize(("scattering", "majorant"), [("single", "global"),
+                                                      ("multiple", "global"),
+                                                      ("multiple", "bricks")])
+def test_path_tracer_gpu_equals_numpy_twin(scattering, majorant, monkeypatch):
     """GPU mean of 256 paths per pixel vs the numpy twin's 2048 paths at 6 seeded pixels, two
     lights (a directional one and a sized point light with inverse-square fall-off), RGB
     albedo, g = 0.3, ambient 0.2: every channel and the coverage within 4.5 combined standard
@@ -88,9 +90,15 @@ def test_path_tracer_gpu_equals_numpy_twin(scattering):
     needs_compute(rw)
     host.set_material(albedo=0.9, phase_g=0.3)
     vol.GetProperty().SetAmbient(0.2)
+    import vtkvol.engine.renderers.path_tracer as path_tracer
+
+    # The ball fills most bricks, so the GPU would pick the global majorant; "bricks" forces
+    # the brick walk (the twin always uses one global majorant: independent code paths).
+    monkeypatch.setattr(path_tracer, "MIN_EMPTY_BRICKS", 2.0 if majorant == "global" else 0.0)
     pt = set_renderer(host, "path_tracer", scattering=scattering, samples=256, seed=1)
     frames = host.converge(max_frames=400)
     assert pt.iteration == 256 and frames == 256 and pt.last_error is None
+    assert pt.use_global == (majorant == "global")
     res = pt.read_result()
     u = pt._uniform_base(rw)
     op, col = host.opacity_volume(), colour_volume(vol, host.image)
