@@ -213,8 +213,9 @@ def brick_majorants(opacity: np.ndarray, unit_distance: float, brick: int = BRIC
 def post_brick_majorants(scalars: np.ndarray, opacity_table: np.ndarray, unit_distance: float,
                          brick: int = BRICK) -> np.ndarray:
     """Max extinction (per µm) per brick when the TF is applied after interpolation: the
-    largest table entry over the range of the brick's normalised scalars (dilated by one
-    voxel), widened by one entry each side (the table is interpolated linearly)."""
+    largest table entry between the entries that bracket the range of the brick's normalised
+    scalars (dilated by one voxel). Exact bound: a trilinear scalar stays within its corners'
+    range, and the table lookup interpolates linearly between two neighbouring entries."""
     n = len(opacity_table)
     sigma_table = -np.log(np.maximum(1.0 - opacity_table.astype(np.float64), 1e-6)) / (
         unit_distance)
@@ -226,8 +227,8 @@ def post_brick_majorants(scalars: np.ndarray, opacity_table: np.ndarray, unit_di
             for bx in range(nb[2]):
                 block = pad[bz * brick:bz * brick + brick + 2, by * brick:by * brick + brick + 2,
                             bx * brick:bx * brick + brick + 2]
-                lo = max(0, int(np.floor(np.clip(block.min(), 0, 1) * (n - 1))) - 1)
-                hi = min(n - 1, int(np.ceil(np.clip(block.max(), 0, 1) * (n - 1))) + 1)
+                lo = int(np.floor(np.clip(block.min(), 0, 1) * (n - 1)))
+                hi = int(np.ceil(np.clip(block.max(), 0, 1) * (n - 1)))
                 out[bz, by, bx] = sigma_table[lo:hi + 1].max()
     return out
 
