@@ -335,7 +335,7 @@ def test_state_is_restored_for_a_second_renderer():
     set_renderer(host, "slicing")
     after = grab(rw)
     assert np.abs(after[:, 32:].astype(int) - before).max() <= 2
-    assert np.abs(after[:, :32].astype(int) - before[:, :0].sum()).max() > 10  # volume drawn
+    assert after[:, :32].max() > 10  # the left renderer shows the volume, drawn by slicing
     host.release()
 
 
