@@ -510,11 +510,19 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
 
     assert checkpoints(10) == [1, 2, 4, 8, 10] and checkpoints(8) == [1, 2, 4, 8]
     scene = phantom_scenes(16)[0]
-    result = run(StudyConfig(mode="test", size=16, image_size=64, max_seconds=30.0), tmp_path,
+    result = run(StudyConfig(mode="test", size=16, image_size=64, max_seconds=30.0,
+                             camera_paths=16), tmp_path,
                  [scene], ["convection_diffusion", "hybrid_diffusion"],
                  budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
                  stream=io.StringIO())
-    recs = result["records"]
+    # The camera path tracer (the second truth) is measured beside the techniques.
+    camera = [r for r in result["records"] if r["method"] == "camera_path_tracer"]
+    assert {r["lights"] for r in camera} == {1, 3}
+    for lights in (1, 3):
+        rows = [r for r in camera if r["lights"] == lights]
+        assert [r["iteration"] for r in rows] == [1, 2, 4, 8, 16] and rows[-1]["final"]
+        assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"] and rows[0]["short"] == "camera PT"
+    recs = [r for r in result["records"] if r["method"] != "camera_path_tracer"]
     assert {(r["method"], r["lights"]) for r in recs} == {
         (m, n) for m in ("convection_diffusion", "hybrid_diffusion") for n in (1, 3)}
     for method, lights in {(r["method"], r["lights"]) for r in recs}:
@@ -531,12 +539,13 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     # KD keeps a light volume per light; HD's memory does not grow with the lights
     assert mem[("convection_diffusion", 3)] > mem[("convection_diffusion", 1)]
     assert mem[("hybrid_diffusion", 3)] == mem[("hybrid_diffusion", 1)]
-    assert len(summary(recs)) == 4
+    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 6
     md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
     assert "## Multiple scattering: convergence (test," in md and "| KD | " in md
+    assert "| camera PT | " in md
     assert result["paths"]["scattering"].exists()
     doc = report.load(tmp_path / "benchmarks.json")
-    assert len(doc["scattering"]) == len(recs) and len(doc["scattering_runs"]) == 1
+    assert len(doc["scattering"]) == len(result["records"]) and len(doc["scattering_runs"]) == 1
     # a matrix run merged later keeps the study
     kept = report.merge(doc, {"renderer": "x", "mode": "quick"}, [], [])
     assert kept["scattering"] == doc["scattering"]

@@ -460,7 +460,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 7)"),
+         "(format version 99; this version reads up to 8)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -875,7 +875,7 @@ def test_migrate_v6_to_v7_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[6](raw)
     assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == MIGRATIONS[7](out)
     # v6 lit every channel with its own normal: the file renders as it did.
     assert out["scene"]["render"]["multichannel_lighting"] == "per_channel"
     assert raw == untouched
@@ -890,10 +890,48 @@ def test_v6_file_reads_without_warnings_as_it_was_shown() -> None:
     assert _same_except_volume(session.model, expected)
 
 
+def test_migrate_v7_to_v8_matches_fixture() -> None:
+    raw = load_fixture("v7_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[7](raw)
+    assert out == load_fixture("v7_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # VTK's ray caster drew every v7 volume: the file renders as it did.
+    assert out["scene"]["render"]["renderer"] == "raycast"
+    assert raw == untouched
+
+
+def test_v7_file_reads_without_warnings_as_it_was_shown() -> None:
+    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.render.renderer == "raycast"
+    assert _same_except_volume(session.model, rich_model())
+
+
+@pytest.mark.parametrize("value", ["pathtracer", "Slicing", 2, None])
+def test_a_session_with_a_bad_renderer_is_refused_in_one_line(tmp_path, value) -> None:
+    doc = load_fixture("v8_complete.vtkvol.json")
+    doc["scene"]["render"]["renderer"] = value
+    path = tmp_path / "v.vtkvol.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(SessionError, match=r"^v\.vtkvol\.json: ") as info:
+        read_session(path)
+    message = str(info.value)
+    assert "render.renderer" in message and "\n" not in message
+    assert "path_tracer" in message and "slicing" in message  # says what is allowed
+
+
+def test_a_session_with_the_path_tracer_round_trips(tmp_path) -> None:
+    model = rich_model()
+    model.render.renderer = "path_tracer"
+    path = save_session(tmp_path / "pt.vtkvol.json", model)
+    assert read_session(path).model.render.renderer == "path_tracer"
+
+
 @pytest.mark.parametrize("value", ["Shared", "both", 1, None])
 def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_path, value
                                                                            ) -> None:
-    doc = load_fixture("v7_complete.vtkvol.json")
+    doc = load_fixture("v8_complete.vtkvol.json")
     doc["scene"]["render"]["multichannel_lighting"] = value
     path = tmp_path / "v.vtkvol.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
@@ -905,7 +943,7 @@ def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_p
 
 
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v7_complete.vtkvol.json")
+    doc = load_fixture("v8_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -935,8 +973,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v7 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v7_complete.vtkvol.json")
+    """The checked-in v8 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v8_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -956,8 +994,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 8; this version reads up to 7"):
-        migrate({"format": FORMAT, "version": 8})
+    with pytest.raises(ValueError, match="format version 9; this version reads up to 8"):
+        migrate({"format": FORMAT, "version": 9})
 
 
 @pytest.mark.parametrize(

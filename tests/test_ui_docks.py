@@ -450,3 +450,28 @@ def test_tf_colormap_by_name(window, monkeypatch, dialogs):
     ask.trigger()
     assert dialogs[-1].text() == "Could not apply the preset “no-such-colormap”"
     assert "unknown preset" in dialogs[-1].informativeText()
+
+
+def test_renderer_chooser_greys_unsupported_choices_with_the_reason(window, qtbot):
+    dock = window.lights_dock
+    combo = dock.renderer
+    choices = [combo.itemData(i) for i in range(combo.count())]
+    assert choices == ["raycast", "path_tracer", "half_angle", "slicing"]
+    enabled = {n: combo.model().item(i).isEnabled() for i, n in enumerate(choices)}
+    assert enabled == {"raycast": True, "path_tracer": True, "half_angle": False,
+                       "slicing": window.model.illumination.method == "local"}
+    window.model.illumination.method = "shadow_volume"
+    i = combo.findData("slicing")
+    assert not combo.model().item(i).isEnabled()
+    assert combo.itemData(i, Qt.ItemDataRole.ToolTipRole) == (
+        "The slicing renderer shades with local lighting only; method 'shadow_volume' needs "
+        "the raycast renderer")
+    before = shot(window)
+    combo.setCurrentIndex(combo.findData("path_tracer"))
+    assert window.model.render.renderer == "path_tracer"
+    assert not dock.material_box.isHidden()  # the path tracer draws the medium material
+    qtbot.waitUntil(lambda: window.viewport.scene.illuminator.beside is not None, timeout=10_000)
+    after = shot(window)
+    assert np.abs(after - before).mean() > 1  # drawn by the path tracer now
+    window.model.render.renderer = "raycast"
+    assert combo.currentData() == "raycast"

@@ -16,6 +16,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from vtkvol.model.renderers import RENDERERS
 from vtkvol.model.scene import BLEND_ALIASES, BLEND_MODES
 
 SESSION_SUFFIX = ".vtkvol.json"
@@ -144,6 +145,11 @@ def _parser() -> argparse.ArgumentParser:
     p_render.add_argument("--time-budget", type=float, default=300.0, metavar="SECONDS",
                           help="progressive methods: stop refining after this many seconds "
                                "(default 300)")
+    p_render.add_argument("--renderer", choices=RENDERERS, default=None,
+                          help="what draws the volume: raycast (VTK's ray caster with the "
+                               "method, default), path_tracer (progressive camera path tracer, "
+                               "256 paths per pixel; --iterations N stops it earlier), slicing "
+                               "(view-aligned slices, local lighting); a session's own otherwise")
     p_render.add_argument("--labels", action="store_true",
                           help="the first channel is a label image (segmentation): one colour "
                                "per id (glasbey), no blending between ids")
@@ -347,12 +353,17 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
         return 2
-    if args.blend or args.labels:
+    if args.blend or args.labels or args.renderer:
         from vtkvol.model.defaults import scene_for
 
         model = model or scene_for(data)
     if args.blend:
         model.render.blend_mode = args.blend
+    if model is not None:
+        problem = _renderer_problem(args, model)
+        if problem:
+            print(f"vtkvol: {problem}", file=sys.stderr)
+            return 2
     if args.labels:
         problem = _show_labels(model, data)
         if problem:
@@ -404,6 +415,23 @@ def cmd_render(args: argparse.Namespace) -> int:
         return 1
     print(f"wrote {out} ({image.shape[1]}×{image.shape[0]})")
     return 0
+
+
+def _renderer_problem(args: argparse.Namespace, model: Any) -> str | None:
+    """Why ``--renderer`` (or the session's ``render.renderer``) cannot draw this scene with
+    the method and blend mode asked for, or None."""
+    from vtkvol.model.renderers import model_unsupported_reason
+
+    if args.renderer:
+        model.render.renderer = args.renderer
+    if args.method:
+        model.illumination.method = args.method
+    reason = model_unsupported_reason(model)
+    if reason is None:
+        return None
+    where = (f"--renderer {args.renderer}" if args.renderer
+             else f"{Path(args.file).name}: render.renderer")
+    return f"{where}: {reason}"
 
 
 def _uniform_note(data) -> str | None:

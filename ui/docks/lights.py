@@ -41,10 +41,22 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.evented import touches
 from vtkvol.model.params import Param
+from vtkvol.model.renderers import RENDERERS, model_unsupported_reason
 from vtkvol.model.scene import MAX_ANGULAR_RADIUS, Light, SceneModel
 from vtkvol.model.techniques import TechniqueSpec, technique_specs
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box
+
+#: What the renderer chooser shows, and each choice's tooltip where it is available.
+RENDERER_LABELS = {"raycast": "Ray caster (with the method)", "path_tracer": "Path tracer",
+                   "half_angle": "Half-angle slicing", "slicing": "View-aligned slicing"}
+RENDERER_TIPS = {
+    "raycast": "VTK's GPU ray caster, lit by the illumination method",
+    "path_tracer": "Progressive camera path tracer of the medium material (albedo, g) and "
+                   "the lights; refines over frames, restarts when the view or scene changes",
+    "half_angle": "Half-angle slicing with chromatic indirect light",
+    "slicing": "View-aligned slices composited front to back, local lighting",
+}
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -346,6 +358,16 @@ class LightsDock(ModelDock):
             self.method.setItemData(self.method.count() - 1, spec.description,
                                     Qt.ItemDataRole.ToolTipRole)
         method_layout.addWidget(self.method)
+        # What draws the volume: VTK's ray caster (with the method) or a renderer beside it;
+        # combinations a renderer cannot draw are greyed, the reason in the item's tooltip.
+        renderer_row = QFormLayout()
+        renderer_row.setContentsMargins(0, 0, 0, 0)
+        self.renderer = QComboBox()
+        self.renderer.setObjectName("render_renderer")
+        for name in RENDERERS:
+            self.renderer.addItem(RENDERER_LABELS[name], name)
+        renderer_row.addRow("Drawn by", self.renderer)
+        method_layout.addLayout(renderer_row)
         # Auto: its error budget and what it picked, and why.
         self.auto_box = QWidget()
         auto_column = QVBoxLayout(self.auto_box)
@@ -416,6 +438,8 @@ class LightsDock(ModelDock):
         b.connect_qt(self.phase_g.valueChanged,
                      lambda v: setattr(self.model.render, "phase_g", float(v)))
         b.connect_qt(self.method.currentIndexChanged, self._on_method)
+        b.connect_qt(self.renderer.currentIndexChanged,
+                     lambda i: setattr(self.model.render, "renderer", self.renderer.itemData(i)))
         b.connect_qt(self.auto_budget.valueChanged,
                      lambda v: setattr(self.model.illumination, "auto_budget_ssim", float(v)))
         b.connect_qt(self.reset_params.clicked, self._on_defaults)
@@ -582,11 +606,33 @@ class LightsDock(ModelDock):
             self._show_illumination()
         if touches(paths, "render", "albedo") or touches(paths, "render", "phase_g"):
             self._show_material()
+        if touches(paths, "render") or touches(paths, "lights") or touches(paths,
+                                                                           "illumination"):
+            self._show_renderer()
 
     def refresh(self) -> None:
         self._show_lights()
         self._show_illumination()
         self._show_material()
+        self._show_renderer()
+
+    def _show_renderer(self) -> None:
+        """The chosen renderer, each choice greyed with its reason where the scene's method,
+        blend mode, lights or channels are not supported (vtkvol.model.renderers)."""
+        items = self.renderer.model()
+        with signals_blocked(self.renderer):
+            for i in range(self.renderer.count()):
+                name = self.renderer.itemData(i)
+                reason = model_unsupported_reason(self.model, name)
+                items.item(i).setEnabled(reason is None)
+                self.renderer.setItemData(
+                    i, RENDERER_TIPS[name] if reason is None else reason[0].upper() + reason[1:],
+                    Qt.ItemDataRole.ToolTipRole)
+            self.renderer.setCurrentIndex(self.renderer.findData(self.model.render.renderer))
+        # The path tracer draws the medium material whatever the method.
+        spec = self.technique()
+        self.material_box.setVisible(self.model.render.renderer == "path_tracer" or (
+            spec is not None and spec.lighting == "medium"))
 
     def _show_lights(self) -> None:
         lights = self.model.lights

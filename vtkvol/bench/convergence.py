@@ -14,6 +14,9 @@ compared with three reference images of the same view, shaded by the same host m
   the ``ms`` reference's **noise floor** is PSNR(A, B) + 6.02 dB. A technique cannot be
   shown closer to the truth than that.
 
+The camera path tracer (``camera_path_tracer``, :func:`study_camera_paths`) is measured the same
+way: the second, independent estimator of the ``ms`` image.
+
 Time is the wall-clock time of the iterations alone (frames with the volume hidden, as the
 recompute timing does, then ``glFinish``): what refining costs on this renderer, without the
 comparison renders. ``iterations_per_s`` of the last checkpoint is the Table 1 analogue;
@@ -53,6 +56,8 @@ class StudyConfig:
     image_size: int = 192
     light_counts: tuple[int, ...] = (1, 3)
     max_seconds: float = 120.0
+    #: Paths per pixel of the camera path tracer (the second, independent truth); 0: not run.
+    camera_paths: int = 256
 
 
 def checkpoints(limit: int) -> list[int]:
@@ -151,6 +156,13 @@ def study_scene(rig: Any, cache: ReferenceCache, scene: Scene, methods: Sequence
                 if stream is not None:
                     print(f"vtkvol bench --scattering: {method} on {scene.name} "
                           f"({count} lights) failed: {exc}", file=stream)
+        if config.camera_paths:
+            try:
+                records += study_camera_paths(rig, refs, config, common)
+            except Exception as exc:
+                if stream is not None:
+                    print(f"vtkvol bench --scattering: the camera path tracer on {scene.name} "
+                          f"({count} lights) failed: {exc}", file=stream)
         cache.clear_scene(lit)
     return records
 
@@ -183,6 +195,54 @@ def _study_method(rig: Any, method: str, refs: dict[str, np.ndarray], config: St
         })
         if spent > config.max_seconds:
             break
+    return records
+
+
+#: The camera path tracer's name in the study's records (not a technique: a renderer).
+CAMERA_PATHS = "camera_path_tracer"
+
+
+def study_camera_paths(rig: Any, refs: dict[str, np.ndarray], config: StudyConfig,
+                       common: dict[str, Any]) -> list[dict[str, Any]]:
+    """The camera path tracer (:mod:`vtkvol.engine.renderers.path_tracer`, multiple
+    scattering, the scene's material and lights) drawn beside the ray caster, compared with
+    the same references at 1, 2, 4, … paths per pixel up to ``config.camera_paths``: the two
+    truths agree when its final PSNR against the multiple-scattering reference reaches the
+    reference's noise floor − 1 dB. Time: whole frames (one path per pixel each, the
+    composite included), ``glFinish`` before the clock stops."""
+    from vtkvol.engine.gl import gl
+    from vtkvol.engine.renderers import set_renderer
+
+    limit = int(config.camera_paths)
+    rig.reset_view()
+    pt = set_renderer(rig.illuminator, "path_tracer", scattering="multiple", samples=limit,
+                      seed=7)
+    records: list[dict[str, Any]] = []
+    spent = 0.0
+    try:
+        for target in checkpoints(limit):
+            t0 = time.perf_counter()
+            while pt.iteration < target - 1:
+                rig.rw.Render()
+            gl(rig.rw).glFinish()
+            spent += time.perf_counter() - t0
+            image = rig.image()  # renders the target-th path (the camera is the scene's)
+            if pt.last_error is not None:
+                raise RuntimeError(pt.last_error)
+            ms = image_metrics(image, refs["ms"])
+            ss = image_metrics(image, refs["ss"])
+            records.append({
+                **common, "method": CAMERA_PATHS, "short": "camera PT",
+                "iteration": int(pt.iteration), "seconds": spent,
+                "iterations_per_s": pt.iteration / spent if spent > 0 else None,
+                "rmse_ms": ms["rmse"], "psnr_ms": ms["psnr"], "rmse_ss": ss["rmse"],
+                "psnr_ss": ss["psnr"], "texture_bytes": None, "bytes_per_voxel": None,
+                "final": target == limit or spent > config.max_seconds,
+            })
+            if spent > config.max_seconds:
+                break
+    finally:
+        set_renderer(rig.illuminator, "raycast")
     return records
 
 

@@ -13,9 +13,11 @@ import vtk
 
 from vtkvol.engine.illuminator import Illuminator, check_multichannel_lighting
 from vtkvol.engine.offscreen import grab, make_render_window
+from vtkvol.engine.renderers import set_renderer
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.presets import apply_preset
+from vtkvol.model.renderers import model_unsupported_reason
 from vtkvol.model.scene import Light, SceneModel
 from vtkvol.model.techniques import get_spec
 
@@ -30,6 +32,7 @@ def illuminate(
     method: str = "local",
     lights: Sequence[Light] | Literal["renderer"] | None = None,
     multichannel_lighting: str | None = None,
+    volume_renderer: str | None = None,
     **parameters: Any,
 ) -> Illuminator:
     """Give an existing ``vtkVolume`` a vtkvol illumination technique.
@@ -70,6 +73,15 @@ def illuminate(
         and ``"local"`` or ``"shadow_volume"``;
         :attr:`Illuminator.multichannel_lighting_state` says whether it applies). Later:
         ``il.set_multichannel_lighting(...)``. ``ValueError`` if neither.
+    volume_renderer
+        What draws the volume (``render.renderer`` of a session; named so because
+        ``renderer`` is the ``vtkRenderer``): None (default) keeps the current one (VTK's ray
+        caster at the first call); ``"raycast"``; ``"path_tracer"`` (progressive camera path
+        tracer of the medium material, ``converge()`` refines it); ``"slicing"``
+        (view-aligned slicing, ``method="local"``); ``"half_angle"`` is refused in this
+        version. An unsupported combination is a ``ValueError`` naming the reason
+        (:func:`vtkvol.model.renderers.unsupported_reason`). Later:
+        ``vtkvol.engine.renderers.set_renderer(il, name)``.
     **parameters
         Technique parameters (validated against its declaration; ``ValueError`` if bad).
 
@@ -103,6 +115,8 @@ def illuminate(
                              "release() that illuminator first")
         existing.reconfigure(method, lights=lights, parameters=parameters,
                              multichannel_lighting=multichannel_lighting)
+        if volume_renderer is not None:
+            set_renderer(existing, volume_renderer)
         return existing
     multichannel_lighting = multichannel_lighting or "per_channel"
     check_multichannel_lighting(multichannel_lighting)  # before the volume is touched
@@ -112,6 +126,12 @@ def illuminate(
                               # lights given: the caller asks for them to shade the volume
                               keep_local_shading=lights is None or lights == "renderer")
     illuminator.set_multichannel_lighting(multichannel_lighting)
+    if volume_renderer is not None:
+        try:
+            set_renderer(illuminator, volume_renderer)
+        except ValueError:
+            illuminator.release()  # a refused call leaves the volume as it was
+            raise
     return illuminator
 
 
@@ -129,6 +149,7 @@ def render_image(
     iterations: int | None = None,
     on_error: Callable[[str], None] | None = None,
     on_refined: Callable[[int, bool, float], None] | None = None,
+    volume_renderer: str | None = None,
 ) -> np.ndarray:
     """Render ``data`` offscreen and return an ``(h, w, 3)`` uint8 image.
 
@@ -140,7 +161,8 @@ def render_image(
     becomes its ``max_iterations``, where it declares one, so it may go past its default end)
     or ``max_seconds`` have passed (None: no limit); ``on_refined(iterations, converged,
     seconds)`` is then told where it stopped. ``on_error`` receives the one-line message when
-    the technique fails (the image then shows local shading).
+    the technique fails (the image then shows local shading). ``volume_renderer`` overrides
+    the model's ``render.renderer`` (an unsupported combination: ``ValueError``).
     """
     if iterations is not None and (isinstance(iterations, bool) or int(iterations) < 1):
         raise ValueError(f"iterations must be a whole number >= 1, not {iterations!r}")
@@ -149,10 +171,13 @@ def render_image(
                          f"not {max_seconds!r}")
     with offscreen_view(data, model=model, size=size, method=method, preset=preset,
                         azimuth=azimuth, elevation=elevation, parameters=parameters,
-                        iterations=iterations, on_error=on_error) as (rw, scene, _):
+                        iterations=iterations, on_error=on_error,
+                        volume_renderer=volume_renderer) as (rw, scene, _):
         image, refining_s = settled_frame(rw, scene, max_seconds=max_seconds,
                                           iterations=iterations)
         tech = scene.illuminator.technique if scene.illuminator is not None else None
+        if scene.illuminator is not None and scene.illuminator.beside is not None:
+            tech = scene.illuminator.beside  # a progressive renderer beside the ray caster
         if on_refined is not None and tech is not None and refining_s is not None:
             on_refined(int(tech.iteration), bool(tech.converged), refining_s)
         return image
@@ -171,6 +196,7 @@ def offscreen_view(
     parameters: dict[str, Any] | None = None,
     iterations: int | None = None,
     on_error: Callable[[str], None] | None = None,
+    volume_renderer: str | None = None,
 ) -> Iterator[tuple[vtk.vtkRenderWindow, VolumeScene, bool]]:
     """An offscreen window showing ``data`` as :func:`render_image` describes (a copy of
     ``model`` or a default scene, the overrides applied, the camera placed); yields
@@ -184,6 +210,11 @@ def offscreen_view(
         model.illumination.method = method
     for name, value in (parameters or {}).items():
         model.illumination.set_value(name, value)
+    if volume_renderer is not None:
+        model.render.renderer = volume_renderer
+    reason = model_unsupported_reason(model)
+    if reason is not None:
+        raise ValueError(f"vtkvol: {reason}")
     if iterations is not None and any(p.name == "max_iterations"
                                       for p in get_spec(model.illumination.method).parameters):
         model.illumination.set_value("max_iterations", int(iterations))

@@ -252,6 +252,9 @@ class Illuminator:
         self.on_progress: Callable[[int, bool], None] | None = None
         self.defer_precompute = False
         self.cancelled_method: str | None = None
+        #: The renderer drawing this volume beside VTK's ray caster (vtkvol.engine.renderers),
+        #: None while VTK's ray caster draws it.
+        self.beside: Any = None
         #: True while :meth:`precompute` runs its chunks (frames then touch no technique state).
         self._stepping = False
         self._precomputed_ms = 0.0  # precompute()'s work since the last frame
@@ -555,6 +558,11 @@ class Illuminator:
         per-edit lookup)."""
         return dict(self._ess_stats)
 
+    @property
+    def slice_weights(self) -> np.ndarray | None:
+        """The (3, W) slice weights set by :meth:`set_slice_weights` (None: none)."""
+        return self._weights
+
     def set_slice_weights(self, weights: np.ndarray | None) -> None:
         """Per-axis slice-contribution weights, shape (3, W) for x, y, z over 0…1 (or None)."""
         if weights is not None:
@@ -707,6 +715,8 @@ class Illuminator:
         """True while a progressive technique has not converged (render again to refine)."""
         if self._closed or self.failed_method == self.method:
             return False
+        if self.beside is not None:  # a progressive renderer beside the ray caster
+            return not self.beside.converged
         tech = self._technique
         if tech is None or self._detach_requested:
             return self.spec.has("progressive")
@@ -728,7 +738,7 @@ class Illuminator:
             frames += 1
             if not self.wants_frame:
                 break
-            tech = self._technique
+            tech = self.beside if self.beside is not None else self._technique
             if iterations is not None and tech is not None and tech.iteration >= iterations:
                 break
             if max_frames is not None and frames >= max_frames:
@@ -1713,6 +1723,11 @@ class Illuminator:
             self.unbind_texture(name)
 
     # -- signatures -----------------------------------------------------------------------------
+    def opacity_signature(self) -> tuple:
+        """Changes whenever the classified opacity can (data, TF, crop, clipping, weights,
+        placement): renderers beside the ray caster restart on it."""
+        return self._opacity_signature()
+
     def _opacity_signature(self) -> tuple:
         mapper = self.volume.GetMapper()
         prop = self.volume.GetProperty()
@@ -1761,6 +1776,9 @@ class Illuminator:
             self._release()
 
     def _release(self) -> None:
+        if self.beside is not None:
+            self.beside.release()
+            self.beside = None
         self._closed = True
         self._coords_cache.clear()
         if self.render_window is not None:  # GL resources exist only after a first frame

@@ -225,6 +225,8 @@ class VolumeScene:
             self.illuminator.set_lights(self.model.lights)  # type: ignore[union-attr]
         if touches(paths, "illumination"):
             self._apply_illumination()
+        if touches(paths, "lights") or touches(paths, "illumination"):
+            self._apply_renderer()  # what a renderer supports depends on both
         if touches(paths, "crop"):
             self._apply_crop()
         if touches(paths, "slice_weights"):
@@ -295,6 +297,16 @@ class VolumeScene:
             self.illuminator.set_empty_space_skipping(render.empty_space_skipping)
         if (every or "multichannel_lighting" in names) and self.illuminator is not None:
             self.illuminator.set_multichannel_lighting(render.multichannel_lighting)
+        if every or names & {"renderer", "blend_mode"}:
+            self._apply_renderer()
+
+    def _apply_renderer(self) -> None:
+        """Draw with ``render.renderer`` where the combination is supported, else with VTK's
+        ray caster and the reason on :attr:`error` (vtkvol.engine.renderers)."""
+        if self.illuminator is not None:
+            from vtkvol.engine.renderers import apply_renderer
+
+            apply_renderer(self.illuminator, self.model.render.renderer, self.error.emit)
 
     def _apply_all(self) -> None:
         self._on_render_change(None)

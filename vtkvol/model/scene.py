@@ -16,6 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from vtkvol.model.evented import EventedModel
+from vtkvol.model.renderers import RendererName
 from vtkvol.model.transfer_function import RGB, TransferFunction, TransferFunction2D
 
 BlendMode = Literal["composite", "mip", "minip", "average", "additive", "isosurface"]
@@ -314,6 +315,12 @@ class RenderSettings(EventedModel):
     #: translucency; about the same with one light and local shading or the shadow volume) and
     #: the measured image difference.
     multichannel_lighting: MultichannelLighting = "per_channel"
+    #: What draws the volume (vtkvol.model.renderers): VTK's ray caster with the illumination
+    #: method (``raycast``), or a renderer beside it — ``path_tracer`` (progressive camera path
+    #: tracer of the medium material), ``slicing`` (view-aligned slices, local lighting),
+    #: ``half_angle`` (refused in this version). docs/architecture.md, "Renderers beside the
+    #: ray caster".
+    renderer: RendererName = "raycast"
 
     @field_validator("blend_mode", mode="before")
     @classmethod
