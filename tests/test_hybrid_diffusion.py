@@ -101,13 +101,19 @@ def hd_scene(backend: str, lights=None, **params):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("estimator", ["ratio", "delta"])
-def test_gpu_path_matches_numpy(estimator):
+@pytest.mark.parametrize(("estimator", "model"),
+                         [("ratio", "source"), ("delta", "source"), ("ratio", "published")])
+def test_gpu_path_matches_numpy(estimator, model):
     from vtkvol.engine.offscreen import grab
+    from vtkvol.model.scene import Light
 
+    lights = [Light(direction=(0.0, 0.3, 1.0)),
+              Light(kind="point", position=(25.0, 9.5, 9.5), color=(1.0, 0.5, 0.2),
+                    falloff="inverse_square")]
     states = {}
     for backend in ("auto", "cpu"):
-        rw, _ren, il = hd_scene(backend, estimator=estimator, diffusion_steps=2)
+        rw, _ren, il = hd_scene(backend, lights=lights, estimator=estimator, diffusion_steps=2,
+                                diffusion_model=model)
         grab(rw)
         grab(rw)
         tech = il.technique
