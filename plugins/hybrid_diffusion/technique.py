@@ -6,7 +6,8 @@ material and ACCUMULATION-parameter changes, never on camera moves.
 HD is seed 003's KD with the convection replaced by tracking; the grid, extinction and both
 diffusion models are the engine's (:mod:`vtkvol.engine.diffusion`), shared with KD. ``source``:
 each iteration adds one sample to ρ_d and runs ``diffusion_steps`` Jacobi sweeps of the source
-model with E_0 = ρ_d; after the last sample the sweeps go on until the residual tolerance.
+model with E_0 = ρ_d; the last iteration (sample ``max_iterations``) sweeps on until the residual
+tolerance, so the result is final exactly when the samples are.
 ``published``: the explicit step ρ_s ← ρ_s + λ∇²(ρ_d + ρ_s) in a separate volume (§3.3).
 """
 
@@ -40,6 +41,10 @@ DIRECT_UNIFORM = "vv_hybrid_diffusion_direct"
 SCATTERED_UNIFORM = "vv_hybrid_diffusion_scattered"
 #: The diffusion step reads the direct light as three "lights" with these colours: ρ_d's r, g, b.
 RGB_AS_LIGHTS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+#: Source model: sweeps between residual checks after the last sample, and their cap (a
+#: safety bound only: Jacobi on this M-matrix converges; 64³ thin media need ~10³ sweeps).
+FINISH_BATCH = 16
+MAX_FINISHING_SWEEPS = 100000
 
 
 class Setup:
@@ -95,30 +100,35 @@ class HybridDiffusion(GridScattering):
         assert setup is not None
         samples = int(values["max_iterations"])
         steps = int(values["diffusion_steps"])
-        tolerance = float(values["tolerance"])
-        source = setup.model == "source"
-
-        def scattered_done() -> bool:
-            return not source or steps == 0 or self.residual < tolerance
-
-        count = int(values["iterations_per_frame"])
-        if not source or scattered_done():
-            count = min(count, samples - self.iteration)
+        count = min(int(values["iterations_per_frame"]), samples - self.iteration)
         if count > 0:
             t0 = time.perf_counter()
             for _ in range(count):
-                if self.iteration >= samples and scattered_done():
-                    break
-                self._iterate(values, sample=self.iteration < samples)
+                self._iterate(values)
                 self.iteration += 1
+            if setup.model == "source" and steps:
+                if self._gpu is not None:
+                    self.residual = self._gpu.residual()
+                if self.iteration >= samples:
+                    self._finish_source(values)
             if self._gpu is None:
                 self._upload_cpu_state()
-            elif source and steps:
-                self.residual = self._gpu.residual()
             self._last_ms = (time.perf_counter() - t0) * 1e3
-        self.converged = self.iteration >= samples and scattered_done()
+        self.converged = self.iteration >= samples
         gpu = self._gpu
         self._bind((gpu.rho_d, gpu.rho_s) if gpu is not None else None)
+
+    def _finish_source(self, values: Mapping[str, Any]) -> None:
+        """After the last sample, the source model's sweeps until the residual tolerance (the
+        last iteration ends the solve: the result is final when the samples are)."""
+        tolerance = float(values["tolerance"])
+        for _ in range(MAX_FINISHING_SWEEPS // FINISH_BATCH):
+            if self.residual < tolerance:
+                return
+            for _ in range(FINISH_BATCH):
+                self._iterate(values, sample=False)
+            if self._gpu is not None:
+                self.residual = self._gpu.residual()
 
     def stats(self) -> dict[str, Any]:
         return {**super().stats(), "residual": self.residual}
