@@ -533,8 +533,13 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
         assert secs[0] > 0 and secs == sorted(secs)
         # the reference's own noise bounds what can be shown: every image is further away
         assert all(r["psnr_ms"] < r["floor_psnr"] for r in rows)
-        # refining moves the image towards the multiple-scattering reference
-        assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"]
+        # refining never moves the image away from the multiple-scattering reference by more
+        # than issue 24's 0.5 dB (HD's source model solves its scattered light to the tolerance
+        # at every checkpoint, so from its first one it is on its plateau), and KD's, which
+        # starts from the direct light alone, moves towards it
+        assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"] - 0.5
+        if method == "convection_diffusion":
+            assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"] + 3.0
     mem = {(r["method"], r["lights"]): r["bytes_per_voxel"] for r in recs}
     # KD keeps a light volume per light; HD's memory does not grow with the lights
     assert mem[("convection_diffusion", 3)] > mem[("convection_diffusion", 1)]

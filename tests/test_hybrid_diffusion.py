@@ -101,13 +101,19 @@ def hd_scene(backend: str, lights=None, **params):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize("estimator", ["ratio", "delta"])
-def test_gpu_path_matches_numpy(estimator):
+@pytest.mark.parametrize(("estimator", "model"),
+                         [("ratio", "source"), ("delta", "source"), ("ratio", "published")])
+def test_gpu_path_matches_numpy(estimator, model):
     from vtkvol.engine.offscreen import grab
+    from vtkvol.model.scene import Light
 
+    lights = [Light(direction=(0.0, 0.3, 1.0)),
+              Light(kind="point", position=(25.0, 9.5, 9.5), color=(1.0, 0.5, 0.2),
+                    falloff="inverse_square")]
     states = {}
     for backend in ("auto", "cpu"):
-        rw, _ren, il = hd_scene(backend, estimator=estimator, diffusion_steps=2)
+        rw, _ren, il = hd_scene(backend, lights=lights, estimator=estimator, diffusion_steps=2,
+                                diffusion_model=model)
         grab(rw)
         grab(rw)
         tech = il.technique
@@ -136,7 +142,8 @@ def test_refines_to_the_end_and_memory_does_not_grow_with_lights():
     sizes = {}
     for count in (1, 3):
         lights = [Light(direction=d) for d in ((0, 0, 1), (1, 0, 0), (0, 1, 1))[:count]]
-        rw, ren, il = hd_scene("auto", lights=lights, max_iterations=9)
+        rw, ren, il = hd_scene("auto", lights=lights, max_iterations=9,
+                               diffusion_model="published")
         assert il.converge(max_frames=20) == 3 and not il.wants_frame
         image = grab(rw)
         assert image.max() > 40 and il.last_error is None
@@ -160,7 +167,8 @@ def test_a_transfer_function_edit_restarts_the_accumulation_a_camera_move_does_n
     arr[4:12, 4:12, 4:12] = 1.0
     rw, ren, volume = simple_volume_scene(arr, size=(48, 48), opacity=[(0.0, 0.0), (1.0, 0.3)])
     il = Illuminator(volume, ren, method=method, lights=[Light(direction=(0.0, 0.0, 1.0))],
-                     parameters={"iterations_per_frame": 2, "max_iterations": 6})
+                     parameters={"iterations_per_frame": 2, "max_iterations": 6,
+                                 "diffusion_model": "published"})
     il.converge(max_frames=10)
     assert il.technique.iteration == 6 and il.technique.stats()["recomputes"] == 1
     ren.GetActiveCamera().Elevation(25)

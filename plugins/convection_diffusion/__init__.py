@@ -8,6 +8,7 @@ decisions the paper leaves open are in docs/multiple-scattering.md. This module 
 
 from __future__ import annotations
 
+from vtkvol.model.diffusion import diffusion_model_params
 from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
@@ -21,13 +22,15 @@ PARAMETERS: tuple[Param, ...] = (
     ),
     Param(
         "max_iterations", 0, "Iterations",
-        "Iterations after which the result is final. 0 = automatic: four times what the light "
-        "front needs to cross the volume's diagonal (it moves half a voxel per iteration).",
+        "Iterations after which the result is final. 0 = automatic: source model, until the "
+        "residual is below the tolerance; published model, four times what the light front "
+        "needs to cross the volume's diagonal (it moves half a voxel per iteration).",
         kind="int", range=(0, 100000), step=1, uniform=False,
     ),
     Param(
         "diffusion_steps", 1, "Diffusion steps",
-        "Explicit diffusion steps per iteration (0 = direct light only, no multiple scattering).",
+        "Diffusion steps per iteration: explicit steps (published) or Jacobi sweeps (source); "
+        "0 = direct light only, no multiple scattering.",
         kind="int", range=(0, 16), step=1, invalidates=_RESTART, uniform=False,
     ),
     Param(
@@ -38,13 +41,7 @@ PARAMETERS: tuple[Param, ...] = (
         kind="choice", choices=("matched", "vpt"), invalidates=_RESTART, uniform=False,
         choice_labels=("Matched to exp(−σ·distance)", "As the authors' code (VPT)"),
     ),
-    Param(
-        "convection_extinction", "total", "Convected extinction",
-        "total: the convected light is attenuated by the full extinction σ_t, as the references "
-        "assume; paper: by the absorbed part (1 − albedo)·σ_t only (seed 003's eq. 8).",
-        kind="choice", choices=("total", "paper"), invalidates=_RESTART, uniform=False,
-        choice_labels=("Total extinction", "Absorbed part (paper)"),
-    ),
+    *diffusion_model_params(_RESTART),
     backend_param(_RESTART),
 )
 
@@ -63,8 +60,10 @@ TECHNIQUE = TechniqueSpec(
     bench=(
         BenchSetting({}, "KD", quick=True),
         BenchSetting({"diffusion_steps": 0}, "KD direct only"),
-        BenchSetting({"absorption_mapping": "vpt", "convection_extinction": "paper"},
-                     "KD as published"),
+        BenchSetting({"diffusion_model": "published"}, "KD published"),
+        BenchSetting({"diffusion_model": "published", "absorption_mapping": "vpt"},
+                     "KD as published (VPT absorption)"),
     ),
-    stability=(BenchSetting({}, "KD", quick=True),),
+    stability=(BenchSetting({}, "KD", quick=True),
+               BenchSetting({"diffusion_model": "published"}, "KD published", quick=True)),
 )

@@ -1,9 +1,14 @@
 """Convection–diffusion (seed 003 KD), engine part: progressive transport on the GPU (compute
 shaders, ping-pong textures) or in numpy (:mod:`.cpu`), shaded through the host's medium model.
+The diffusion machinery it shares with hybrid diffusion is the engine's
+(:mod:`vtkvol.engine.diffusion`).
 
 State lives on the data grid: ρ_l for up to four lights (one per channel of one texture) and
-the scattered RGB light ρ_s. It restarts when the opacity, the lights, the material or a
-parameter marked ACCUMULATION changes (``Changes.reset_accumulation``), never for the camera.
+the scattered RGB light ρ_s. ``diffusion_model = "source"`` computes ρ_l at the restart in one
+propagation pass (the first frame shows converged direct light) and then refines ρ_s by Jacobi
+sweeps until the residual tolerance; ``"published"`` convects and diffuses ρ_l together.
+It restarts when the opacity, the lights, the material or a parameter marked ACCUMULATION
+changes (``Changes.reset_accumulation``), never for the camera.
 """
 
 from __future__ import annotations
@@ -15,9 +20,20 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
+from vtkvol.engine.diffusion import (
+    GROUP,
+    GpuFieldDiffusion,
+    GpuSourceDiffusion,
+    GridScattering,
+    light_channels,
+    propagation_sweeps,
+    relative_residual,
+    set_uniform,
+    source_coefficients,
+    unbind_images,
+)
 from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import ComputePath, Technique
 from vtkvol.plugins.convection_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -25,67 +41,6 @@ if TYPE_CHECKING:
 
 DIRECT_UNIFORM = "vv_convection_diffusion_direct"
 SCATTERED_UNIFORM = "vv_convection_diffusion_scattered"
-GROUP = (8, 8, 4)  #: work-group size of both compute shaders
-
-
-def light_channels(count: int) -> int:
-    """Texture channels that hold ``count`` lights (1, 2 or 4)."""
-    return 1 if count <= 1 else (2 if count == 2 else 4)
-
-
-class GridScattering(Technique):
-    """What seed 003's two methods share: progressive light on the data grid with a GPU
-    (``ComputePath``) and a numpy path, shown through two textures — the direct light and the
-    scattered light — bound under ``DIRECT``/``SCATTERED``; their counters in ``stats()``."""
-
-    DIRECT: ClassVar[str]
-    SCATTERED: ClassVar[str]
-
-    def __init__(self, host: Illuminator) -> None:
-        super().__init__(host)
-        self._compute = ComputePath(self.NAME, self.make_driver)
-        self._direct: Texture3D | None = None  # numpy path: what the shader samples
-        self._scattered: Texture3D | None = None
-        self._restarts = 0
-        self._backend = ""
-        self._last_ms = 0.0
-
-    def make_driver(self, window: vtk.vtkRenderWindow) -> Any:
-        """The GPU driver (compute programs and textures) of this technique."""
-        raise NotImplementedError
-
-    @property
-    def _gpu(self) -> Any:
-        return self._compute.driver
-
-    def _bind(self, gpu_textures: tuple[Texture3D, Texture3D] | None) -> None:
-        """Bind the GPU path's (direct, scattered) textures, or the numpy path's."""
-        direct, scattered = gpu_textures or (self._direct, self._scattered)
-        assert direct is not None and scattered is not None
-        self.host.bind_texture(self.DIRECT, direct)
-        self.host.bind_texture(self.SCATTERED, scattered)
-
-    def stats(self) -> dict[str, Any]:
-        textures = [self._direct, self._scattered]
-        if self._gpu is not None:
-            textures += self._gpu.textures
-        return {
-            "recomputes": self._restarts,
-            "iterations": self.iteration,
-            "recompute_ms": self._last_ms,
-            "backend": self._backend,
-            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
-        }
-
-    def release(self) -> None:
-        for tex in (self._direct, self._scattered):
-            if tex is not None:
-                tex.release()
-        self._direct = self._scattered = None
-        self._compute.release()
-
-    def _origin(self) -> tuple[float, float, float]:
-        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
 
 
 class ConvectionDiffusion(GridScattering):
@@ -100,6 +55,8 @@ class ConvectionDiffusion(GridScattering):
         super().__init__(host)
         self.setup: Setup | None = None
         self._transport: cpu.Transport | None = None  # numpy path state
+        #: Source model: relative residual of the scattered light's equation (inf before).
+        self.residual = float("inf")
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuTransport:
         return GpuTransport(window)
@@ -110,21 +67,42 @@ class ConvectionDiffusion(GridScattering):
             self._restart(values)
         setup = self.setup
         assert setup is not None
-        limit = values["max_iterations"] or self.automatic_iterations()
-        count = min(int(values["iterations_per_frame"]), limit - self.iteration)
-        if count > 0:
+        source = setup.model == "source"
+        steps = int(values["diffusion_steps"])
+        if source:
+            # Stopped by the residual, not a count; a non-zero max_iterations still caps it.
+            limit = int(values["max_iterations"]) or None
+            done = steps == 0 or self.residual < float(values["tolerance"])
+        else:
+            limit = int(values["max_iterations"]) or self.automatic_iterations()
+            done = False
+        count = int(values["iterations_per_frame"])
+        if limit is not None:
+            count = min(count, limit - self.iteration)
+        if count > 0 and not done:
             t0 = time.perf_counter()
             if self._gpu is not None:
-                self._gpu.step(count, values["diffusion_steps"])
+                self._gpu.step(count, steps)
+                if source:
+                    self.residual = self._gpu.residual()
             else:
                 assert self._transport is not None
                 self._transport.step(count)
+                self.residual = self._transport.residual
                 self._upload_cpu_state()
             self.iteration += count
             self._last_ms = (time.perf_counter() - t0) * 1e3
-        self.converged = self.iteration >= limit
+        if source:
+            self.converged = (steps == 0 or self.residual < float(values["tolerance"])
+                              or (limit is not None and self.iteration >= limit))
+        else:
+            assert limit is not None
+            self.converged = self.iteration >= limit
         gpu = self._gpu
         self._bind((gpu.rho, gpu.rho_s) if gpu is not None else None)
+
+    def stats(self) -> dict[str, Any]:
+        return {**super().stats(), "residual": self.residual}
 
     def release(self) -> None:
         super().release()
@@ -132,8 +110,8 @@ class ConvectionDiffusion(GridScattering):
         self.setup = None
 
     def automatic_iterations(self) -> int:
-        """Iterations of ``max_iterations = 0``: four times what the light front needs to
-        cross the grid's diagonal (it moves half a voxel per iteration)."""
+        """Iterations of ``max_iterations = 0`` in the published model: four times what the
+        light front needs to cross the grid's diagonal (it moves half a voxel per iteration)."""
         if self.setup is None:
             raise RuntimeError("the technique has not been prepared yet")
         return 4 * cpu.iterations_to_cross(self.setup.grid)
@@ -143,13 +121,16 @@ class ConvectionDiffusion(GridScattering):
         values: Mapping[str, Any],
     ) -> np.ndarray:
         """The converged convected light ρ of ``light`` alone at every voxel, ``[z, y, x]``
-        (0…1): what this technique uses as the direct light's visibility."""
+        (0…1): what this technique uses as the direct light's visibility (source model: one
+        propagation pass; published: the one field, diffusion included)."""
         merged = {**self.defaults(), **values}
         grid = cpu.Grid(opacity.shape, spacing, self._origin())
         sigma_t = cpu.extinction(opacity, self.host.unit_distance)
         setup = Setup.build(grid, sigma_t, [light], merged, self.host.albedo,
-                            self.host.unit_distance)
-        transport = setup.transport(diffusion_steps=0)
+                            self.host.unit_distance, self.host.phase_g)
+        if setup.model == "source":
+            return setup.transport(diffusion_steps=0).rho[0]
+        transport = setup.transport(diffusion_steps=int(merged["diffusion_steps"]))
         transport.step(merged["max_iterations"] or 4 * cpu.iterations_to_cross(grid))
         return transport.rho[0]
 
@@ -159,8 +140,9 @@ class ConvectionDiffusion(GridScattering):
         grid = cpu.Grid((nz, ny, nx), self.host.spacing, self._origin())
         sigma_t = cpu.extinction(self.host.opacity_volume(), self.host.unit_distance)
         self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), values, self.host.albedo,
-                                 self.host.unit_distance)
+                                 self.host.unit_distance, self.host.phase_g)
         self.iteration = 0
+        self.residual = float("inf")
         self.converged = False
         self._restarts += 1
         gpu = self._compute.get(self.host, values["backend"])
@@ -205,43 +187,60 @@ def _squeeze(a: np.ndarray) -> np.ndarray:
 
 
 class Setup:
-    """What one accumulation runs on: grid, lights, per-voxel absorption and diffusion rate."""
+    """What one accumulation runs on: grid, lights, the model, per-voxel absorption per
+    iteration, diffusion rate (published) and source-model coefficients (source)."""
 
     def __init__(self, grid: cpu.Grid, lights: list[cpu.LightSource],
                  colors: list[tuple[float, float, float]], sigma_a: np.ndarray,
-                 lam: np.ndarray) -> None:
+                 lam: np.ndarray, model: str, coefficients: np.ndarray | None) -> None:
         self.grid, self.lights, self.colors = grid, lights, colors
         self.sigma_a, self.lam = sigma_a, lam
+        self.model, self.coefficients = model, coefficients
 
     @classmethod
     def build(cls, grid: cpu.Grid, sigma_t: np.ndarray, specs: Sequence[Any],
-              values: Mapping[str, Any], albedo: float, unit_distance: float) -> Setup:
+              values: Mapping[str, Any], albedo: float, unit_distance: float,
+              phase_g: float = 0.0) -> Setup:
         specs = list(specs)[:4]
-        lights = [cpu.LightSource(s.kind, tuple(float(v) for v in s.vector)) for s in specs]
+        lights = [cpu.LightSource(s.kind, tuple(float(v) for v in s.vector),
+                                  float(getattr(s, "falloff_distance", 0.0))) for s in specs]
         colors = [tuple(float(c) for c in getattr(s, "color", (1.0, 1.0, 1.0))) for s in specs]
+        model = str(values["diffusion_model"])
+        # Published (eq. 8): the convected field loses its absorbed part only; source: the
+        # direct light is the uncollided beam, attenuated by the whole extinction.
         sigma_a = cpu.absorption_per_iteration(
             sigma_t, grid, albedo=albedo, mapping=values["absorption_mapping"],
-            convection_extinction=values["convection_extinction"], unit_distance=unit_distance,
+            convection_extinction="paper" if model == "published" else "total",
+            unit_distance=unit_distance,
         )
         lam = cpu.diffusion_rate(sigma_t, grid, albedo)
-        return cls(grid, lights, colors, sigma_a, lam)  # type: ignore[arg-type]
+        coefficients = (source_coefficients(sigma_t, grid, albedo, phase_g)
+                        if model == "source" else None)
+        return cls(grid, lights, colors, sigma_a, lam, model,  # type: ignore[arg-type]
+                   coefficients)
 
     def transport(self, diffusion_steps: int) -> cpu.Transport:
         return cpu.Transport(self.grid, self.lights, self.colors, self.sigma_a, self.lam,
-                             diffusion_steps=diffusion_steps)
+                             diffusion_steps=diffusion_steps, model=self.model,  # type: ignore[arg-type]
+                             coefficients=self.coefficients)
 
 
 class GpuTransport:
-    """The compute-shader path: ρ and ρ_s ping-pong between two textures each (a GPU updating
-    in place would depend on invocation order; ping-pong matches numpy to float rounding)."""
+    """The compute-shader path: ρ ping-pongs between two textures (a GPU updating in place
+    would depend on invocation order; ping-pong matches numpy to float rounding); the scattered
+    light is the engine's source-model driver (source) or a zero texture (published)."""
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
-        self._programs: dict[tuple[str, int], ComputeProgram] = {}
+        self._programs: dict[tuple[str, int, bool], ComputeProgram] = {}
         self._locations: dict[tuple[int, str], int] = {}
         self._rho: list[Texture3D] = []
         self._sigma_a: Texture3D | None = None
-        self.diffusion: GpuDiffusion | None = None
+        self._lam: Texture3D | None = None
+        self._zero: Texture3D | None = None  # the published model's (empty) scattered volume
+        self.source = GpuSourceDiffusion(render_window)
+        self.field = GpuFieldDiffusion(render_window)
+        self._model = "published"
         self._grid = cpu.Grid((1, 1, 1), (1.0, 1.0, 1.0))
         self._channels = 1
         self._lights: list[cpu.LightSource] = []
@@ -254,25 +253,29 @@ class GpuTransport:
 
     @property
     def rho_s(self) -> Texture3D:
-        assert self.diffusion is not None
-        return self.diffusion.rho_s
+        if self._model == "source":
+            return self.source.phi
+        assert self._zero is not None
+        return self._zero
 
     @property
     def textures(self) -> list[Texture3D]:
-        own = [*self._rho, *(t for t in (self._sigma_a,) if t)]
-        return own + (self.diffusion.textures if self.diffusion is not None else [])
+        own = [*self._rho, *(t for t in (self._sigma_a, self._lam, self._zero) if t)]
+        return own + self.source.textures
 
-    def program(self, kind: str, channels: int) -> ComputeProgram:
-        key = (kind, channels)
+    def program(self, kind: str, channels: int, steady: bool = False) -> ComputeProgram:
+        key = (kind, channels, steady)
         prog = self._programs.get(key)
         if prog is None:
-            source = compute_source(f"{kind}.comp.glsl", {"VV_CHANNELS": str(channels)},
-                                    __package__)
+            defines = {"VV_CHANNELS": str(channels), "VV_STEADY": "1" if steady else "0"}
+            source = compute_source(f"{kind}.comp.glsl", defines, __package__)
             prog = ComputeProgram(self.render_window, source, f"convection_diffusion {kind}")
             self._programs[key] = prog
         return prog
 
     def reset(self, setup: Setup) -> None:
+        """New textures for ``setup``; the source model's direct light is converged here (one
+        propagation pass: the first frame already shows it)."""
         self._release_textures()
         rw = self.render_window
         shape = setup.grid.shape_zyx
@@ -280,21 +283,25 @@ class GpuTransport:
         zeros = np.zeros(shape if channels == 1 else (*shape, channels), np.float32)
         self._rho = [Texture3D(rw, shape, channels=channels, data=zeros) for _ in range(2)]
         self._sigma_a = Texture3D(rw, shape, data=setup.sigma_a)
-        self._sigma_a.tex.Deactivate()
-        for tex in self._rho:
+        self._lam = Texture3D(rw, shape, data=setup.lam)
+        self._zero = Texture3D(rw, shape, channels=4, data=np.zeros((*shape, 4), np.float32))
+        for tex in (*self._rho, self._sigma_a, self._lam, self._zero):
             tex.tex.Deactivate()  # created bound to units; image units are separate
-        if self.diffusion is None:
-            self.diffusion = GpuDiffusion(rw)
-        self.diffusion.reset(setup.grid, setup.lam, channels)
         self._grid, self._lights, self._colors = setup.grid, setup.lights, setup.colors
-        self._channels = channels
+        self._channels, self._model = channels, setup.model
+        if setup.model == "source":
+            assert setup.coefficients is not None
+            self.source.reset(setup.grid, setup.coefficients, channels, setup.lights)
+            self._convect(propagation_sweeps(setup.grid), steady=True)
 
-    def step(self, iterations: int, diffusion_steps: int) -> None:
+    def _convect(self, iterations: int, steady: bool, diffusion_steps: int = 0) -> None:
+        """``iterations`` convection dispatches (time steps, or steady sweeps), each followed by
+        ``diffusion_steps`` explicit diffusion steps of the same field."""
         GL = gl(self.render_window)
         grid = self._grid
         nz, ny, nx = grid.shape_zyx
         groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
-        conv = self.program("convection", self._channels)
+        conv = self.program("convection", self._channels, steady)
         light_vecs = []
         for light in self._lights:
             if light.kind == "point":
@@ -303,6 +310,7 @@ class GpuTransport:
                 u = cpu.propagation(grid, light).reshape(3)
                 light_vecs += [*(float(c) for c in u), 0.0]
         light_vecs += [0.0] * (16 - len(light_vecs))
+        assert self._sigma_a is not None and self._lam is not None
         for _ in range(iterations):
             program = conv.use()
             self._set(conv, "vv_rhoIn", 0)
@@ -317,15 +325,26 @@ class GpuTransport:
             program.SetUniform4fv("vv_lightVec", 4, light_vecs)
             self._rho[0].bind_image(0, "read")
             self._rho[1].bind_image(1, "write")
-            assert self._sigma_a is not None
             self._sigma_a.bind_image(2, "read")
             conv.dispatch(groups)
+            unbind_images(GL, 3)
+            conv.done()
             self._rho.reverse()
+            for _ in range(diffusion_steps):
+                self.field.run(self._rho[0], self._rho[1], self._lam, grid, self._channels)
+                self._rho.reverse()
+
+    def step(self, iterations: int, diffusion_steps: int) -> None:
+        """``iterations`` iterations of the accumulation's model (see :mod:`.cpu`)."""
+        if self._model == "source":
             if diffusion_steps:
-                assert self.diffusion is not None
-                self.diffusion.run(self._rho[0], self._colors, diffusion_steps)
-        unbind_images(GL, 4)
-        conv.done()
+                self.source.run(self._rho[0], self._colors, iterations * diffusion_steps)
+            return
+        self._convect(iterations, steady=False, diffusion_steps=diffusion_steps)
+
+    def residual(self) -> float:
+        """The source model's relative residual after the last sweep's start."""
+        return relative_residual(*self.source.residual())
 
     def _set(self, prog: ComputeProgram, name: str, *values: float, integer: bool = True) -> None:
         set_uniform(self._locations, prog, name, *values, integer=integer)
@@ -335,124 +354,16 @@ class GpuTransport:
         return self._rho[0].download(), self.rho_s.download()
 
     def _release_textures(self) -> None:
-        for tex in [*self._rho, *(t for t in (self._sigma_a,) if t)]:
+        for tex in [*self._rho, *(t for t in (self._sigma_a, self._lam, self._zero) if t)]:
             tex.release()
         self._rho = []
-        self._sigma_a = None
+        self._sigma_a = self._lam = self._zero = None
 
     def release(self) -> None:
         self._release_textures()
-        if self.diffusion is not None:
-            self.diffusion.release()
-            self.diffusion = None
+        self.source.release()
+        self.field.release()
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
         self._locations.clear()
-
-
-class GpuDiffusion:
-    """The diffusion step on the GPU (``diffusion.comp.glsl``): ρ_s ping-pongs between two RGBA
-    textures; the direct light comes from a texture of up to four channels weighted by RGB
-    colours. Also used by the hybrid method (seed 003 HD), which shares KD's diffusion."""
-
-    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
-        self.render_window = render_window
-        self._programs: dict[int, ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
-        self._rho_s: list[Texture3D] = []
-        self._lam: Texture3D | None = None
-        self._grid = cpu.Grid((1, 1, 1), (1.0, 1.0, 1.0))
-        self._channels = 1
-
-    @property
-    def rho_s(self) -> Texture3D:
-        return self._rho_s[0]
-
-    @property
-    def textures(self) -> list[Texture3D]:
-        return [*self._rho_s, *(t for t in (self._lam,) if t)]
-
-    def program(self, channels: int) -> ComputeProgram:
-        prog = self._programs.get(channels)
-        if prog is None:
-            source = compute_source("diffusion.comp.glsl", {"VV_CHANNELS": str(channels)},
-                                    __package__)
-            prog = ComputeProgram(self.render_window, source, "diffusion")
-            self._programs[channels] = prog
-        return prog
-
-    def reset(self, grid: cpu.Grid, lam: np.ndarray, channels: int) -> None:
-        """Zero ρ_s on ``grid`` with diffusion rate ``lam``; the direct light will have
-        ``channels`` channels."""
-        self._release_textures()
-        rw = self.render_window
-        empty = np.zeros((*grid.shape_zyx, 4), np.float32)
-        self._rho_s = [Texture3D(rw, grid.shape_zyx, channels=4, data=empty) for _ in range(2)]
-        self._lam = Texture3D(rw, grid.shape_zyx, data=lam)
-        for tex in self.textures:
-            tex.tex.Deactivate()  # created bound to units; image units are separate
-        self._grid, self._channels = grid, channels
-
-    def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
-            steps: int) -> None:
-        """``steps`` diffusion steps of Σ_l colors[l]·direct[l] + ρ_s into ρ_s."""
-        GL = gl(self.render_window)
-        nz, ny, nx = self._grid.shape_zyx
-        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
-        flat = [c for color in colors for c in color]
-        flat += [0.0] * (12 - len(flat))
-        prog = self.program(self._channels)
-        program = prog.use()
-        for name, unit in (("vv_direct", 0), ("vv_scatteredIn", 1), ("vv_scatteredOut", 2),
-                           ("vv_lambda", 3)):
-            set_uniform(self._locations, prog, name, unit)
-        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
-        set_uniform(self._locations, prog, "vv_weights", *self._grid.axis_weights.tolist(),
-                    integer=False)
-        set_uniform(self._locations, prog, "vv_numLights", len(colors))
-        program.SetUniform3fv("vv_color", 4, flat)
-        assert self._lam is not None
-        direct.bind_image(0, "read")
-        self._lam.bind_image(3, "read")
-        for _ in range(steps):
-            self._rho_s[0].bind_image(1, "read")
-            self._rho_s[1].bind_image(2, "write")
-            prog.dispatch(groups)
-            self._rho_s.reverse()
-        unbind_images(GL, 4)
-        prog.done()
-
-    def _release_textures(self) -> None:
-        for tex in self.textures:
-            tex.release()
-        self._rho_s = []
-        self._lam = None
-
-    def release(self) -> None:
-        self._release_textures()
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
-        self._locations.clear()
-
-
-def set_uniform(cache: dict[tuple[int, str], int], prog: ComputeProgram, name: str,
-                *values: float, integer: bool = True) -> None:
-    """Set a uniform of the bound compute program; a missing one is an error (a renamed or
-    optimised-away uniform must not be silently ignored)."""
-    GL = gl(prog.render_window)
-    handle = int(prog.prog.GetHandle())
-    loc = cache.get((handle, name))
-    if loc is None:
-        loc = int(GL.glGetUniformLocation(handle, name))
-        if loc < 0:
-            raise GLUnavailableError(f"compute shader {prog.name!r} has no uniform {name!r}")
-        cache[(handle, name)] = loc
-    getattr(GL, f"glUniform{len(values)}{'i' if integer else 'f'}")(loc, *values)
-
-
-def unbind_images(GL: Any, units: int) -> None:
-    """Detach image units 0…units−1 (a texture left bound there stays referenced)."""
-    for unit in range(units):
-        GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)

@@ -1,13 +1,15 @@
 """Hybrid diffusion multiple scattering (seed 003 §3.3, "HD"): the declaration.
 
 The direct light is estimated per voxel by tracking towards a randomly chosen light (unbiased,
-averaged over iterations), the multiple scattering by convection–diffusion's diffusion step;
+averaged over iterations), the multiple scattering by the engine's grid diffusion (the source
+model by default, or seed 003's published step);
 memory does not grow with the number of lights. Engine part :mod:`.technique`, numpy twin
 :mod:`.cpu`, decisions in docs/multiple-scattering.md ("Hybrid diffusion"). No VTK here.
 """
 
 from __future__ import annotations
 
+from vtkvol.model.diffusion import diffusion_model_params
 from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
@@ -21,12 +23,14 @@ PARAMETERS: tuple[Param, ...] = (
     ),
     Param(
         "max_iterations", 256, "Iterations",
-        "Samples per voxel after which the result is final (the noise falls as 1/√iterations).",
+        "Samples of the direct light per voxel (the noise falls as 1/√iterations); the source "
+        "model's scattered light then refines until its residual tolerance.",
         kind="int", range=(1, 100000), step=1, uniform=False,
     ),
     Param(
         "diffusion_steps", 1, "Diffusion steps",
-        "Explicit diffusion steps per iteration (0 = direct light only, no multiple scattering).",
+        "Diffusion steps per iteration: Jacobi sweeps (source) or explicit steps (published); "
+        "0 = direct light only, no multiple scattering.",
         kind="int", range=(0, 16), step=1, invalidates=_RESTART, uniform=False,
     ),
     Param(
@@ -47,6 +51,7 @@ PARAMETERS: tuple[Param, ...] = (
         "seed", 0, "Seed", "Random seed of the sample streams.",
         kind="int", range=(0, 2**31 - 1), step=1, invalidates=_RESTART, uniform=False,
     ),
+    *diffusion_model_params(_RESTART),
     backend_param(_RESTART),
 )
 
@@ -65,8 +70,11 @@ TECHNIQUE = TechniqueSpec(
     bench=(
         BenchSetting({}, "HD", quick=True),
         BenchSetting({"estimator": "delta"}, "HD delta tracking"),
+        BenchSetting({"diffusion_model": "published"}, "HD published"),
     ),
-    stability=(BenchSetting({"max_iterations": 16}, "HD 16 samples", quick=True),),
+    stability=(BenchSetting({"max_iterations": 16}, "HD 16 samples", quick=True),
+               BenchSetting({"max_iterations": 16, "diffusion_model": "published"},
+                            "HD published 16 samples", quick=True)),
     # The numpy tracker takes 3-6 s per sample at 64^3 on two cores: 256 samples per voxel
     # would hold the benchmark for tens of minutes per scene. Eight samples keep the per-voxel
     # check under a minute; its noise (ratio tracking, 1/sqrt(8)) is part of the reported error.

@@ -15,8 +15,9 @@ t += −ln(1 − ξ)/σ̄ up to the box exit (or the point light).
 
 A path longer than :data:`MAX_STEPS` tentative collisions counts as absorbed (a bias below
 e^−(MAX_STEPS/2) for any volume the majorant describes well). The estimate ρ_d is an RGB running
-mean; the multiple scattering is the convection–diffusion method's diffusion step
-(:mod:`vtkvol.plugins.convection_diffusion.cpu`) applied to ρ_d + ρ_s.
+mean, with the light's inverse-square fall-off where it has one; the multiple scattering is the
+engine's grid diffusion (:mod:`vtkvol.engine.diffusion`: the source model from ρ_d, or the
+published explicit step applied to ρ_d + ρ_s).
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from typing import Literal
 
 import numpy as np
 
-from vtkvol.plugins.convection_diffusion.cpu import Grid, LightSource
+from vtkvol.engine.diffusion import Grid, LightSource, falloff
 
 #: Tentative collisions after which a path counts as absorbed.
 MAX_STEPS = 512
@@ -149,7 +150,10 @@ def direct_sample(
             continue
         throughput = _track(sigma_t, grid, lights[index], keys[mask], xs[mask], ys[mask],
                             zs[mask], majorant, estimator, first_draw=1 + 4096 * index)
-        out[mask] += (throughput * weight)[:, None] * np.asarray(colors[index], np.float32)
+        f = falloff(grid, lights[index])
+        f_mask = np.float32(f) if np.isscalar(f) else np.asarray(f)[mask]
+        out[mask] += (throughput * weight * f_mask)[:, None] * np.asarray(colors[index],
+                                                                          np.float32)
     return out
 
 

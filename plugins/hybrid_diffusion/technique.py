@@ -3,8 +3,12 @@ diffused light ρ_s, on the GPU (``direct.comp.glsl`` + convection–diffusion's
 or in numpy (:mod:`.cpu`). Restarts like every progressive technique: on opacity, light,
 material and ACCUMULATION-parameter changes, never on camera moves.
 
-HD is seed 003's KD with the convection replaced by tracking, so it shares KD's grid,
-extinction, diffusion rate and diffusion step (:mod:`vtkvol.plugins.convection_diffusion`).
+HD is seed 003's KD with the convection replaced by tracking; the grid, extinction and both
+diffusion models are the engine's (:mod:`vtkvol.engine.diffusion`), shared with KD. ``source``:
+each iteration adds one sample to ρ_d and runs ``diffusion_steps`` Jacobi sweeps of the source
+model with E_0 = ρ_d; the last iteration (sample ``max_iterations``) sweeps on until the residual
+tolerance, so the result is final exactly when the samples are.
+``published``: the explicit step ρ_s ← ρ_s + λ∇²(ρ_d + ρ_s) in a separate volume (§3.3).
 """
 
 from __future__ import annotations
@@ -16,16 +20,18 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
-from vtkvol.engine.shaders import compute_source
-from vtkvol.plugins.convection_diffusion import cpu as kd
-from vtkvol.plugins.convection_diffusion.technique import (
+from vtkvol.engine import diffusion as kd
+from vtkvol.engine.diffusion import (
     GROUP,
     GpuDiffusion,
+    GpuSourceDiffusion,
     GridScattering,
+    relative_residual,
     set_uniform,
     unbind_images,
 )
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
+from vtkvol.engine.shaders import compute_source
 from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -35,27 +41,37 @@ DIRECT_UNIFORM = "vv_hybrid_diffusion_direct"
 SCATTERED_UNIFORM = "vv_hybrid_diffusion_scattered"
 #: The diffusion step reads the direct light as three "lights" with these colours: ρ_d's r, g, b.
 RGB_AS_LIGHTS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
+#: Source model: sweeps between residual checks after the last sample, and their cap (a
+#: safety bound only: Jacobi on this M-matrix converges; 64³ thin media need ~10³ sweeps).
+FINISH_BATCH = 16
+MAX_FINISHING_SWEEPS = 100000
 
 
 class Setup:
     """What one accumulation runs on (dataset space, µm)."""
 
     def __init__(self, grid: kd.Grid, sigma_t: np.ndarray, lights: list[kd.LightSource],
-                 colors: list[tuple[float, float, float]], lam: np.ndarray) -> None:
+                 colors: list[tuple[float, float, float]], lam: np.ndarray, model: str = "source",
+                 coefficients: np.ndarray | None = None) -> None:
         self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
             grid, sigma_t, lights, colors, lam)
+        self.model, self.coefficients = model, coefficients
 
     @classmethod
     def build(cls, grid: kd.Grid, sigma_t: np.ndarray, specs: list[Any],
-              albedo: float) -> Setup:
+              albedo: float, model: str = "source", phase_g: float = 0.0) -> Setup:
         specs = specs[:4]
         lights = [
             kd.LightSource(s.kind, tuple(float(v) for v in (
-                s.vector if s.kind == "point" else cpu.unit(s.vector))))
+                s.vector if s.kind == "point" else cpu.unit(s.vector))),
+                float(getattr(s, "falloff_distance", 0.0)))
             for s in specs
         ]
         colors = [tuple(float(c) for c in getattr(s, "color", (1.0, 1.0, 1.0))) for s in specs]
-        return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo))
+        coefficients = (kd.source_coefficients(sigma_t, grid, albedo, phase_g)
+                        if model == "source" else None)
+        return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo),
+                   model, coefficients)
 
 
 class HybridDiffusion(GridScattering):
@@ -71,6 +87,8 @@ class HybridDiffusion(GridScattering):
         self.setup: Setup | None = None
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
+        #: Source model: relative residual of the scattered light's equation (inf before).
+        self.residual = float("inf")
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuHybrid:
         return GpuHybrid(window)
@@ -78,19 +96,42 @@ class HybridDiffusion(GridScattering):
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
         if changes.reset_accumulation or self.setup is None:
             self._restart(values)
-        count = min(int(values["iterations_per_frame"]),
-                    int(values["max_iterations"]) - self.iteration)
+        setup = self.setup
+        assert setup is not None
+        samples = int(values["max_iterations"])
+        steps = int(values["diffusion_steps"])
+        count = min(int(values["iterations_per_frame"]), samples - self.iteration)
         if count > 0:
             t0 = time.perf_counter()
             for _ in range(count):
                 self._iterate(values)
                 self.iteration += 1
+            if setup.model == "source" and steps:
+                if self._gpu is not None:
+                    self.residual = self._gpu.residual()
+                if self.iteration >= samples:
+                    self._finish_source(values)
             if self._gpu is None:
                 self._upload_cpu_state()
             self._last_ms = (time.perf_counter() - t0) * 1e3
-        self.converged = self.iteration >= int(values["max_iterations"])
+        self.converged = self.iteration >= samples
         gpu = self._gpu
-        self._bind((gpu.rho_d, gpu.diffusion.rho_s) if gpu is not None else None)
+        self._bind((gpu.rho_d, gpu.rho_s) if gpu is not None else None)
+
+    def _finish_source(self, values: Mapping[str, Any]) -> None:
+        """After the last sample, the source model's sweeps until the residual tolerance (the
+        last iteration ends the solve: the result is final when the samples are)."""
+        tolerance = float(values["tolerance"])
+        for _ in range(MAX_FINISHING_SWEEPS // FINISH_BATCH):
+            if self.residual < tolerance:
+                return
+            for _ in range(FINISH_BATCH):
+                self._iterate(values, sample=False)
+            if self._gpu is not None:
+                self.residual = self._gpu.residual()
+
+    def stats(self) -> dict[str, Any]:
+        return {**super().stats(), "residual": self.residual}
 
     def release(self) -> None:
         super().release()
@@ -119,8 +160,10 @@ class HybridDiffusion(GridScattering):
         nx, ny, nz = self.host.dims
         grid = kd.Grid((nz, ny, nx), self.host.spacing, self._origin())
         sigma_t = kd.extinction(self.host.opacity_volume(), self.host.unit_distance)
-        self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo)
+        self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
+                                 str(values["diffusion_model"]), self.host.phase_g)
         self.iteration = 0
+        self.residual = float("inf")
         self.converged = False
         self._restarts += 1
         gpu = self._compute.get(self.host, values["backend"])
@@ -136,20 +179,34 @@ class HybridDiffusion(GridScattering):
         self._backend = "cpu"
         self._upload_cpu_state()
 
-    def _iterate(self, values: Mapping[str, Any]) -> None:
+    def _iterate(self, values: Mapping[str, Any], sample: bool = True) -> None:
+        """One iteration: a sample of the direct light (while ``sample``), then
+        ``diffusion_steps`` steps of the model."""
         setup = self.setup
         assert setup is not None
         if self._gpu is not None:
-            self._gpu.step(self.iteration, values)
+            self._gpu.step(self.iteration, values, sample)
             return
         assert self._rho_d is not None and self._rho_s is not None
-        sample = cpu.direct_sample(
-            setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
-            seed=int(values["seed"]), estimator=values["estimator"],
-            light_sampling=values["light_sampling"],
-        )
-        self._rho_d = self._rho_d + (sample - self._rho_d) / np.float32(self.iteration + 1)
-        for _ in range(int(values["diffusion_steps"])):
+        if sample:
+            draw = cpu.direct_sample(
+                setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
+                seed=int(values["seed"]), estimator=values["estimator"],
+                light_sampling=values["light_sampling"],
+            )
+            self._rho_d = self._rho_d + (draw - self._rho_d) / np.float32(self.iteration + 1)
+        steps = int(values["diffusion_steps"])
+        if setup.model == "source":
+            assert setup.coefficients is not None
+            if steps:
+                q = kd.source_term(setup.coefficients, np.moveaxis(self._rho_d, -1, 0),
+                                   RGB_AS_LIGHTS, [1.0] * 3)
+                for _ in range(steps):
+                    new, r2, q2 = kd.jacobi_sweep(self._rho_s, q, setup.coefficients, setup.grid)
+                    self.residual = relative_residual(r2, q2)
+                    self._rho_s = new
+            return
+        for _ in range(steps):
             self._rho_s = kd.diffusion_step(self._rho_d + self._rho_s, self._rho_s, setup.lam,
                                             setup.grid)
 
@@ -171,7 +228,8 @@ class HybridDiffusion(GridScattering):
 
 class GpuHybrid:
     """The compute path: ρ_d updated in place (each invocation owns its voxel), σ_t as an image,
-    and convection–diffusion's diffusion step on ρ_d + ρ_s."""
+    and the engine's diffusion: the source model from ρ_d, or the published explicit step on
+    ρ_d + ρ_s."""
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
@@ -180,13 +238,24 @@ class GpuHybrid:
         self.rho_d: Texture3D | None = None  # type: ignore[assignment]
         self._sigma: Texture3D | None = None
         self.diffusion = GpuDiffusion(render_window)
+        self.source = GpuSourceDiffusion(render_window)
         self._setup: Setup | None = None
         self.program("ratio", "one")  # fail now, not mid-frame, when compute cannot work
 
     @property
     def textures(self) -> list[Texture3D]:
         own = [t for t in (self.rho_d, self._sigma) if t is not None]
-        return own + self.diffusion.textures
+        return own + self.diffusion.textures + self.source.textures
+
+    @property
+    def rho_s(self) -> Texture3D:
+        """The scattered light of the accumulation's model."""
+        assert self._setup is not None
+        return self.source.phi if self._setup.model == "source" else self.diffusion.rho_s
+
+    def residual(self) -> float:
+        """The source model's relative residual after the last sweep's start."""
+        return relative_residual(*self.source.residual())
 
     def program(self, estimator: str, light_sampling: str) -> ComputeProgram:
         key = (estimator, light_sampling)
@@ -212,9 +281,28 @@ class GpuHybrid:
         for tex in (self.rho_d, self._sigma):
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self.diffusion.reset(setup.grid, setup.lam, channels=4)
+        if setup.model == "source":
+            assert setup.coefficients is not None
+            # ρ_d's r, g, b as three "lights"; their fall-off is in the tracked samples already.
+            self.source.reset(setup.grid, setup.coefficients, 4,
+                              [kd.LightSource("directional", (0.0, 0.0, 1.0))] * 3)
         self._setup = setup
 
-    def step(self, iteration: int, values: Mapping[str, Any]) -> None:
+    def step(self, iteration: int, values: Mapping[str, Any], sample: bool = True) -> None:
+        """Sample ``iteration`` of the direct light (while ``sample``), then the diffusion."""
+        setup = self._setup
+        assert setup is not None and self.rho_d is not None and self._sigma is not None
+        steps = int(values["diffusion_steps"])
+        if sample:
+            self._sample(iteration, values)
+        if not steps:
+            return
+        if setup.model == "source":
+            self.source.run(self.rho_d, RGB_AS_LIGHTS, steps)
+        else:
+            self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
+
+    def _sample(self, iteration: int, values: Mapping[str, Any]) -> None:
         setup = self._setup
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         GL = gl(self.render_window)
@@ -228,6 +316,11 @@ class GpuHybrid:
         vecs += [0.0] * (16 - len(vecs))
         colors = [c for color in setup.colors for c in color]
         colors += [0.0] * (12 - len(colors))
+        falloffs: list[float] = []
+        for light in setup.lights:
+            d0 = light.falloff_distance if light.kind == "point" else 0.0
+            falloffs += [*light.vector, d0]
+        falloffs += [0.0] * (16 - len(falloffs))
         for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
             set_uniform(self._locations, prog, name, unit)
         set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
@@ -241,19 +334,17 @@ class GpuHybrid:
         set_uniform(self._locations, prog, "vv_numLights", len(setup.lights))
         program.SetUniform4fv("vv_lightVec", 4, vecs)
         program.SetUniform3fv("vv_color", 4, colors)
+        program.SetUniform4fv("vv_falloff", 4, falloffs)
         self._sigma.bind_image(0, "read")
         self.rho_d.bind_image(1, "readwrite")
         prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2])))
         unbind_images(GL, 2)
         prog.done()
-        steps = int(values["diffusion_steps"])
-        if steps:
-            self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
         """(ρ_d, ρ_s), each ``[z, y, x, 3]`` (tests and verification)."""
         assert self.rho_d is not None
-        return self.rho_d.download()[..., :3], self.diffusion.rho_s.download()[..., :3]
+        return self.rho_d.download()[..., :3], self.rho_s.download()[..., :3]
 
     def _release_textures(self) -> None:
         for tex in (self.rho_d, self._sigma):
@@ -264,6 +355,7 @@ class GpuHybrid:
     def release(self) -> None:
         self._release_textures()
         self.diffusion.release()
+        self.source.release()
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()

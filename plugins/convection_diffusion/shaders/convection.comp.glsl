@@ -3,7 +3,9 @@
 // Mirrors plugins/convection_diffusion/cpu.py:convection_step formula by formula (the numpy path
 // is the test oracle). Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
-// Defines (inserted by the loader): VV_CHANNELS 1, 2 or 4 (one light per channel of vv_rhoIn).
+// Defines (inserted by the loader): VV_CHANNELS 1, 2 or 4 (one light per channel of vv_rhoIn);
+// VV_STEADY 1: a sweep of the steady state instead (vtkvol/engine/diffusion.py:
+// steady_convection_sweep): nx + ny + nz sweeps give the converged light, one propagation pass.
 // Grid: the data's voxel centres, index (x, y, z); vv_origin/vv_spacing in µm (dataset space).
 // Per light l: vv_lightVec[l].xyz = the direction the light travels (directional, unit) or its
 // position (point, µm), .w = 1 for point lights.
@@ -43,6 +45,19 @@ void main()
     bool point = vv_lightVec[l].w > 0.5;
     vec3 d = pos - vv_lightVec[l].xyz;
     vec3 u = point ? d / max(length(d), 1e-12) : vv_lightVec[l].xyz;
+#if VV_STEADY
+    float upwindSum = 0.0;
+    float cSum = 0.0;
+    for (int a = 0; a < 3; ++a)
+    {
+      ivec3 e = ivec3(0);
+      e[a] = 1;
+      float c = abs(u[a]) * vv_ratio[a];
+      upwindSum += c * (u[a] > 0.0 ? rhoAt(p - e, l) : rhoAt(p + e, l));
+      cSum += c;
+    }
+    outRho[l] = keep * 0.5 * upwindSum / (1.0 - keep * (1.0 - 0.5 * cSum));
+#else
     float flow = 0.0;
     for (int a = 0; a < 3; ++a)
     {
@@ -53,6 +68,7 @@ void main()
       flow += c * (rho[l] - upwind);
     }
     outRho[l] = keep * (rho[l] - 0.5 * flow);
+#endif
     if (point && dot(d, d) <= vv_sourceRadius2) outRho[l] = 1.0;
   }
   imageStore(vv_rhoOut, p, outRho);

@@ -21,12 +21,21 @@ uniform uint vv_seed;
 uniform int vv_numLights;
 uniform vec4 vv_lightVec[4];    // xyz: direction towards the light (unit) or position; w = point
 uniform vec3 vv_color[4];
+uniform vec4 vv_falloff[4];     // position (µm) and d0 (µm; 0 = none): irradiance * (d0/r)^2
 
 uint pcg(uint v)
 {
   uint state = v * 747796405u + 2891336453u;
   uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
   return (word >> 22u) ^ word;
+}
+
+// Inverse-square fall-off of light l at pos (1 without), as the host's vv_lightColor.
+float falloffAt(int l, vec3 pos)
+{
+  if (vv_falloff[l].w <= 0.0) return 1.0;
+  vec3 r = pos - vv_falloff[l].xyz;
+  return vv_falloff[l].w * vv_falloff[l].w / max(dot(r, r), 1e-12);
 }
 
 float uniformDraw(uint key, uint draw)
@@ -116,13 +125,14 @@ void main()
 #if VV_ALL_LIGHTS
   for (int l = 0; l < vv_numLights; ++l)
   {
-    sampleRGB += track(key, pos, l, 1u + 4096u * uint(l)) * vv_color[l];
+    sampleRGB += (track(key, pos, l, 1u + 4096u * uint(l)) * 1.0 * falloffAt(l, pos)) * vv_color[l];
   }
 #else
   if (vv_numLights > 0)
   {
     int l = min(int(uniformDraw(key, 0u) * float(vv_numLights)), vv_numLights - 1);
-    sampleRGB = (track(key, pos, l, 1u + 4096u * uint(l)) * float(vv_numLights)) * vv_color[l];
+    sampleRGB = (track(key, pos, l, 1u + 4096u * uint(l)) * float(vv_numLights) * falloffAt(l, pos))
+      * vv_color[l];
   }
 #endif
   vec3 mean = imageLoad(vv_direct, p).rgb;

@@ -1,0 +1,620 @@
+"""Grid diffusion of light, shared by the multiple-scattering techniques (seed 003's
+convection–diffusion "KD" and hybrid diffusion "HD"; docs/multiple-scattering.md): the data grid,
+extinction, the explicit diffusion step of the published model, the single-scattering-source
+diffusion solve of the ``"source"`` model — each with its numpy twin and its GPU driver — and
+the technique base class that shows a direct and a scattered texture.
+
+Arrays are ``[z, y, x]`` (``[..., 3]`` for RGB) float32 on the data's voxel centres; lengths are
+µm (dataset space), extinction coefficients per µm.
+
+The ``"source"`` model (docs/multiple-scattering.md, "The source model") solves for the collided
+fluence φ (the scattered light the host adds as ``vv_irradiance``)
+
+    −∇·(D ∇φ) + σ_a φ = σ_s E_0,   σ_s = a·σ_t, σ_a = (1 − a)·σ_t,
+    D = min(1 / (3 σ_t (1 − a g)), D_MAX_EDGES · Δx_min)
+
+with E_0 the uncollided (direct) light, by cell-centred finite volumes: faces between two medium
+voxels carry the harmonic mean of D; a face to an empty voxel or to the box is a vacuum
+(Marshak) boundary with no incoming diffuse light, outflow J = φ / (2 + Δx/(2D)) — bounded by
+φ/2 whatever D (the flux limit). The matrix is a symmetric M-matrix, so Jacobi sweeps from φ = 0
+rise monotonically to the solution and φ ≥ 0 at every sweep; they stop on the relative residual
+‖σ_s E_0 − Aφ‖ / ‖σ_s E_0‖, not on a sweep count.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+import vtk
+
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
+from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.technique import ComputePath, Technique
+from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
+
+if TYPE_CHECKING:
+    from vtkvol.engine.illuminator import Illuminator
+
+#: α is clamped below 1 before −ln(1 − α) (a fully opaque voxel keeps a finite extinction).
+MAX_OPACITY = 1.0 - 1e-6
+GROUP = (8, 8, 4)  #: work-group size of the diffusion compute shaders
+#: The source model's diffusion coefficient is bounded by this many smallest voxel edges
+#: (thin voxels: 1/(3σ_t) would otherwise grow without bound towards empty space).
+D_MAX_EDGES = 4.0
+#: Voxels whose optical thickness σ_t·Δx_min is below this are empty: no unknown, φ = 0 (light
+#: does not diffuse through vacuum; it leaves through the Marshak boundary instead).
+EMPTY_OPTICAL_THICKNESS = 1e-4
+#: Default stopping tolerance of the source model: relative residual ‖b − Aφ‖/‖b‖.
+DEFAULT_TOLERANCE = _MODEL_TOLERANCE
+
+def extinction(opacity: np.ndarray, unit_distance: float) -> np.ndarray:
+    """σ_t per µm from the TF opacity α (per ``unit_distance`` µm): −ln(1 − α)/u."""
+    alpha = np.clip(np.asarray(opacity, np.float64), 0.0, MAX_OPACITY)
+    return (-np.log1p(-alpha) / unit_distance).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class Grid:
+    """The data grid: ``shape_zyx`` voxels of ``spacing`` (x, y, z) µm, first centre at
+    ``origin`` (x, y, z) µm (dataset space)."""
+
+    shape_zyx: tuple[int, int, int]
+    spacing: tuple[float, float, float]
+    origin: tuple[float, float, float] = (0.0, 0.0, 0.0)
+
+    @property
+    def step(self) -> float:
+        """h: how far (µm) the light front moves per iteration (half the smallest edge)."""
+        return 0.5 * min(self.spacing)
+
+    @property
+    def axis_ratios(self) -> np.ndarray:
+        """Δx_min/Δx_a for a = x, y, z (float32, as the GPU computes with them)."""
+        s = np.asarray(self.spacing, np.float64)
+        return (s.min() / s).astype(np.float32)
+
+    @property
+    def axis_weights(self) -> np.ndarray:
+        """(Δx_min/Δx_a)² for a = x, y, z: the diffusion's per-axis weights (float32)."""
+        return (self.axis_ratios.astype(np.float64) ** 2).astype(np.float32)
+
+    @property
+    def max_lambda(self) -> float:
+        """Stability bound of the explicit diffusion step: 1/(2 Σ w_a)."""
+        return float(1.0 / (2.0 * self.axis_weights.astype(np.float64).sum()))
+
+    def centres(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """x, y, z of every voxel centre (µm), each broadcastable to ``shape_zyx``."""
+        nz, ny, nx = self.shape_zyx
+        ox, oy, oz = self.origin
+        sx, sy, sz = self.spacing
+        return (
+            (ox + sx * np.arange(nx, dtype=np.float64))[None, None, :],
+            (oy + sy * np.arange(ny, dtype=np.float64))[None, :, None],
+            (oz + sz * np.arange(nz, dtype=np.float64))[:, None, None],
+        )
+
+
+@dataclass(frozen=True)
+class LightSource:
+    """A light as the transport sees it (dataset space): ``kind`` "directional" (``vector`` =
+    unit direction towards the light) or "point" (``vector`` = position, µm);
+    ``falloff_distance`` d0 (µm) scales the irradiance by (d0/r)² (0 = no fall-off)."""
+
+    kind: str
+    vector: tuple[float, float, float]
+    falloff_distance: float = 0.0
+
+
+def falloff(grid: Grid, light: LightSource) -> np.ndarray | float:
+    """Inverse-square fall-off (d0/r)² of ``light`` at every voxel centre (float32 ``[z, y, x]``),
+    or 1.0 where the light has none — as the host's ``vv_lightColor`` computes it."""
+    d0 = float(light.falloff_distance)
+    if light.kind != "point" or d0 <= 0.0:
+        return 1.0
+    x, y, z = grid.centres()
+    px, py, pz = light.vector
+    r2 = (x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2
+    return (d0 * d0 / np.maximum(r2, 1e-12)).astype(np.float32)
+
+
+def diffusion_rate(sigma_t: np.ndarray, grid: Grid, albedo: float) -> np.ndarray:
+    """λ per voxel: a·σ_t·Δx_min, clamped to the stability bound."""
+    lam = albedo * sigma_t.astype(np.float64) * min(grid.spacing)
+    return np.minimum(lam, grid.max_lambda).astype(np.float32)
+
+
+def propagation(grid: Grid, light: LightSource) -> np.ndarray:
+    """Unit direction u (x, y, z) in which the light travels, shape ``(3, 1|nz, 1|ny, 1|nx)``."""
+    if light.kind == "point":
+        x, y, z = grid.centres()
+        px, py, pz = light.vector
+        d = [np.broadcast_to(c - p, grid.shape_zyx) for c, p in zip((x, y, z), (px, py, pz),
+                                                                   strict=True)]
+        u = np.stack(d)
+        norm = np.sqrt((u * u).sum(axis=0))
+        return (u / np.maximum(norm, 1e-12)).astype(np.float32)
+    d = -np.asarray(light.vector, np.float64)
+    d /= max(float(np.linalg.norm(d)), 1e-30)
+    return d.astype(np.float32).reshape(3, 1, 1, 1)
+
+
+def source_mask(grid: Grid, light: LightSource) -> np.ndarray | None:
+    """Voxels held at ρ = 1: within one voxel edge of a point light inside the box."""
+    if light.kind != "point":
+        return None
+    x, y, z = grid.centres()
+    px, py, pz = light.vector
+    r2 = (x - px) ** 2 + (y - py) ** 2 + (z - pz) ** 2
+    mask = r2 <= max(grid.spacing) ** 2
+    return mask if mask.any() else None
+
+
+def diffusion_step(total: np.ndarray, rho_s: np.ndarray, lam: np.ndarray,
+                   grid: Grid) -> np.ndarray:
+    """One explicit Euler step of ρ_s' = ρ_s + λ·Σ_a w_a ∂²_a(total); ``total`` and ``rho_s``
+    are ``[..., 3]`` (RGB) or scalar fields; zero flux at the box."""
+    weights = grid.axis_weights
+    lap = np.zeros_like(total)
+    for axis_xyz, array_axis in ((0, 2), (1, 1), (2, 0)):
+        lap += weights[axis_xyz] * (
+            shifted(total, array_axis, +1, fill=None) + shifted(total, array_axis, -1, fill=None)
+            - np.float32(2.0) * total
+        )
+    scale = lam if lap.ndim == lam.ndim else lam[..., None]
+    return (rho_s + scale * lap).astype(np.float32)
+
+
+def shifted(a: np.ndarray, axis: int, offset: int, fill: float | None) -> np.ndarray:
+    """``a`` moved by ``offset`` along ``axis``: out[i] = a[i − offset]. Outside the array:
+    ``fill``, or the edge value (clamp to edge) when ``fill`` is None."""
+    out = np.empty_like(a)
+    n = a.shape[axis]
+    src = [slice(None)] * a.ndim
+    dst = [slice(None)] * a.ndim
+    edge = [slice(None)] * a.ndim
+    if offset > 0:
+        dst[axis], src[axis], edge[axis] = slice(1, n), slice(0, n - 1), slice(0, 1)
+        border = [slice(None)] * a.ndim
+        border[axis] = slice(0, 1)
+    else:
+        dst[axis], src[axis], edge[axis] = slice(0, n - 1), slice(1, n), slice(n - 1, n)
+        border = [slice(None)] * a.ndim
+        border[axis] = slice(n - 1, n)
+    out[tuple(dst)] = a[tuple(src)]
+    out[tuple(border)] = a[tuple(edge)] if fill is None else fill
+    return out
+
+
+def iterations_to_cross(grid: Grid) -> int:
+    """Iterations the light front needs to cross the box's diagonal (h per iteration)."""
+    nz, ny, nx = grid.shape_zyx
+    sx, sy, sz = grid.spacing
+    diagonal = math.sqrt(((nx - 1) * sx) ** 2 + ((ny - 1) * sy) ** 2 + ((nz - 1) * sz) ** 2)
+    return math.ceil(diagonal / grid.step) + 1
+
+
+# -- the "source" model ---------------------------------------------------------------------------
+def source_coefficients(sigma_t: np.ndarray, grid: Grid, albedo: float,
+                        phase_g: float = 0.0) -> np.ndarray:
+    """Per voxel (D µm, σ_a per µm, σ_s per µm, 0) of the source model, ``[z, y, x, 4]``
+    float32; D = 0 marks an empty voxel (no unknown). With an anisotropic phase function the
+    diffusion uses the reduced scattering (1 − g)σ_s (similarity), σ_tr = σ_t(1 − a·g)."""
+    sigma = sigma_t.astype(np.float64)
+    h = min(grid.spacing)
+    inside = sigma * h > EMPTY_OPTICAL_THICKNESS
+    sigma_tr = np.maximum(sigma * (1.0 - albedo * phase_g), 1e-30)
+    d = np.where(inside, np.minimum(1.0 / (3.0 * sigma_tr), D_MAX_EDGES * h), 0.0)
+    out = np.zeros((*sigma.shape, 4), np.float32)
+    out[..., 0] = d
+    out[..., 1] = np.where(inside, (1.0 - albedo) * sigma, 0.0)
+    out[..., 2] = np.where(inside, albedo * sigma, 0.0)
+    return out
+
+
+def source_term(coefficients: np.ndarray, direct: np.ndarray,
+                colors: Sequence[tuple[float, float, float]],
+                falloffs: Sequence[np.ndarray | float]) -> np.ndarray:
+    """q = σ_s · Σ_l colour_l · fall-off_l · direct_l, ``[z, y, x, 3]`` float32: the
+    single-scattering source from the uncollided light (``direct`` ``[lights, z, y, x]``, each
+    0…1 transmittance-like) — the phase function integrates to 1 over the sphere."""
+    e0 = np.zeros((*coefficients.shape[:3], 3), np.float32)
+    for rho, color, f in zip(direct, colors, falloffs, strict=False):
+        e0 += (np.asarray(rho, np.float32) * np.float32(1.0) * f)[..., None] * np.asarray(
+            color, np.float32)
+    return (coefficients[..., 2:3] * e0).astype(np.float32)
+
+
+def jacobi_sweep(phi: np.ndarray, q: np.ndarray, coefficients: np.ndarray,
+                 grid: Grid) -> tuple[np.ndarray, float, float]:
+    """One Jacobi sweep of the source model's system (``phi``, ``q`` ``[z, y, x, 3]``):
+    (new φ, Σ residual² of the old φ, Σ q²). Every coefficient is ≥ 0, so φ ≥ 0 whenever
+    q ≥ 0 and the old φ ≥ 0. ``shaders/source_diffusion.comp.glsl`` is its GPU twin."""
+    d = coefficients[..., 0]
+    inside = d > 0
+    diag = coefficients[..., 1].copy()
+    acc = q.astype(np.float32).copy()
+    two = np.float32(2.0)
+    for axis_xyz, array_axis in ((0, 2), (1, 1), (2, 0)):
+        h = np.float32(grid.spacing[axis_xyz])
+        for offset in (+1, -1):
+            dn = shifted(d, array_axis, offset, fill=0.0)
+            pn = shifted(phi, array_axis, offset, fill=0.0)
+            neighbour = dn > 0
+            with np.errstate(divide="ignore", invalid="ignore"):
+                cond = np.where(neighbour, two * d * dn / (d + dn) / (h * h), np.float32(0.0))
+                leak = np.where(inside & ~neighbour,
+                                np.float32(1.0) / (h * (two + h / (two * d))), np.float32(0.0))
+            diag += (cond + leak).astype(np.float32)
+            acc += cond[..., None] * pn
+    safe = np.where(inside, diag, np.float32(1.0))[..., None]
+    residual = np.where(inside[..., None], acc - safe * phi, np.float32(0.0))
+    new = np.where(inside[..., None], acc / safe, np.float32(0.0)).astype(np.float32)
+    q_in = np.where(inside[..., None], q, np.float32(0.0))
+    return new, float((residual.astype(np.float64) ** 2).sum()), float(
+        (q_in.astype(np.float64) ** 2).sum())
+
+
+def relative_residual(residual2: float, source2: float) -> float:
+    """‖b − Aφ‖/‖b‖ from the sums of squares; 0 when there is no source at all."""
+    return math.sqrt(residual2 / source2) if source2 > 0.0 else 0.0
+
+
+def solve_source(q: np.ndarray, coefficients: np.ndarray, grid: Grid,
+                 tolerance: float = DEFAULT_TOLERANCE, max_sweeps: int = 200000,
+                 phi: np.ndarray | None = None) -> tuple[np.ndarray, int]:
+    """Jacobi sweeps from ``phi`` (default 0) until the relative residual is below
+    ``tolerance``: (φ, sweeps). A reference solve for tests and the bench."""
+    phi = np.zeros_like(q) if phi is None else phi
+    for sweep in range(1, max_sweeps + 1):
+        new, r2, q2 = jacobi_sweep(phi, q, coefficients, grid)
+        if relative_residual(r2, q2) < tolerance:
+            return phi, sweep - 1
+        phi = new
+    return phi, max_sweeps
+
+
+# -- the published model's direct light: one propagation pass ------------------------------------
+def steady_convection_sweep(rho: np.ndarray, sigma_a: np.ndarray, u: np.ndarray, grid: Grid,
+                            source: np.ndarray | None = None) -> np.ndarray:
+    """One sweep of the *steady state* of the split upwind convection (plugins'
+    ``convection_step``): ρ = (1 − σ_a)·½ Σ_a c_a ρ_upwind,a / (1 − (1 − σ_a)(1 − ½ Σ_a c_a)).
+    Each voxel depends only on its upwind neighbours, so ``nx + ny + nz`` sweeps from any start
+    give the converged convected light exactly (a propagation pass, as the shadow volume's)."""
+    ratio = grid.axis_ratios
+    upwind_sum = np.zeros_like(rho)
+    c_sum = np.zeros_like(rho)
+    for axis_xyz, array_axis in ((0, 2), (1, 1), (2, 0)):
+        ua = np.broadcast_to(u[axis_xyz], rho.shape)
+        c = np.abs(ua) * ratio[axis_xyz]
+        before = shifted(rho, array_axis, +1, fill=1.0)
+        after = shifted(rho, array_axis, -1, fill=1.0)
+        upwind_sum += c * np.where(ua > 0, before, after)
+        c_sum += c
+    keep = np.float32(1.0) - sigma_a
+    half = np.float32(0.5)
+    out = keep * half * upwind_sum / (np.float32(1.0) - keep * (np.float32(1.0) - half * c_sum))
+    if source is not None:
+        out[source] = 1.0
+    return out.astype(np.float32)
+
+
+def propagation_sweeps(grid: Grid) -> int:
+    """Sweeps after which :func:`steady_convection_sweep` has converged: the longest upwind
+    chain, nx + ny + nz."""
+    return int(sum(grid.shape_zyx))
+
+
+# -- GPU drivers and the technique base -----------------------------------------------------------
+def light_channels(count: int) -> int:
+    """Texture channels that hold ``count`` lights (1, 2 or 4)."""
+    return 1 if count <= 1 else (2 if count == 2 else 4)
+
+
+class GridScattering(Technique):
+    """What seed 003's two methods share: progressive light on the data grid with a GPU
+    (``ComputePath``) and a numpy path, shown through two textures — the direct light and the
+    scattered light — bound under ``DIRECT``/``SCATTERED``; their counters in ``stats()``."""
+
+    DIRECT: ClassVar[str]
+    SCATTERED: ClassVar[str]
+
+    def __init__(self, host: Illuminator) -> None:
+        super().__init__(host)
+        self._compute = ComputePath(self.NAME, self.make_driver)
+        self._direct: Texture3D | None = None  # numpy path: what the shader samples
+        self._scattered: Texture3D | None = None
+        self._restarts = 0
+        self._backend = ""
+        self._last_ms = 0.0
+
+    def make_driver(self, window: vtk.vtkRenderWindow) -> Any:
+        """The GPU driver (compute programs and textures) of this technique."""
+        raise NotImplementedError
+
+    @property
+    def _gpu(self) -> Any:
+        return self._compute.driver
+
+    def _bind(self, gpu_textures: tuple[Texture3D, Texture3D] | None) -> None:
+        """Bind the GPU path's (direct, scattered) textures, or the numpy path's."""
+        direct, scattered = gpu_textures or (self._direct, self._scattered)
+        assert direct is not None and scattered is not None
+        self.host.bind_texture(self.DIRECT, direct)
+        self.host.bind_texture(self.SCATTERED, scattered)
+
+    def stats(self) -> dict[str, Any]:
+        textures = [self._direct, self._scattered]
+        if self._gpu is not None:
+            textures += self._gpu.textures
+        return {
+            "recomputes": self._restarts,
+            "iterations": self.iteration,
+            "recompute_ms": self._last_ms,
+            "backend": self._backend,
+            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
+        }
+
+    def release(self) -> None:
+        for tex in (self._direct, self._scattered):
+            if tex is not None:
+                tex.release()
+        self._direct = self._scattered = None
+        self._compute.release()
+
+    def _origin(self) -> tuple[float, float, float]:
+        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
+
+
+class GpuDiffusion:
+    """The diffusion step on the GPU (``diffusion.comp.glsl``): ρ_s ping-pongs between two RGBA
+    textures; the direct light comes from a texture of up to four channels weighted by RGB
+    colours. Also used by the hybrid method (seed 003 HD), which shares KD's diffusion."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[int, ComputeProgram] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+        self._rho_s: list[Texture3D] = []
+        self._lam: Texture3D | None = None
+        self._grid = Grid((1, 1, 1), (1.0, 1.0, 1.0))
+        self._channels = 1
+
+    @property
+    def rho_s(self) -> Texture3D:
+        return self._rho_s[0]
+
+    @property
+    def textures(self) -> list[Texture3D]:
+        return [*self._rho_s, *(t for t in (self._lam,) if t)]
+
+    def program(self, channels: int) -> ComputeProgram:
+        prog = self._programs.get(channels)
+        if prog is None:
+            source = compute_source("diffusion.comp.glsl", {"VV_CHANNELS": str(channels)})
+            prog = ComputeProgram(self.render_window, source, "diffusion")
+            self._programs[channels] = prog
+        return prog
+
+    def reset(self, grid: Grid, lam: np.ndarray, channels: int) -> None:
+        """Zero ρ_s on ``grid`` with diffusion rate ``lam``; the direct light will have
+        ``channels`` channels."""
+        self._release_textures()
+        rw = self.render_window
+        empty = np.zeros((*grid.shape_zyx, 4), np.float32)
+        self._rho_s = [Texture3D(rw, grid.shape_zyx, channels=4, data=empty) for _ in range(2)]
+        self._lam = Texture3D(rw, grid.shape_zyx, data=lam)
+        for tex in self.textures:
+            tex.tex.Deactivate()  # created bound to units; image units are separate
+        self._grid, self._channels = grid, channels
+
+    def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+            steps: int) -> None:
+        """``steps`` diffusion steps of Σ_l colors[l]·direct[l] + ρ_s into ρ_s."""
+        GL = gl(self.render_window)
+        nz, ny, nx = self._grid.shape_zyx
+        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
+        flat = [c for color in colors for c in color]
+        flat += [0.0] * (12 - len(flat))
+        prog = self.program(self._channels)
+        program = prog.use()
+        for name, unit in (("vv_direct", 0), ("vv_scatteredIn", 1), ("vv_scatteredOut", 2),
+                           ("vv_lambda", 3)):
+            set_uniform(self._locations, prog, name, unit)
+        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
+        set_uniform(self._locations, prog, "vv_weights", *self._grid.axis_weights.tolist(),
+                    integer=False)
+        set_uniform(self._locations, prog, "vv_numLights", len(colors))
+        program.SetUniform3fv("vv_color", 4, flat)
+        assert self._lam is not None
+        direct.bind_image(0, "read")
+        self._lam.bind_image(3, "read")
+        for _ in range(steps):
+            self._rho_s[0].bind_image(1, "read")
+            self._rho_s[1].bind_image(2, "write")
+            prog.dispatch(groups)
+            self._rho_s.reverse()
+        unbind_images(GL, 4)
+        prog.done()
+
+    def _release_textures(self) -> None:
+        for tex in self.textures:
+            tex.release()
+        self._rho_s = []
+        self._lam = None
+
+    def release(self) -> None:
+        self._release_textures()
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._locations.clear()
+
+
+class GpuSourceDiffusion:
+    """The source model on the GPU (``source_diffusion.comp.glsl``): φ ping-pongs between two
+    RGBA textures; the per-voxel coefficients are one RGBA texture; each sweep also writes the
+    per-voxel squared residual and source, read back (once per frame) for the stopping test."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[int, ComputeProgram] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+        self._phi: list[Texture3D] = []
+        self._coefficients: Texture3D | None = None
+        self._residual: Texture3D | None = None
+        self._grid = Grid((1, 1, 1), (1.0, 1.0, 1.0))
+        self._channels = 1
+        self._falloff: list[float] = [0.0] * 16
+
+    @property
+    def phi(self) -> Texture3D:
+        return self._phi[0]
+
+    @property
+    def textures(self) -> list[Texture3D]:
+        return [*self._phi, *(t for t in (self._coefficients, self._residual) if t)]
+
+    def program(self, channels: int) -> ComputeProgram:
+        prog = self._programs.get(channels)
+        if prog is None:
+            source = compute_source("source_diffusion.comp.glsl", {"VV_CHANNELS": str(channels)})
+            prog = ComputeProgram(self.render_window, source, "source diffusion")
+            self._programs[channels] = prog
+        return prog
+
+    def reset(self, grid: Grid, coefficients: np.ndarray, channels: int,
+              lights: Sequence[LightSource]) -> None:
+        """Zero φ on ``grid``; the direct light will have ``channels`` channels, one per light of
+        ``lights`` (their fall-off applies to the source)."""
+        self._release_textures()
+        rw = self.render_window
+        shape = grid.shape_zyx
+        empty = np.zeros((*shape, 4), np.float32)
+        self._phi = [Texture3D(rw, shape, channels=4, data=empty) for _ in range(2)]
+        self._coefficients = Texture3D(rw, shape, channels=4, data=coefficients)
+        self._residual = Texture3D(rw, shape, channels=2,
+                                   data=np.zeros((*shape, 2), np.float32))
+        for tex in self.textures:
+            tex.tex.Deactivate()  # created bound to units; image units are separate
+        self._grid, self._channels = grid, channels
+        flat: list[float] = []
+        for light in lights:
+            d0 = float(light.falloff_distance) if light.kind == "point" else 0.0
+            flat += [*(float(v) for v in light.vector), d0]
+        self._falloff = flat + [0.0] * (16 - len(flat))
+
+    def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+            sweeps: int) -> None:
+        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``."""
+        GL = gl(self.render_window)
+        grid = self._grid
+        nz, ny, nx = grid.shape_zyx
+        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
+        flat = [c for color in colors for c in color]
+        flat += [0.0] * (12 - len(flat))
+        prog = self.program(self._channels)
+        program = prog.use()
+        for name, unit in (("vv_direct", 0), ("vv_coefficients", 1), ("vv_phiIn", 2),
+                           ("vv_phiOut", 3), ("vv_residual", 4)):
+            set_uniform(self._locations, prog, name, unit)
+        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
+        set_uniform(self._locations, prog, "vv_spacing", *grid.spacing, integer=False)
+        set_uniform(self._locations, prog, "vv_origin", *grid.origin, integer=False)
+        set_uniform(self._locations, prog, "vv_numLights", len(colors))
+        program.SetUniform3fv("vv_color", 4, flat)
+        program.SetUniform4fv("vv_falloff", 4, self._falloff)
+        assert self._coefficients is not None and self._residual is not None
+        direct.bind_image(0, "read")
+        self._coefficients.bind_image(1, "read")
+        self._residual.bind_image(4, "write")
+        for _ in range(sweeps):
+            self._phi[0].bind_image(2, "read")
+            self._phi[1].bind_image(3, "write")
+            prog.dispatch(groups)
+            self._phi.reverse()
+        unbind_images(GL, 5)
+        prog.done()
+
+    def residual(self) -> tuple[float, float]:
+        """(Σ residual², Σ source²) of the last sweep's starting φ."""
+        assert self._residual is not None
+        r = self._residual.download().astype(np.float64)
+        return float(r[..., 0].sum()), float(r[..., 1].sum())
+
+    def _release_textures(self) -> None:
+        for tex in self.textures:
+            tex.release()
+        self._phi = []
+        self._coefficients = self._residual = None
+
+    def release(self) -> None:
+        self._release_textures()
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._locations.clear()
+
+
+class GpuFieldDiffusion:
+    """The published model's explicit diffusion of each light's own field
+    (``field_diffusion.comp.glsl``), from one texture into another of the same format."""
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        self.render_window = render_window
+        self._programs: dict[int, ComputeProgram] = {}
+        self._locations: dict[tuple[int, str], int] = {}
+
+    def run(self, field_in: Texture3D, field_out: Texture3D, lam: Texture3D, grid: Grid,
+            channels: int) -> None:
+        """One step ``field_out = field_in + λ ∇²field_in`` (zero flux at the box)."""
+        prog = self._programs.get(channels)
+        if prog is None:
+            source = compute_source("field_diffusion.comp.glsl", {"VV_CHANNELS": str(channels)})
+            prog = ComputeProgram(self.render_window, source, "field diffusion")
+            self._programs[channels] = prog
+        GL = gl(self.render_window)
+        nz, ny, nx = grid.shape_zyx
+        prog.use()
+        for name, unit in (("vv_fieldIn", 0), ("vv_fieldOut", 1), ("vv_lambda", 2)):
+            set_uniform(self._locations, prog, name, unit)
+        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
+        set_uniform(self._locations, prog, "vv_weights", *grid.axis_weights.tolist(),
+                    integer=False)
+        field_in.bind_image(0, "read")
+        field_out.bind_image(1, "write")
+        lam.bind_image(2, "read")
+        prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2])))
+        unbind_images(GL, 3)
+        prog.done()
+
+    def release(self) -> None:
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+        self._locations.clear()
+
+
+def set_uniform(cache: dict[tuple[int, str], int], prog: ComputeProgram, name: str,
+                *values: float, integer: bool = True) -> None:
+    """Set a uniform of the bound compute program; a missing one is an error (a renamed or
+    optimised-away uniform must not be silently ignored)."""
+    GL = gl(prog.render_window)
+    handle = int(prog.prog.GetHandle())
+    loc = cache.get((handle, name))
+    if loc is None:
+        loc = int(GL.glGetUniformLocation(handle, name))
+        if loc < 0:
+            raise GLUnavailableError(f"compute shader {prog.name!r} has no uniform {name!r}")
+        cache[(handle, name)] = loc
+    getattr(GL, f"glUniform{len(values)}{'i' if integer else 'f'}")(loc, *values)
+
+
+def unbind_images(GL: Any, units: int) -> None:
+    """Detach image units 0…units−1 (a texture left bound there stays referenced)."""
+    for unit in range(units):
+        GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)

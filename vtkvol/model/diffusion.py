@@ -1,0 +1,33 @@
+"""The declared parameters both grid-diffusion techniques (convection–diffusion and hybrid
+diffusion) share: which diffusion model runs and when the source model stops. No VTK here;
+the models themselves are in :mod:`vtkvol.engine.diffusion` and docs/multiple-scattering.md."""
+
+from __future__ import annotations
+
+from vtkvol.model.params import Invalidates, Param
+
+#: The models, the default first.
+DIFFUSION_MODELS = ("source", "published")
+#: The source model's stopping tolerance: relative residual ‖b − Aφ‖/‖b‖.
+DEFAULT_TOLERANCE = 1e-4
+
+
+def diffusion_model_params(invalidates: Invalidates) -> tuple[Param, ...]:
+    """``diffusion_model`` and ``tolerance``, restarting the accumulation (``invalidates``)."""
+    return (
+        Param(
+            "diffusion_model", "source", "Diffusion model",
+            "source: the scattered light solves a diffusion equation with the single-scattering "
+            "source σ_s·E_direct and absorption σ_a, positive and stopped by the residual "
+            "tolerance; published: seed 003 as written (eq. 7 split into convection with "
+            "absorption and explicit diffusion), for comparison.",
+            kind="choice", choices=DIFFUSION_MODELS, invalidates=invalidates, uniform=False,
+            choice_labels=("Single-scattering source", "As published (seed 003)"),
+        ),
+        Param(
+            "tolerance", DEFAULT_TOLERANCE, "Tolerance",
+            "Source model: the scattered light is final once the relative residual of its "
+            "equation is below this.",
+            kind="float", range=(1e-8, 0.1), invalidates=invalidates, uniform=False,
+        ),
+    )
