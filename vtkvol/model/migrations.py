@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 7
+VERSION = 8
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -200,8 +200,22 @@ def _v6_to_v7(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v7_to_v8(raw: dict[str, Any]) -> dict[str, Any]:
+    """v7 → v8: ``render`` gained ``exposure``, ``auto_exposure`` and ``fill``, filled with 1,
+    off and 0: no exposure change and no fill light, which is how v7 rendered (the same
+    image). New sessions get the new defaults (automatic exposure, a little fill)."""
+    out = copy.deepcopy(raw)
+    out["version"] = 8
+    scene = out.get("scene")
+    if isinstance(scene, dict) and isinstance(scene.get("render"), dict):
+        scene["render"].setdefault("exposure", 1.0)
+        scene["render"].setdefault("auto_exposure", False)
+        scene["render"].setdefault("fill", 0.0)
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
-                                    4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7}
+                                    4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 
