@@ -150,6 +150,8 @@ def rich_model() -> SceneModel:
             ambient=0.1, specular_power=64.0, opacity_unit_distance=2.0,
             background=(1.0, 1.0, 1.0), albedo=0.8, phase_g=0.3, interpolation="corrected",
             empty_space_skipping=False, multichannel_lighting="shared",
+            # What files before v9 rendered with (no automatic exposure, no fill light).
+            exposure=1.0, auto_exposure=False, fill=0.0,
         ),
         overlays=Overlays(scale_bar=True, orientation_axes=True, bounding_box=True,
                           color_legend=True, slice_planes=True),
@@ -460,7 +462,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 8)"),
+         "(format version 99; this version reads up to 9)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -875,7 +877,7 @@ def test_migrate_v6_to_v7_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[6](raw)
     assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[7](out)
+    assert migrate(raw) == MIGRATIONS[8](MIGRATIONS[7](out))
     # v6 lit every channel with its own normal: the file renders as it did.
     assert out["scene"]["render"]["multichannel_lighting"] == "per_channel"
     assert raw == untouched
@@ -895,7 +897,7 @@ def test_migrate_v7_to_v8_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[7](raw)
     assert out == load_fixture("v7_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == MIGRATIONS[8](out)
     # VTK's ray caster drew every v7 volume: the file renders as it did.
     assert out["scene"]["render"]["renderer"] == "raycast"
     assert raw == untouched
@@ -908,9 +910,27 @@ def test_v7_file_reads_without_warnings_as_it_was_shown() -> None:
     assert _same_except_volume(session.model, rich_model())
 
 
+def test_migrate_v8_to_v9_matches_fixture() -> None:
+    raw = load_fixture("v8_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[8](raw)
+    assert out == load_fixture("v8_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # v8 had no exposure and no fill light: the file renders as it did.
+    render = out["scene"]["render"]
+    assert (render["exposure"], render["auto_exposure"], render["fill"]) == (1.0, False, 0.0)
+    assert raw == untouched
+
+
+def test_v8_file_reads_without_warnings_as_it_was_shown() -> None:
+    session = read_session(FIXTURES / "v8_complete.vtkvol.json")
+    assert session.warnings == []
+    assert _same_except_volume(session.model, rich_model())
+
+
 @pytest.mark.parametrize("value", ["pathtracer", "Slicing", 2, None])
 def test_a_session_with_a_bad_renderer_is_refused_in_one_line(tmp_path, value) -> None:
-    doc = load_fixture("v8_complete.vtkvol.json")
+    doc = load_fixture("v9_complete.vtkvol.json")
     doc["scene"]["render"]["renderer"] = value
     path = tmp_path / "v.vtkvol.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
@@ -931,7 +951,7 @@ def test_a_session_with_the_path_tracer_round_trips(tmp_path) -> None:
 @pytest.mark.parametrize("value", ["Shared", "both", 1, None])
 def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_path, value
                                                                            ) -> None:
-    doc = load_fixture("v8_complete.vtkvol.json")
+    doc = load_fixture("v9_complete.vtkvol.json")
     doc["scene"]["render"]["multichannel_lighting"] = value
     path = tmp_path / "v.vtkvol.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
@@ -943,7 +963,7 @@ def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_p
 
 
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v8_complete.vtkvol.json")
+    doc = load_fixture("v9_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -973,8 +993,8 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
 
 
 def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v8 file must keep reading: a guard against accidental format changes."""
-    session = read_session(FIXTURES / "v8_complete.vtkvol.json")
+    """The checked-in v9 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v9_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
@@ -994,8 +1014,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 9; this version reads up to 8"):
-        migrate({"format": FORMAT, "version": 9})
+    with pytest.raises(ValueError, match="format version 10; this version reads up to 9"):
+        migrate({"format": FORMAT, "version": 10})
 
 
 @pytest.mark.parametrize(

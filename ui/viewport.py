@@ -34,6 +34,7 @@ This is the only module of the app that talks to VTK (style-anchors §4 items 11
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -93,6 +94,9 @@ class ViewWidget(QtInteractor):
         self.hold_blank = False
         self.can_reuse_frame = all(hasattr(self, name)
                                    for name in ("_blit", "_RenderWindow", "_in_paint"))
+        #: Called in a paint that renders, just before the frame, with the context current
+        #: (the viewport measures the automatic exposure there).
+        self.before_frame: Callable[[], None] | None = None
 
     def initializeGL(self) -> None:
         super().initializeGL()
@@ -113,6 +117,8 @@ class ViewWidget(QtInteractor):
             self._show_last_frame(rw)
             return
         self.needs_render = False
+        if self.before_frame is not None and rw is not None and rw.GetReadyForRendering():
+            self.before_frame()
         super().paintGL()
 
     def _show_last_frame(self, rw: vtk.vtkRenderWindow) -> None:
@@ -311,6 +317,7 @@ class Viewport(QWidget):
         layout.setContentsMargins(0, 0, 0, 0)
         # auto_update=False: no 5 Hz timer; this widget renders only when asked (§4 item 12).
         self.plotter = ViewWidget(self, auto_update=False)
+        self.plotter.before_frame = self._before_frame
         self.plotter.setAcceptDrops(False)  # dropped files go to the main window, not pyvista
         layout.addWidget(self.plotter)
         self.setMinimumSize(160, 120)
@@ -505,6 +512,17 @@ class Viewport(QWidget):
                 f"{label} cancelled: showing local shading. Choose it again under "
                 "Illumination to compute it.")
         return True
+
+    def _before_frame(self) -> None:
+        """A full-quality frame is about to render: measure the automatic exposure first if
+        the light changed (two coarse frames, not shown; not while the view moves)."""
+        scene = self.scene
+        if self._closed or scene is None or scene.interactive:
+            return
+        try:
+            scene.update_exposure()
+        except Exception:  # a failed measurement keeps the last exposure; the view must draw
+            logging.getLogger(__name__).exception("automatic exposure failed")
 
     def _on_frame_start(self, *_: Any) -> None:
         self._frame_start = time.perf_counter()

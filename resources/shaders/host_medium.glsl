@@ -10,7 +10,9 @@
 //   (vv_phaseG; g = 0 is isotropic, 4pi p = 1), theta_i: angle between the light's propagation
 //   direction (-l_i) and the direction to the viewer, S: in-scattered irradiance from the
 //   technique (multiple scattering), 0 by default; the bracket is clamped at 0. ka comes from the
-//   vtkVolumeProperty.
+//   vtkVolumeProperty. The bracket also holds the sky fill F (vv_fill, never attenuated), and C
+//   is multiplied by the exposure (vv_exposure). With vv_exposureProbe = 1: T_i = A = 1, S = 0
+//   (the automatic exposure's reference, vtkvol/engine/exposure.py).
 
 //@inject //VTK::ComputeLighting::Dec pre before
 // 4pi times the Henyey-Greenstein phase function: 1 for g = 0, normalised over the sphere.
@@ -24,16 +26,19 @@ vec3 vv_shade_medium(vec3 albedo, int c)
 {
   vec3 posDS = vv_texToDataset(g_dataPos);
   vec3 v = normalize(in_eyePosObjs[0].xyz - posDS);
-  vec3 light = in_ambient[c] * vec3(vv_ambient_visibility(g_dataPos, vec3(0.0)));
+  bool probe = vv_exposureProbe != 0;
+  vec3 light = in_ambient[c]
+    * vec3(probe ? 1.0 : vv_ambient_visibility(g_dataPos, vec3(0.0))) + vec3(vv_fill);
   for (int i = 0; i < vv_numLights; ++i)
   {
     vec3 l = vv_directionToLight(i, posDS);
-    light += vv_light_transmittance_rgb(i, g_dataPos, l) * vv_lightColor(i, posDS)
-      * vv_phase4pi(dot(-l, v), vv_phaseG);
+    vec3 transmittance = probe ? vec3(1.0) : vv_light_transmittance_rgb(i, g_dataPos, l);
+    light += transmittance * vv_lightColor(i, posDS) * vv_phase4pi(dot(-l, v), vv_phaseG);
   }
   // Diffusion-type techniques hand back scattered light that can be negative where it moves
   // light away from a peak; the total received is never negative.
-  return vv_albedo * albedo * max(light + vv_irradiance(g_dataPos), vec3(0.0));
+  vec3 scattered = probe ? vec3(0.0) : vv_irradiance(g_dataPos);
+  return vv_exposure * vv_albedo * albedo * max(light + scattered, vec3(0.0));
 }
 
 //@inject //VTK::ComputeLighting::Exit post replace

@@ -344,6 +344,29 @@ class LightsDock(ModelDock):
         lights_layout.addLayout(form)
         layout.addWidget(lights_box)
 
+        # Exposure and fill (render settings): how bright the lit view is, for every method.
+        exposure_box = QGroupBox("Exposure")
+        exposure_form = QFormLayout(exposure_box)
+        self.exposure = number_box(minimum=0.05, maximum=16, decimals=2, step=0.1, suffix="×",
+                                   object_name="render_exposure",
+                                   tooltip="Brightness factor on the lit colour (1 = as lit). "
+                                           "With Automatic on, it multiplies the automatic "
+                                           "factor")
+        self.auto_exposure = QCheckBox("Automatic")
+        self.auto_exposure.setObjectName("render_auto_exposure")
+        self.auto_exposure.setToolTip(
+            "Shadows and ambient occlusion take light away: keep the view about as bright as "
+            "with local shading (the exposure rises, at most 4×; shadowed parts stay darker)")
+        self.fill = number_box(minimum=0, maximum=1, decimals=2, step=0.05,
+                               object_name="render_fill",
+                               tooltip="Sky fill: light from all around that no shadow or "
+                                       "occlusion takes away, so shadowed parts are not black "
+                                       "(0 = none)")
+        exposure_form.addRow("Exposure", self.exposure)
+        exposure_form.addRow("", self.auto_exposure)
+        exposure_form.addRow("Fill light", self.fill)
+        layout.addWidget(exposure_box)
+
         method_box = QGroupBox("Illumination")
         method_layout = QVBoxLayout(method_box)
         self.method = QComboBox()
@@ -437,6 +460,12 @@ class LightsDock(ModelDock):
                      lambda v: setattr(self.model.render, "albedo", float(v)))
         b.connect_qt(self.phase_g.valueChanged,
                      lambda v: setattr(self.model.render, "phase_g", float(v)))
+        b.connect_qt(self.exposure.valueChanged,
+                     lambda v: setattr(self.model.render, "exposure", float(v)))
+        b.connect_qt(self.auto_exposure.toggled,
+                     lambda on: setattr(self.model.render, "auto_exposure", bool(on)))
+        b.connect_qt(self.fill.valueChanged,
+                     lambda v: setattr(self.model.render, "fill", float(v)))
         b.connect_qt(self.method.currentIndexChanged, self._on_method)
         b.connect_qt(self.renderer.currentIndexChanged,
                      lambda i: setattr(self.model.render, "renderer", self.renderer.itemData(i)))
@@ -609,12 +638,15 @@ class LightsDock(ModelDock):
         if touches(paths, "render") or touches(paths, "lights") or touches(paths,
                                                                            "illumination"):
             self._show_renderer()
+        if any(touches(paths, "render", name) for name in ("exposure", "auto_exposure", "fill")):
+            self._show_exposure()
 
     def refresh(self) -> None:
         self._show_lights()
         self._show_illumination()
         self._show_material()
         self._show_renderer()
+        self._show_exposure()
 
     def _show_renderer(self) -> None:
         """The chosen renderer, each choice greyed with its reason where the scene's method,
@@ -633,6 +665,13 @@ class LightsDock(ModelDock):
         spec = self.technique()
         self.material_box.setVisible(self.model.render.renderer == "path_tracer" or (
             spec is not None and spec.lighting == "medium"))
+
+    def _show_exposure(self) -> None:
+        render = self.model.render
+        with signals_blocked(self.exposure, self.auto_exposure, self.fill):
+            self.exposure.setValue(render.exposure)
+            self.auto_exposure.setChecked(render.auto_exposure)
+            self.fill.setValue(render.fill)
 
     def _show_lights(self) -> None:
         lights = self.model.lights

@@ -245,14 +245,21 @@ def settled_frame(rw: vtk.vtkRenderWindow, scene: VolumeScene, *, max_seconds: f
                   retry_failed: bool = True) -> tuple[np.ndarray, float | None]:
     """Render one frame as users see it once the view settles: a technique that failed to
     build shows local shading in a second frame (``retry_failed``: the scene's first frame),
-    a progressive one refines (to ``iterations`` or ``max_seconds``) first. Returns the
+    a progressive one refines (to ``iterations`` or ``max_seconds``) first, and the automatic
+    exposure is measured on the settled light (:meth:`VolumeScene.update_exposure`). Returns the
     ``(h, w, 3)`` uint8 image and the seconds spent refining (None: nothing to refine)."""
     image = grab(rw)
     illuminator = scene.illuminator
     if retry_failed and illuminator is not None and illuminator.failed_method is not None:
         image = grab(rw)  # the failed build showed nothing; this frame is local shading
-    if illuminator is None or not illuminator.wants_frame:
-        return image, None
-    t0 = time.perf_counter()
-    illuminator.converge(max_seconds=max_seconds, iterations=iterations)
-    return grab(rw, render=False), time.perf_counter() - t0
+    refining_s = None
+    if illuminator is not None and illuminator.wants_frame:
+        t0 = time.perf_counter()
+        illuminator.converge(max_seconds=max_seconds, iterations=iterations)
+        image = grab(rw, render=False)
+        refining_s = time.perf_counter() - t0
+    if scene.update_exposure():
+        assert illuminator is not None
+        with illuminator.holding_still():
+            image = grab(rw)  # the same light, nothing refined: only the exposure differs
+    return image, refining_s

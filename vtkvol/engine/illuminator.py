@@ -228,6 +228,10 @@ class Illuminator:
         self._closed = False
         self._albedo = 1.0
         self._phase_g = 0.0
+        self._exposure = 1.0  # the factor on the shaded colour (manual × automatic)
+        self._fill = 0.0
+        self._probe = False  # frames lit as local shading (exposure.measure_auto_exposure)
+        self._held = False  # frames keep what is installed (holding_still)
         self._interpolation = "trilinear"
         self._skip_empty = True
         self._multichannel_lighting = "per_channel"
@@ -496,6 +500,60 @@ class Illuminator:
             if phase_g != self._phase_g:
                 self._phase_g = float(phase_g)
                 self._changes.invalidates |= Invalidates.ACCUMULATION
+
+    @property
+    def exposure(self) -> float:
+        """The factor on the shaded colour (1 = as lit)."""
+        return self._exposure
+
+    @property
+    def fill(self) -> float:
+        """Strength of the unshadowed sky fill (0…1; 0 = none)."""
+        return self._fill
+
+    def set_exposure(self, exposure: float | None = None, fill: float | None = None) -> None:
+        """The shaded colour's ``exposure`` factor (> 0) and the sky ``fill`` strength (0…1):
+        per-frame uniforms, nothing is recomputed (they apply to frames held still too)."""
+        if exposure is not None:
+            if not (math.isfinite(exposure) and exposure > 0.0):
+                raise ValueError(f"exposure must be a finite number > 0, not {exposure!r}")
+            self._exposure = float(exposure)
+        if fill is not None:
+            if not (math.isfinite(fill) and 0.0 <= fill <= 1.0):
+                raise ValueError(f"fill must lie in 0…1, not {fill!r}")
+            self._fill = float(fill)
+        self._upload_exposure()
+
+    def _upload_exposure(self) -> None:
+        fu = self.shader_property.GetFragmentCustomUniforms()
+        fu.SetUniformf("vv_exposure", 1.0 if self._probe else self._exposure)
+        fu.SetUniformf("vv_fill", self._fill)
+        fu.SetUniformi("vv_exposureProbe", int(self._probe))
+
+    @contextlib.contextmanager
+    def holding_still(self) -> Iterator[None]:
+        """Frames rendered inside keep what is installed: nothing is prepared, recomputed or
+        refined (as between two chunks of :meth:`precompute`); per-frame uniforms set
+        meanwhile (exposure, fill) still apply."""
+        held, self._held = self._held, True
+        try:
+            yield
+        finally:
+            self._held = held
+
+    @contextlib.contextmanager
+    def lit_as_local(self) -> Iterator[None]:
+        """Frames rendered inside are held still (:meth:`holding_still`) and lit as local
+        shading: every light unobstructed, no ambient occlusion, no in-scattering, exposure 1.
+        The automatic exposure's reference frame (:mod:`vtkvol.engine.exposure`)."""
+        with self.holding_still():
+            self._probe = True
+            self._upload_exposure()
+            try:
+                yield
+            finally:
+                self._probe = False
+                self._upload_exposure()
 
     @property
     def interpolation(self) -> str:
@@ -1286,9 +1344,10 @@ class Illuminator:
         self._frame_specs = self._compute_light_specs()
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
-        if self._stepping:
+        if self._stepping or self._held:
             # A repaint between two chunks of precompute(): the technique is half-way, so the
-            # frame keeps what was installed and bound before (changes wait for later).
+            # frame keeps what was installed and bound before (changes wait for later). The
+            # same for frames held still on purpose (holding_still).
             self._on_draw_end()
             return
         self._ensure_technique()
@@ -1698,6 +1757,7 @@ class Illuminator:
             packed[base + 8] = spec.falloff_distance
         fu.SetUniformi("vv_numLights", len(specs))
         fu.SetUniform1fv("vv_lights", len(packed), packed.tolist())
+        self._upload_exposure()
         if self.spec.lighting == "medium":
             fu.SetUniformf("vv_albedo", self._albedo)
             fu.SetUniformf("vv_phaseG", self._phase_g)
@@ -1791,7 +1851,8 @@ class Illuminator:
         fu = self.shader_property.GetFragmentCustomUniforms()
         for name in list(self._textures):
             self.unbind_texture(name)
-        for name in ("vv_numLights", "vv_lights", "vv_sliceWeightsWidth", *_MEDIUM_UNIFORMS):
+        for name in ("vv_numLights", "vv_lights", "vv_sliceWeightsWidth", *_EXPOSURE_UNIFORMS,
+                     *_MEDIUM_UNIFORMS):
             fu.RemoveUniform(name)
         self._replacements.clear()
         prop = self.volume.GetProperty()
@@ -1819,6 +1880,8 @@ _REPLACED_OUTRIGHT: tuple[tuple[str, shaders.Phase], ...] = (
     ("//VTK::ComputeLighting::Exit", "post"),)
 #: Uniforms and textures the host sets for itself (not for the technique).
 _MEDIUM_UNIFORMS = ("vv_albedo", "vv_phaseG")
+#: Host lighting's exposure, sky fill and local-shading probe switch (both lighting models).
+_EXPOSURE_UNIFORMS = ("vv_exposure", "vv_fill", "vv_exposureProbe")
 #: Lines of VTK 9.7's independent-component composite loop (post replacements, see
 #: host_multichannel.glsl): the classification loop's body becomes one vv_mcClassify call.
 _MULTICHANNEL_LINES = {

@@ -20,6 +20,7 @@ import numpy as np
 import vtk
 from vtk.util.numpy_support import numpy_to_vtk
 
+from vtkvol.engine.exposure import ExposureMeasurement, measure_auto_exposure
 from vtkvol.engine.framing import visible_bounds
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.overlays import SceneOverlays
@@ -34,6 +35,7 @@ from vtkvol.engine.tf2d import (
 from vtkvol.model.defaults import default_channels
 from vtkvol.model.evented import Signal, element_fields, fields_of, subfields, touches
 from vtkvol.model.scene import Channel, SceneModel
+from vtkvol.model.techniques import get_spec
 from vtkvol.model.transfer_function import table_from_1d
 
 if TYPE_CHECKING:
@@ -49,6 +51,11 @@ _BLEND = {
     "isosurface": vtk.vtkVolumeMapper.ISOSURFACE_BLEND,
 }
 #: Fields that are editor state only (the TF editor's displayed-value window): no VTK change.
+#: What the automatic exposure depends on (the model's parts; ``render`` apart from the fields
+#: in _RENDER_NOT_EXPOSURE). Not the camera: the exposure holds while the view turns.
+_EXPOSURE_INPUTS = ("channels", "lights", "illumination", "crop", "slice_weights", "clip_plane")
+_RENDER_NOT_EXPOSURE = frozenset({"exposure", "background", "interactive_sample_distance",
+                                  "interactive_image_factor", "jitter"})
 _EDITOR_ONLY = (("channels", "tf", "window"), ("channels", "tf", "window_range"),
                 ("channels", "tf2d", "gradient_max"))
 #: Per-channel fields that change nothing VTK shows (the channel list's name and tint).
@@ -101,6 +108,10 @@ class VolumeScene:
         self._interactive = False
         self._syncing_camera = False
         self.illuminator: Illuminator | None = None
+        #: The automatic exposure's last factor (1 = none), and its measurement.
+        self.auto_exposure_factor = 1.0
+        self.exposure_measurement: ExposureMeasurement | None = None
+        self._exposure_stale = True
         #: Emits one user-facing message when the illumination technique failed (the model's
         #: method has then been set back to what is shown).
         self.error = Signal()
@@ -152,6 +163,7 @@ class VolumeScene:
         self.data = data
         self._image, self._keepalive = _to_image(data)
         self.mapper.SetInputData(self._image)
+        self._exposure_stale = True
         count_changed = len(self.model.channels) != data.n_channels
         if reset_channels or (reset_channels is None and count_changed):
             with self.model.batch():
@@ -235,6 +247,10 @@ class VolumeScene:
             self._apply_clip_plane()
         if touches(paths, "camera") and not self._syncing_camera:
             self._apply_camera()
+        if any(touches(paths, part) for part in _EXPOSURE_INPUTS) or (
+                touches(paths, "render")
+                and (subfields(paths, "render") or {""}) - _RENDER_NOT_EXPOSURE):
+            self._exposure_stale = True
         if touches(paths, "overlays"):
             self._apply_legend()  # its channel list is kept up to date only while shown
             self.overlays.apply(self.model.overlays)
@@ -285,6 +301,8 @@ class VolumeScene:
             self._apply_shading_constants()
         if every or names & {"albedo", "phase_g"}:
             self._apply_material()
+        if every or names & {"exposure", "auto_exposure", "fill"}:
+            self._apply_exposure()
         if every or "interpolation" in names:
             nearest = render.interpolation == "nearest"
             self.property.SetInterpolationType(
@@ -474,6 +492,41 @@ class VolumeScene:
         if self.illuminator is not None:
             render = self.model.render
             self.illuminator.set_material(albedo=render.albedo, phase_g=render.phase_g)
+
+    def _apply_exposure(self) -> None:
+        if self.illuminator is not None:
+            render = self.model.render
+            factor = self.auto_exposure_factor if render.auto_exposure else 1.0
+            self.illuminator.set_exposure(render.exposure * factor, render.fill)
+
+    def update_exposure(self) -> bool:
+        """Measure the automatic exposure (:mod:`vtkvol.engine.exposure`) if anything it
+        depends on changed since the last measurement (not the camera: the exposure does not
+        flicker while the view turns). Renders two coarse frames that are not shown; call it
+        before a full-quality frame, with the window's context usable. Returns whether the
+        factor changed (the next frame then looks different)."""
+        render = self.model.render
+        if (not render.auto_exposure or not self._exposure_stale or self.illuminator is None
+                or self._image is None or self.renderer.GetRenderWindow() is None):
+            return False
+        self._exposure_stale = False
+        method = self.model.illumination.method
+        if (method == "local" or not render.shade or render.blend_mode != "composite"
+                or get_spec(method).lighting != "surface"):
+            # Nothing takes light away (local shading's own brightness; unshaded or a MIP is
+            # not lit), or a medium technique: its light is its physics (scattering returns
+            # what attenuation takes; measured 0.89–0.99 of local shading's mean brightness,
+            # docs/lighting.md), and its unobstructed medium is no local-shading reference.
+            measurement = None
+            factor = 1.0
+        else:
+            measurement = measure_auto_exposure(self.renderer, self.volume, self.illuminator)
+            factor = measurement.factor
+        self.exposure_measurement = measurement
+        changed = factor != self.auto_exposure_factor
+        self.auto_exposure_factor = factor
+        self._apply_exposure()
+        return changed
 
     def _effective_tf(self, channel: Channel):
         link = channel.tf_linked_to

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 8
+VERSION = 9
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -211,8 +211,36 @@ def _v7_to_v8(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v8_to_v9(raw: dict[str, Any]) -> dict[str, Any]:
+    """v8 → v9: ``render`` gained ``exposure``, ``auto_exposure`` and ``fill``, filled with 1,
+    off and 0: no exposure change and no fill light, which is how v8 rendered (new sessions
+    get automatic exposure and a little fill). The diffusion techniques lost
+    ``convection_extinction`` (their old diffusion is gone, docs/multiple-scattering.md):
+    ``"paper"`` (seed 003's absorption-only convection) becomes ``diffusion_model:
+    "published"``, the other value is dropped (the new default model takes its place)."""
+    out = copy.deepcopy(raw)
+    out["version"] = 9
+    scene = out.get("scene")
+    if not isinstance(scene, dict):
+        return out
+    if isinstance(scene.get("render"), dict):
+        scene["render"].setdefault("exposure", 1.0)
+        scene["render"].setdefault("auto_exposure", False)
+        scene["render"].setdefault("fill", 0.0)
+    illumination = scene.get("illumination")
+    parameters = illumination.get("parameters") if isinstance(illumination, dict) else None
+    if isinstance(parameters, dict):
+        for method in ("convection_diffusion", "hybrid_diffusion"):
+            values = parameters.get(method)
+            if (isinstance(values, dict) and "convection_extinction" in values
+                    and values.pop("convection_extinction") == "paper"):
+                values.setdefault("diffusion_model", "published")
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
-                                    4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8}
+                                    4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8,
+                                    8: _v8_to_v9}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

@@ -279,6 +279,18 @@ class RenderSettings(EventedModel):
     diffuse: float = Field(0.7, ge=0.0, le=2.0)
     specular: float = Field(0.2, ge=0.0, le=2.0)
     specular_power: float = Field(20.0, ge=1.0, le=128.0)
+    #: Exposure: a linear factor on the shaded colour (1 = as lit; 2 = one stop brighter).
+    #: With ``auto_exposure`` it multiplies the automatic factor.
+    exposure: float = Field(1.0, ge=0.05, le=16.0)
+    #: Automatic exposure (docs/lighting.md): shadows, ambient occlusion and attenuation take
+    #: light away, so the engine measures the object's mean brightness with the method's light
+    #: and with the same lights unobstructed (local shading's) on a coarse frame, and raises the
+    #: exposure until the first is 90 % of the second (never lowers it; at most 4×).
+    auto_exposure: bool = True
+    #: Sky fill: light of this strength (× the light colour white, 0…1) reaching every shaded
+    #: sample from all around, never shadowed or occluded, so shadowed parts are darker but
+    #: not black. 0 = none (shadows may go black).
+    fill: float = Field(0.15, ge=0.0, le=1.0)
     isosurface_value: float | None = None  #: data units; None = mid of the first channel's TF
     background: RGB = (0.08, 0.08, 0.1)
     #: Scattering material of ``medium`` techniques (docs/architecture.md, "Lighting models"):

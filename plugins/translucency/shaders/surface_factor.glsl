@@ -8,6 +8,8 @@
 // (n·l := 1, no specular), an oriented one (S = 1) by Blinn–Phong, so S = 1 wherever the
 // gradient is not zero gives the host's image exactly. This technique computes no ambient
 // occlusion and no in-scattered irradiance (the host's defaults, 1 and 0, are written in).
+// Like the host's, the result includes the sky fill (vv_fill) and the exposure (vv_exposure);
+// vv_exposureProbe = 1 lights it unobstructed (the automatic exposure's reference).
 
 //@inject //VTK::ComputeLighting::Dec pre before
 vec3 vv_translucency_shade(vec3 albedo, vec3 gradientDS, int c)
@@ -22,11 +24,12 @@ vec3 vv_translucency_shade(vec3 albedo, vec3 gradientDS, int c)
   vec3 n = oriented ? -gradientDS / glen : vec3(0.0);
   vec3 v = normalize(in_eyePosObjs[0].xyz - posDS);
   if (in_twoSidedLighting && dot(n, v) < 0.0) n = -n;
-  vec3 color = in_ambient[c] * albedo;
+  bool probe = vv_exposureProbe != 0;
+  vec3 color = (in_ambient[c] + vv_fill) * albedo;
   for (int i = 0; i < vv_numLights; ++i)
   {
     vec3 l = vv_directionToLight(i, posDS);
-    vec3 transmittance = vv_light_transmittance_rgb(i, g_dataPos, l);
+    vec3 transmittance = probe ? vec3(1.0) : vv_light_transmittance_rgb(i, g_dataPos, l);
     float ndl = 0.0;
     float spec = 0.0;
     if (oriented)
@@ -38,7 +41,7 @@ vec3 vv_translucency_shade(vec3 albedo, vec3 gradientDS, int c)
     color += transmittance * vv_lightColor(i, posDS)
       * (in_diffuse[c] * mix(1.0, ndl, S) * albedo + S * in_specular[c] * spec);
   }
-  return color;
+  return vv_exposure * color;
 }
 
 //@inject //VTK::ComputeLighting::Exit post after
