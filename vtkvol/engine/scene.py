@@ -512,11 +512,12 @@ class VolumeScene:
         self._exposure_stale = False
         method = self.model.illumination.method
         if (method == "local" or not render.shade or render.blend_mode != "composite"
-                or get_spec(method).lighting != "surface"):
+                or get_spec(method).lighting != "surface" or render.renderer != "raycast"):
             # Nothing takes light away (local shading's own brightness; unshaded or a MIP is
             # not lit), or a medium technique: its light is its physics (scattering returns
             # what attenuation takes; measured 0.89–0.99 of local shading's mean brightness,
-            # docs/lighting.md), and its unobstructed medium is no local-shading reference.
+            # docs/architecture.md), and its unobstructed medium is no local-shading reference.
+            # The renderers beside the ray caster light as local shading or as the medium.
             measurement = None
             factor = 1.0
         else:

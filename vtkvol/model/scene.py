@@ -282,10 +282,11 @@ class RenderSettings(EventedModel):
     #: Exposure: a linear factor on the shaded colour (1 = as lit; 2 = one stop brighter).
     #: With ``auto_exposure`` it multiplies the automatic factor.
     exposure: float = Field(1.0, ge=0.05, le=16.0)
-    #: Automatic exposure (docs/lighting.md): shadows, ambient occlusion and attenuation take
-    #: light away, so the engine measures the object's mean brightness with the method's light
-    #: and with the same lights unobstructed (local shading's) on a coarse frame, and raises the
-    #: exposure until the first is 90 % of the second (never lowers it; at most 4×).
+    #: Automatic exposure (docs/architecture.md, "Lighting models"): shadows, ambient
+    #: occlusion and attenuation take light away, so the engine measures the object's mean
+    #: brightness with the method's light and with the same lights unobstructed (local
+    #: shading's) on a coarse frame, and raises the exposure until the first is 90 % of the
+    #: second (never lowers it; at most 4×). Surface methods on the ray caster only.
     auto_exposure: bool = True
     #: Sky fill: light of this strength (× the light colour white, 0…1) reaching every shaded
     #: sample from all around, never shadowed or occluded, so shadowed parts are darker but

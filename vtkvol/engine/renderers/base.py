@@ -300,12 +300,12 @@ class BesideRenderer:
                 tuple(self.renderer.GetSize()), tuple(self.renderer.GetViewport()))
 
     def content_signature(self) -> tuple:
-        """Data, TF (opacity and colour), crop, clipping, weights, lights, material and the
-        renderer's own settings: a change restarts every renderer."""
+        """Data, TF (opacity and colour), crop, clipping, weights, lights, material, exposure,
+        fill and the renderer's own settings: a change restarts every renderer."""
         prop = self.volume.GetProperty()
         return (self.host.opacity_signature(), self._colour_signature(),
                 tuple(self.host.light_specs()), self.host.albedo, self.host.phase_g,
-                prop.GetMTime(), self.settings_signature())
+                self.host.exposure, self.host.fill, prop.GetMTime(), self.settings_signature())
 
     def settings_signature(self) -> tuple:
         return ()

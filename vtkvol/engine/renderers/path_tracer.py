@@ -62,7 +62,8 @@ uniform vec4 lightVec[4];        // xyz: direction towards the light, or positio
 uniform vec4 lightColour[4];     // rgb: colour x intensity; w: size (rad or µm)
 uniform float lightFalloff[4];   // d0 (µm) or 0
 uniform float albedo;            // single-scattering albedo a
-uniform float ambient;           // host's ambient coefficient ka (ambient visibility 1)
+uniform float ambient;           // host's ka (ambient visibility 1) + its sky fill F
+uniform float exposure;          // host's exposure factor on the radiance
 uniform float g;                 // Henyey-Greenstein asymmetry
 uniform int frame;
 uniform int seed;
@@ -188,7 +189,7 @@ void main() {
     }
   }
   vec4 prev = frame == 0 ? vec4(0.0) : imageLoad(accum, px);
-  imageStore(accum, px, prev + vec4(L, hit));
+  imageStore(accum, px, prev + vec4(L * exposure, hit));
 }
 """
 
@@ -324,7 +325,9 @@ class PathTracer(BesideRenderer):
             "brick": float(BRICK), "useGlobal": int(self.use_global),
             "globalMajorant": self.global_majorant, "numLights": lights["numLights"],
             "albedo": float(self.host.albedo), "g": float(self.host.phase_g),
-            "ambient": float(self.volume.GetProperty().GetAmbient(0)),
+            # The host's medium model: ka·A + F inside the bracket, A = 1, times the exposure.
+            "ambient": float(self.volume.GetProperty().GetAmbient(0)) + self.host.fill,
+            "exposure": float(self.host.exposure),
             "frame": int(self.iteration),
             "maxBounces": 1 if self.scattering == "single" else MAX_BOUNCES,
         })

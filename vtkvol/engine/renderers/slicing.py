@@ -46,6 +46,8 @@ uniform vec3 viewDir;          // unit, dataset space, away from the camera
 uniform float sliceStart;      // dot(viewDir, x) of the first plane (µm)
 uniform float sliceStep;       // µm between planes
 uniform vec4 material;         // ambient, diffuse, specular, specular power
+uniform float fill;            // the host's sky fill (unshadowed, added to the ambient)
+uniform float exposure;        // the host's exposure factor on the lit colour
 uniform int numLights;
 uniform vec4 lightVec[4];      // xyz: towards the light or position; w: 1 = point
 uniform vec3 lightColour[4];
@@ -60,8 +62,8 @@ vec3 normalAt(vec3 p) {
 }
 vec3 lit(vec3 c, vec3 p, vec3 d) {
   vec3 n = normalAt(p);
-  vec3 outc = material.x * c;
-  if (dot(n, n) == 0.0) return c;
+  vec3 outc = (material.x + fill) * c;
+  if (dot(n, n) == 0.0) return exposure * c;
   if (dot(n, d) > 0.0) n = -n;                 // two-sided, as VTK's volume lighting
   for (int i = 0; i < numLights; ++i) {
     vec3 l = lightVec[i].w > 0.5 ? normalize(lightVec[i].xyz - p) : normalize(lightVec[i].xyz);
@@ -70,7 +72,7 @@ vec3 lit(vec3 c, vec3 p, vec3 d) {
     outc += lightColour[i] * (material.y * nl * c
                               + material.z * pow(max(dot(n, hv), 0.0), material.w));
   }
-  return outc;
+  return exposure * outc;
 }
 void main() {
   if (texCoord.x < -1.0) discard;
@@ -161,7 +163,8 @@ class ViewAlignedSlicing(BesideRenderer):
                 "viewDir": tuple(view), "sliceStart": float(s.min()), "sliceStep": step,
                 "material": (prop.GetAmbient(0), prop.GetDiffuse(0), prop.GetSpecular(0),
                              prop.GetSpecularPower(0)),
-                "numLights": len(specs),
+                "numLights": len(specs), "fill": self.host.fill,
+                "exposure": self.host.exposure,
             })
             self._depth.Activate()
             values["depthTex"] = self._depth.GetTextureUnit()
