@@ -34,6 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from vtkvol.model.session import SUFFIX as SESSION_SUFFIX
+from vtkvol.model.session import is_session_path
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -52,7 +55,6 @@ __all__ = [
     "scheduler_address_problem",
 ]
 
-SESSION_SUFFIX = ".vtkvol.json"
 
 #: How long to wait for an existing scheduler to answer before giving up (seconds).
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
@@ -175,7 +177,7 @@ def scheduler_address_problem(address: str) -> str | None:
 
 def _stem(source: str) -> str:
     name = Path(source).name
-    if name.endswith(SESSION_SUFFIX):
+    if is_session_path(name):
         return name[: -len(SESSION_SUFFIX)]
     for suffix in (".ome.tiff", ".ome.tif", ".ome.zarr", ".nii.gz"):
         if name.lower().endswith(suffix):
@@ -248,7 +250,7 @@ def render_job_image(job: RenderJob, on_note: Callable[[str], None] | None = Non
 
     opts = job.options
     model = None
-    if job.source.endswith(SESSION_SUFFIX):
+    if is_session_path(job.source):
         from vtkvol.model.session import load_session_with_data
 
         model, data = load_session_with_data(job.source, time_index=job.time_index,

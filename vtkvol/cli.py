@@ -17,8 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from vtkvol.model.scene import BLEND_ALIASES, BLEND_MODES
-
-SESSION_SUFFIX = ".vtkvol.json"
+from vtkvol.model.session import is_session_path
 
 
 def _add_view_options(parser: argparse.ArgumentParser) -> None:
@@ -268,7 +267,7 @@ def _render_option_problem(args: argparse.Namespace) -> str | None:
     if args.voxel_size is not None:  # positive and finite: checked in main()
         if args.file == "sample":
             return "--voxel-size does not apply to the built-in sample (it has its own)"
-        if args.file.endswith(SESSION_SUFFIX):
+        if is_session_path(args.file):
             return ("--voxel-size does not apply to a session: it keeps its data's voxel size "
                     "(set it in the app with Edit → Voxel size…)")
     if args.time is not None and args.time < 0:
@@ -322,7 +321,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         print(f"vtkvol: {out} exists; pass --overwrite to replace it", file=sys.stderr)
         return 2
     model = None
-    if args.file.endswith(SESSION_SUFFIX):
+    if is_session_path(args.file):
         from vtkvol.model.session import load_session_with_data
         from vtkvol.model.techniques import get_spec
 
