@@ -40,13 +40,14 @@ from vtkvol.engine.opacity_source import OpacitySource
 from vtkvol.engine.precompute import PrecomputeRunner, no_collection
 from vtkvol.engine.shader_builder import ShaderBuild, ShaderBuilder, source_observer, verify
 from vtkvol.engine.smart import SmartStandIn, check_mapper
-from vtkvol.engine.technique import (  # noqa: F401  (LightSpec, Changes, *_steps: re-exported)
+from vtkvol.engine.technique import (  # noqa: F401  (old import path)
     Changes,
     LightSpec,
     Technique,
     run_steps,
     scale_steps,
     technique_class,
+    warn_inert,
 )
 from vtkvol.model.params import Invalidates
 from vtkvol.model.scene import MULTICHANNEL_LIGHTINGS, Light
@@ -141,6 +142,7 @@ class Illuminator:
         self._frame_specs: list[LightSpec] | None = None
         self._check_input(raise_error=True)
         self._values: dict[str, dict[str, Any]] = {}
+        self._inert_warned: set[tuple[str, str]] = set()  # (method, parameter) warned about
         self._technique_cls: type[Technique] = technique_class(method)
         self._technique: Technique | None = None
         self._detach_requested = False
@@ -289,6 +291,7 @@ class Illuminator:
         current = self._values.get(self.method, spec.defaults())
         merged = spec.validate({**current, **values})
         changed = {k for k in merged if merged[k] != current.get(k)}
+        warn_inert(spec, self.method, changed & set(values), merged, self._inert_warned)
         self._values[self.method] = merged
         self._changes.parameters |= changed
         self._changes.invalidates |= spec.invalidations(changed)

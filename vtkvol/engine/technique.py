@@ -136,6 +136,19 @@ def scale_steps(steps: Generator[float, None, Any], lo: float, hi: float
         yield lo + (hi - lo) * fraction
 
 
+def warn_inert(spec: TechniqueSpec, method: str, names: Iterable[str],
+               values: Mapping[str, Any], warned: set[tuple[str, str]]) -> None:
+    """Warn (``UserWarning``, once per method and parameter, remembered in ``warned``) for each
+    of ``names`` that was just changed although its ``applies_when`` is false under
+    ``values``: e.g. ``softness`` while ``softness_from`` is not ``"custom"``. Such a value is
+    kept (it applies once the enabling parameter is set) but changes nothing now."""
+    for name in sorted(names):
+        reason = spec.parameter(name).inert_reason(values)
+        if reason is not None and (method, name) not in warned:
+            warned.add((method, name))
+            warnings.warn(f"vtkvol: {method}: {reason}", UserWarning, stacklevel=3)
+
+
 @runtime_checkable
 class TechniqueHost(Protocol):
     """What a technique may use of its host (:class:`vtkvol.engine.illuminator.Illuminator`
