@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import vtk
@@ -20,9 +20,6 @@ from vtk.util.numpy_support import vtk_to_numpy
 from vtkvol.engine import occupancy
 from vtkvol.engine.gl import Texture3D
 from vtkvol.engine.opacity_source import _node
-
-if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Illuminator
 
 # The failure is logged under the host's name: applications and tests filter on it.
 logger = logging.getLogger("vtkvol.engine.illuminator")
@@ -33,7 +30,9 @@ _ESS_UNIFORMS = ("vv_essTexDims", "vv_essBricks")
 class EmptySpaceSkipper:
     """Occupancy grid, texture and statistics of one illuminated volume."""
 
-    def __init__(self, host: Illuminator) -> None:
+    def __init__(self, host: Any) -> None:
+        # The host (engine/illuminator.py), typed loosely: importing it here would close an
+        # import circle (scripts/import_graph.py).
         self._host = host
         #: (key, per-brick ranges, ms the pass took): computed once per data set.
         self._ranges: tuple[tuple, occupancy.BrickRanges, float] | None = None

@@ -632,21 +632,8 @@ class Illuminator:
 
     @property
     def shaded(self) -> bool:
-        """True when VTK generates its shaded ``computeLighting()`` (where the ``surface``
-        lighting hooks in): shading on for a used component and a composite or isosurface
-        blend. MIP, MinIP, average and additive blends, and unshaded composite, show no
-        surface illumination."""
-        prop = self.volume.GetProperty()
-        scalars = self.image.GetPointData().GetScalars()
-        ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
-        # VTK generates the shaded code when any *used* component is shaded (component 0 for
-        # dependent components).
-        used = range(ncomp) if prop.GetIndependentComponents() else range(1)
-        return self._compositing() and any(prop.GetShade(c) for c in used)
-
-    def _compositing(self) -> bool:
-        blend = self.volume.GetMapper().GetBlendMode()
-        return blend in (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ISOSURFACE_BLEND)
+        """:meth:`ShaderBuilder.shaded`: VTK generates its shaded ``computeLighting()``."""
+        return self.shader_builder.shaded()
 
     def _apply_shade(self) -> None:
         # surface: VTK's shaded variant computes the gradient we shade with; medium: the
@@ -738,7 +725,7 @@ class Illuminator:
         self._upload_weights()
         self.empty_space.update()
         changes, self._changes = self._changes, Changes()
-        if self._deferring(changes):
+        if self.precompute_runner.defers(changes):
             # Keep the previous light: no prepare, the changes wait (merged) for later;
             # per-frame uniforms (colours, strengths) still follow.
             self._changes = changes.merge(self._changes)
@@ -761,18 +748,6 @@ class Illuminator:
         self._on_draw_end()  # preparing activated them; they get units again to draw
         self.last_prepare_ms = (time.perf_counter() - t0) * 1e3 + self._precomputed_ms
         self._precomputed_ms = 0.0
-
-    def _deferring(self, changes: Changes) -> bool:
-        """Whether this frame keeps the previous light (:attr:`defer_precompute`)."""
-        if not self.defer_precompute or changes.first or self._technique is None:
-            return False
-        if changes.invalidates & Invalidates.SHADER:
-            return False
-        # What a drag changes (opacity, light geometry, parameters) waits; camera-only
-        # changes of view-dependent techniques do not (they follow the view as before).
-        # Progressive refinement pauses too.
-        return bool(changes.opacity or changes.lights or changes.parameters
-                    or changes.invalidates or not self._technique.converged)
 
     def _on_draw_start(self, *_args: Any) -> None:
         self.bindings.draw_start()

@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import time
 from collections.abc import Generator
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 import vtk
@@ -23,9 +23,6 @@ from vtk.util.numpy_support import vtk_to_numpy
 from vtkvol.engine import classify, tf2d
 from vtkvol.engine.gl import GLUnavailableError, Texture3D, compute_supported, gl
 from vtkvol.engine.technique import run_steps
-
-if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Illuminator
 
 # The warnings keep the host's logger name: applications and tests filter on it.
 logger = logging.getLogger("vtkvol.engine.illuminator")
@@ -95,7 +92,9 @@ class OpacitySource:
     ``render_window``), the slice weights and whether :meth:`Illuminator.precompute` runs its
     chunks; the source owns the numpy cache, the GPU classifier and the opacity texture."""
 
-    def __init__(self, host: Illuminator) -> None:
+    def __init__(self, host: Any) -> None:
+        # The host (engine/illuminator.py), typed loosely: importing it here would close an
+        # import circle (scripts/import_graph.py).
         self._host = host
         self._opacity_cache: tuple[tuple, np.ndarray] | None = None
         #: Classification backend of :meth:`opacity_texture` ("auto", "gpu", "cpu").

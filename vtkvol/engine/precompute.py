@@ -14,12 +14,10 @@ import gc
 import logging
 import time
 from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING
+from typing import Any
 
 from vtkvol.engine.technique import Changes
-
-if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Illuminator
+from vtkvol.model.params import Invalidates
 
 # Failures are logged under the host's name: applications and tests filter on it.
 logger = logging.getLogger("vtkvol.engine.illuminator")
@@ -42,7 +40,9 @@ def no_collection() -> Iterator[None]:
 class PrecomputeRunner:
     """Chunks, cancel and convergence of one host's technique."""
 
-    def __init__(self, host: Illuminator) -> None:
+    def __init__(self, host: Any) -> None:
+        # The host (engine/illuminator.py), typed loosely: importing it here would close an
+        # import circle (scripts/import_graph.py).
         self._host = host
         #: True while :meth:`run` runs its chunks (frames then touch no technique state).
         self.stepping = False
@@ -151,3 +151,15 @@ class PrecomputeRunner:
             if max_seconds is not None and time.perf_counter() - t0 >= max_seconds:
                 break
         return frames
+
+    def defers(self, changes: Changes) -> bool:
+        """Whether this frame keeps the previous light (:attr:`defer_precompute`)."""
+        if not self._host.defer_precompute or changes.first or self._host._technique is None:
+            return False
+        if changes.invalidates & Invalidates.SHADER:
+            return False
+        # What a drag changes (opacity, light geometry, parameters) waits; camera-only
+        # changes of view-dependent techniques do not (they follow the view as before).
+        # Progressive refinement pauses too.
+        return bool(changes.opacity or changes.lights or changes.parameters
+                    or changes.invalidates or not self._host._technique.converged)

@@ -151,11 +151,11 @@ class ShaderBuilder:
         lighting = {"surface": "host_lighting.glsl", "medium": "host_medium.glsl"}[
             tech.SPEC.lighting
         ]
-        if self._host.shaded or (tech.SPEC.lighting == "medium" and self._host._compositing()):
+        if self.shaded() or (tech.SPEC.lighting == "medium" and self.compositing()):
             sections += shaders.load("host_hooks.glsl", hooks)
             # Multi-channel, shaded surface lighting per channel: one transmittance per light
             # and sample (shared lighting evaluates the lights once anyway).
-            share_light = (bool(multichannel) and not shared_lighting and self._host.shaded
+            share_light = (bool(multichannel) and not shared_lighting and self.shaded()
                            and tech.SPEC.lighting == "surface")
             sections += shaders.load(lighting, {"VV_MC_SHARE_LIGHT": "1"} if share_light
                                      else None)
@@ -202,7 +202,7 @@ class ShaderBuilder:
                 and mapper.GetBlendMode() == vtk.vtkVolumeMapper.COMPOSITE_BLEND):
             return [], False
         defines = {"VV_MC_COMPONENTS": str(ncomp)}
-        share_gradient = (self._host.shaded and not shares_gradient
+        share_gradient = (self.shaded() and not shares_gradient
                           and not any(prop.HasGradientOpacity(c) for c in range(ncomp))
                           and mapper.GetVolumetricScatteringBlending() == 0)
         if share_gradient:
@@ -234,7 +234,7 @@ class ShaderBuilder:
             return "2-D transfer functions colour from the gradient per channel"
         if lighting == "medium":
             return None  # lit on every composited sample, no normal
-        if not self._host.shaded:
+        if not self.shaded():
             return "unshaded: nothing is lit"
         if not gradient_shared:
             return "gradient opacity or volumetric scattering take gradients per channel"
@@ -262,10 +262,28 @@ class ShaderBuilder:
         defines = {"VV_INDEPENDENT": "1"} if independent else {}
         used = range(ncomp) if independent else range(1)
         mapper = self._host.volume.GetMapper()
-        if (self._host.shaded and not any(prop.HasGradientOpacity(c) for c in used)
+        if (self.shaded() and not any(prop.HasGradientOpacity(c) for c in used)
                 and mapper.GetVolumetricScatteringBlending() == 0):
             # The shading gradient reuses the correction's six fetches. Not with gradient
             # opacity (VTK's variant returns a magnitude) or VTK's volumetric shadows (they
             # take gradients away from the sample).
             defines["VV_IP_SHARE_GRADIENT"] = "1"
         return shaders.load("host_interpolation.glsl", defines)
+
+    def shaded(self) -> bool:
+        """True when VTK generates its shaded ``computeLighting()`` (where the ``surface``
+        lighting hooks in): shading on for a used component and a composite or isosurface
+        blend. MIP, MinIP, average and additive blends, and unshaded composite, show no
+        surface illumination."""
+        prop = self._host.volume.GetProperty()
+        scalars = self._host.image.GetPointData().GetScalars()
+        ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
+        # VTK generates the shaded code when any *used* component is shaded (component 0 for
+        # dependent components).
+        used = range(ncomp) if prop.GetIndependentComponents() else range(1)
+        return self.compositing() and any(prop.GetShade(c) for c in used)
+
+    def compositing(self) -> bool:
+        """Composite or isosurface blending (the blends that light samples)."""
+        blend = self._host.volume.GetMapper().GetBlendMode()
+        return blend in (vtk.vtkVolumeMapper.COMPOSITE_BLEND, vtk.vtkVolumeMapper.ISOSURFACE_BLEND)
