@@ -13,12 +13,10 @@ sys.path.insert(0, str(ROOT / "scripts"))
 
 import import_graph  # noqa: E402
 
-#: Open at the time of writing (review 2, §7), owned elsewhere: the app and its movie dialog
-#: (ui restructuring), the CLI and batch rendering's shared loader and PNG writer, the
-#: benchmark's convergence summary.
+#: Open at the time of writing (review 2, §7): the app and its movie dialog (ui
+#: restructuring, owned elsewhere), the CLI and batch rendering's shared loader and PNG writer.
 KNOWN = [
     ["vtkvol.batch", "vtkvol.cli"],
-    ["vtkvol.bench.convergence", "vtkvol.bench.report"],
     ["vtkvol.ui.app", "vtkvol.ui.movie_dialog"],
 ]
 
