@@ -14,11 +14,8 @@ sys.path.insert(0, str(ROOT / "scripts"))
 import import_graph  # noqa: E402
 
 #: Open at the time of writing (review 2, §7): the app and its movie dialog (ui
-#: restructuring, owned elsewhere), the CLI and batch rendering's shared loader and PNG writer.
-KNOWN = [
-    ["vtkvol.batch", "vtkvol.cli"],
-    ["vtkvol.ui.app", "vtkvol.ui.movie_dialog"],
-]
+#: restructuring, owned by another engineer; a ``TYPE_CHECKING`` import of ``MainWindow``).
+KNOWN = [["vtkvol.ui.app", "vtkvol.ui.movie_dialog"]]
 
 
 def test_no_import_circle_beyond_the_known_ones() -> None:

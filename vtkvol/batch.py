@@ -245,8 +245,8 @@ def existing_outputs(jobs: Iterable[RenderJob]) -> list[Path]:
 def render_job_image(job: RenderJob, on_note: Callable[[str], None] | None = None) -> np.ndarray:
     """Read ``job``'s input and render it as ``vtkvol render`` does: an ``(h, w, 3)`` uint8
     image. ``on_note`` receives technique fallbacks and session warnings."""
-    from vtkvol.cli import _load
     from vtkvol.engine.api import render_image
+    from vtkvol.files import load_input as _load
 
     opts = job.options
     model = None
@@ -277,7 +277,7 @@ def render_job(job: RenderJob, overwrite: bool = False) -> JobResult:
     Never raises for a failed job: the failure comes back as ``JobResult.error``, one line
     that names the job, so one bad input does not cost the others anything.
     """
-    from vtkvol.cli import _write_png
+    from vtkvol.files import write_png as _write_png
 
     t0 = time.perf_counter()
     notes: list[str] = []

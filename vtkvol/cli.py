@@ -16,6 +16,8 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from vtkvol.files import load_input as _load
+from vtkvol.files import write_png as _write_png
 from vtkvol.model.scene import BLEND_ALIASES, BLEND_MODES
 from vtkvol.model.session import is_session_path
 
@@ -229,15 +231,6 @@ def _parse_value(text: str):
         return float(text)
     except ValueError:
         return text
-
-
-def _load(path: str, voxel_size, time_index: int = 0, budget: int | None = None):
-    from vtkvol.io import confocal_phantom, read_volume
-
-    if path == "sample":
-        return confocal_phantom()
-    return read_volume(path, voxel_size_um=voxel_size, time_index=time_index,
-                       memory_budget_bytes=budget)
 
 
 #: Largest image side `vtkvol render` makes (pixels): an 8192² window is ~0.5 GiB of colour and
@@ -556,31 +549,6 @@ def _write_movie(args: argparse.Namespace, out: Path, frames, size: tuple[int, i
     print(f"wrote {where} ({args.frames} frames, {size[0]}×{size[1]}, "
           f"{args.frames / args.fps:.2f} s at {args.fps:g} fps)")
     return 0
-
-
-def _write_png(image, path: Path, *, replace: bool = True) -> None:
-    """Encode in memory, then write atomically (vtkvol.io.atomic): a failed write raises
-    OSError and never leaves a truncated PNG, nor replaces the previous one. With
-    ``replace=False`` an existing file (even one created meanwhile) raises FileExistsError."""
-    import errno
-
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-
-    from vtkvol.io.atomic import write_atomic
-
-    h, w, _ = image.shape
-    img = vtk.vtkImageData()
-    img.SetDimensions(w, h, 1)
-    img.GetPointData().SetScalars(numpy_to_vtk(image[::-1].reshape(-1, 3).copy(), deep=True))
-    writer = vtk.vtkPNGWriter()
-    writer.WriteToMemoryOn()
-    writer.SetInputData(img)
-    writer.Write()
-    if path.parent.exists() and not path.parent.is_dir():
-        raise NotADirectoryError(errno.ENOTDIR, f"{path.parent} is not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, vtk_to_numpy(writer.GetResult()).tobytes(), replace=replace)
 
 
 def _voxel_size_problem(voxel_size: Sequence[float] | None) -> str | None:
