@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.plugins.shadow_volume.cpu import LightGrid, light_volume_cpu
+from vtkvol.engine.light_grid import LightGrid, light_volume_cpu
 from vtkvol.plugins.shadow_volume.technique import ShadowVolume
 
 Row = dict[str, Any]
@@ -149,7 +149,7 @@ _SHIPPED: dict[str, Any] = {}
 
 
 def _use_kernel_design(name: str) -> None:
-    from vtkvol.plugins.shadow_volume import gpu
+    from vtkvol.engine import light_grid_gpu as gpu
 
     if not _SHIPPED:
         _SHIPPED.update(BLOCK=gpu.BLOCK, SPLIT_BLOCK=gpu.SPLIT_BLOCK,

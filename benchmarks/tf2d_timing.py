@@ -57,7 +57,7 @@ def opacity_volume_ms(n: int, mode: str) -> float:
     assert host is not None
 
     def run() -> None:
-        host._opacity_cache = None
+        host.opacity._opacity_cache = None
         host.opacity_volume()
 
     try:

@@ -634,7 +634,6 @@ def test_stability(scene_factory, case):
     image = s.image()
     assert s.il.method == "cone_traced", s.il.last_error
     assert "vv_ct_trace" in s.il.fragment_source
-    assert np.isfinite(image).all()
     assert image.max() > 20, "the volume is visible"
     assert s.tech.stats()["recomputes"] == 1
 

@@ -456,13 +456,13 @@ def test_max_over_intervals_with_thousands_of_nodes() -> None:
 def test_a_gl_failure_of_the_grid_leaves_the_full_march(monkeypatch) -> None:
     """An occupancy texture that cannot be made is reported in the stats and logged; the view
     renders the full march (the same image)."""
-    from vtkvol.engine import illuminator
+    from vtkvol.engine import empty_space
     from vtkvol.engine.gl import GLUnavailableError
 
     def broken(*args, **kwargs):
         raise GLUnavailableError("could not allocate a 6×6×6×1 float 3D texture")
 
-    monkeypatch.setattr(illuminator, "Texture3D", broken)
+    monkeypatch.setattr(empty_space, "Texture3D", broken)
     off, on, stats = _render_pair(_nothing)
     assert not stats["active"] and "could not allocate" in stats["reason"]
     assert np.array_equal(off, on) and off.max() > 60

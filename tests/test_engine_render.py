@@ -106,7 +106,7 @@ def test_mip_of_known_volume_equals_its_maximum(viewer_factory):
     img = v.image()
     # Grey ramp 0→255 maps the maximum (a 2-voxel cube, so interpolation keeps the peak) to the
     # brightest pixel.
-    assert 245 <= img.max() <= 255
+    assert img.max() >= 245  # (255 is uint8's own bound)
     assert abs(img[..., 0].mean() - img[..., 1].mean()) < 1e-6  # grey
 
 
@@ -142,7 +142,6 @@ def test_every_blend_mode_renders(viewer_factory, mode):
     v.model.channels[0].tf = gray_tf(200.0, alpha=0.5)
     v.model.render.blend_mode = mode
     img = v.image()
-    assert np.isfinite(img).all()
     assert foreground(img).max() > 60, f"{mode} rendered nothing"
     # Nothing in the empty left quarter of the view, whatever the blend mode.
     assert foreground(img[:, : SIZE[1] // 8]).max() < 20

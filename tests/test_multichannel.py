@@ -100,3 +100,50 @@ def test_other_blend_modes_keep_vtks_loop(two_channels):
 
     _, source = render(two_channels, "local", host_sample=True, edit=mip)
     assert CALL not in source
+
+
+def test_a_vtk_that_spells_the_loop_differently_fails_the_build(two_channels, monkeypatch):
+    """The literal VTK-line replacements are part of the build check (engine/shader_builder.py):
+    with the loop's lines renamed, as a VTK that spells them differently would have them, the
+    replacement cannot apply. Before the check this rendered the per-component path silently
+    (no failed method, no error: review 2, §2); now the technique fails, naming the line."""
+    from vtkvol.engine import shader_builder
+
+    renamed = {line.replace("totalAlpha", "total_alpha"): text.replace("totalAlpha",
+                                                                           "total_alpha")
+               for line, text in shader_builder._MULTICHANNEL_LINES.items()}
+    monkeypatch.setattr(shader_builder, "_MULTICHANNEL_LINES", renamed)
+    model = scene_for(two_channels)
+    with offscreen_view(two_channels, model=model, size=(64, 64),
+                        method="shadow_volume") as (rw, scene, _):
+        il = scene.illuminator
+        assert il is not None
+        grab(rw)
+        grab(rw)
+        assert il.failed_method == "shadow_volume"
+        assert il.last_error is not None
+        assert "spells differently" in il.last_error
+        assert "vv_mcClassify(scalar, color, total_alpha);" in il.last_error
+
+
+def test_verify_names_every_kind_of_miss() -> None:
+    """``verify`` reports a missing marker, a missing replaced line, a removed line still
+    present and an unread uniform, each with its own sentence."""
+    from vtkvol.engine.shader_builder import ShaderBuild, verify
+
+    def build(**kw: Any) -> ShaderBuild:
+        base = {"replacements": {}, "expected_markers": frozenset(),
+                "expected_lines": frozenset(), "absent_lines": frozenset(),
+                "expected_uniforms": frozenset()}
+        return ShaderBuild(**{**base, **kw})
+
+    source = "//vv-section a\nuniform float vv_x;\nfloat y = vv_x;\nold line;\n"
+    assert verify(build(expected_markers=frozenset({"//vv-section a"})), source) is None
+    assert "shader tag" in verify(build(expected_markers=frozenset({"//vv-section b"})), source)
+    assert "spells differently (new line;)" in verify(
+        build(expected_lines=frozenset({"new line;"})), source)
+    assert "spells differently (old line;)" in verify(
+        build(absent_lines=frozenset({"old line;"})), source)
+    assert "never reads (vv_z)" in verify(build(expected_uniforms=frozenset({"vv_z"})),
+                                          source + "uniform float vv_z;\n")
+    assert verify(build(expected_uniforms=frozenset({"vv_x"})), source) is None

@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 from test_shadow_volume import _agreement_scene, _light_volume, _require_compute
 
+from vtkvol.engine import light_grid as sv
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import grab
 from vtkvol.model import Light
-from vtkvol.plugins.shadow_volume import cpu as sv
 
 pytestmark = pytest.mark.gl
 

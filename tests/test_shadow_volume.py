@@ -11,14 +11,14 @@ import pytest
 import vtk
 from scipy import ndimage
 
+from vtkvol.engine import light_grid as sv
+from vtkvol.engine import light_grid_gpu as sv_gpu
 from vtkvol.engine.gl import compute_supported, gl
 from vtkvol.engine.illuminator import Illuminator, LightSpec
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
 from vtkvol.model.techniques import get_spec
-from vtkvol.plugins.shadow_volume import cpu as sv
-from vtkvol.plugins.shadow_volume import gpu as sv_gpu
 from vtkvol.plugins.shadow_volume.technique import ShadowVolume
 from vtkvol.reference import (
     DirectionalLight,

@@ -11,13 +11,13 @@ import numpy as np
 import pytest
 import vtk
 
+from vtkvol.engine import light_grid as sv
 from vtkvol.engine.gl import compute_supported
 from vtkvol.engine.illuminator import Illuminator, LightSpec
 from vtkvol.engine.offscreen import grab, simple_volume_scene
 from vtkvol.engine.technique import technique_class
 from vtkvol.model import Light
 from vtkvol.model.techniques import get_spec
-from vtkvol.plugins.shadow_volume import cpu as sv
 from vtkvol.plugins.shadow_volume.technique import ShadowVolume
 from vtkvol.plugins.translucency import cpu as tl
 from vtkvol.plugins.translucency.technique import Translucency, colour_volume

@@ -69,9 +69,11 @@ from vtkvol.model.session import (
 from vtkvol.model.session import (
     MissingDataError,
     SessionError,
+    is_session_path,
     load_session_with_data,
     read_session,
     save_session,
+    session_target,
 )
 from vtkvol.ui import errors
 from vtkvol.ui.auto_quality import AutoOutcome, AutoQuality
@@ -793,7 +795,7 @@ class MainWindow(QMainWindow):
         ``time_index`` (0-based) shows that time point of a time series instead of the first
         (or of the session's)."""
         text = str(path)
-        if text.lower().endswith(SESSION_SUFFIX):
+        if is_session_path(text):
             self.open_session(text, time_index=time_index)
             return
         name = Path(text).name or text
@@ -1432,12 +1434,7 @@ class MainWindow(QMainWindow):
 
 def _session_target(path: Path) -> Path:
     """The file ``save_session`` will really write for ``path`` (it appends the suffix)."""
-    name = path.name
-    if name.lower().endswith(SESSION_SUFFIX):
-        return path
-    if name.lower().endswith(".vtkvol"):
-        return path.with_name(name + ".json")
-    return path.with_name(name + SESSION_SUFFIX)
+    return session_target(path)
 
 
 def _sample_kwargs(stored: dict[str, Any]) -> dict[str, Any]:

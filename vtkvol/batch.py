@@ -34,6 +34,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from vtkvol.model.session import SUFFIX as SESSION_SUFFIX
+from vtkvol.model.session import is_session_path
+
 if TYPE_CHECKING:
     import numpy as np
 
@@ -52,7 +55,6 @@ __all__ = [
     "scheduler_address_problem",
 ]
 
-SESSION_SUFFIX = ".vtkvol.json"
 
 #: How long to wait for an existing scheduler to answer before giving up (seconds).
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
@@ -175,7 +177,7 @@ def scheduler_address_problem(address: str) -> str | None:
 
 def _stem(source: str) -> str:
     name = Path(source).name
-    if name.endswith(SESSION_SUFFIX):
+    if is_session_path(name):
         return name[: -len(SESSION_SUFFIX)]
     for suffix in (".ome.tiff", ".ome.tif", ".ome.zarr", ".nii.gz"):
         if name.lower().endswith(suffix):
@@ -243,12 +245,12 @@ def existing_outputs(jobs: Iterable[RenderJob]) -> list[Path]:
 def render_job_image(job: RenderJob, on_note: Callable[[str], None] | None = None) -> np.ndarray:
     """Read ``job``'s input and render it as ``vtkvol render`` does: an ``(h, w, 3)`` uint8
     image. ``on_note`` receives technique fallbacks and session warnings."""
-    from vtkvol.cli import _load
     from vtkvol.engine.api import render_image
+    from vtkvol.files import load_input as _load
 
     opts = job.options
     model = None
-    if job.source.endswith(SESSION_SUFFIX):
+    if is_session_path(job.source):
         from vtkvol.model.session import load_session_with_data
 
         model, data = load_session_with_data(job.source, time_index=job.time_index,
@@ -275,7 +277,7 @@ def render_job(job: RenderJob, overwrite: bool = False) -> JobResult:
     Never raises for a failed job: the failure comes back as ``JobResult.error``, one line
     that names the job, so one bad input does not cost the others anything.
     """
-    from vtkvol.cli import _write_png
+    from vtkvol.files import write_png as _write_png
 
     t0 = time.perf_counter()
     notes: list[str] = []

@@ -16,10 +16,11 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
+from vtkvol.files import load_input as _load
+from vtkvol.files import write_png as _write_png
 from vtkvol.model.renderers import RENDERERS
 from vtkvol.model.scene import BLEND_ALIASES, BLEND_MODES
-
-SESSION_SUFFIX = ".vtkvol.json"
+from vtkvol.model.session import is_session_path
 
 
 def _add_view_options(parser: argparse.ArgumentParser) -> None:
@@ -238,17 +239,6 @@ def _parse_value(text: str):
         return text
 
 
-def _load(path: str, voxel_size, time_index: int = 0, budget: int | None = None):
-    from vtkvol.io import confocal_phantom, read_volume
-    from vtkvol.io.remote import fetch_progress, is_remote
-
-    if path == "sample":
-        return confocal_phantom()
-    return read_volume(path, voxel_size_um=voxel_size, time_index=time_index,
-                       memory_budget_bytes=budget,
-                       progress=fetch_progress(path) if is_remote(path) else None)
-
-
 #: Largest image side `vtkvol render` makes (pixels): an 8192² window is ~0.5 GiB of colour and
 #: depth buffers, which GPU drivers and llvmpipe allocate; 100000² aborted inside VTK.
 MAX_IMAGE_SIDE = 8192
@@ -276,7 +266,7 @@ def _render_option_problem(args: argparse.Namespace) -> str | None:
     if args.voxel_size is not None:  # positive and finite: checked in main()
         if args.file == "sample":
             return "--voxel-size does not apply to the built-in sample (it has its own)"
-        if args.file.endswith(SESSION_SUFFIX):
+        if is_session_path(args.file):
             return ("--voxel-size does not apply to a session: it keeps its data's voxel size "
                     "(set it in the app with Edit → Voxel size…)")
     if args.time is not None and args.time < 0:
@@ -330,7 +320,7 @@ def cmd_render(args: argparse.Namespace) -> int:
         print(f"vtkvol: {out} exists; pass --overwrite to replace it", file=sys.stderr)
         return 2
     model = None
-    if args.file.endswith(SESSION_SUFFIX):
+    if is_session_path(args.file):
         from vtkvol.model.session import load_session_with_data
         from vtkvol.model.techniques import get_spec
 
@@ -587,31 +577,6 @@ def _write_movie(args: argparse.Namespace, out: Path, frames, size: tuple[int, i
     print(f"wrote {where} ({args.frames} frames, {size[0]}×{size[1]}, "
           f"{args.frames / args.fps:.2f} s at {args.fps:g} fps)")
     return 0
-
-
-def _write_png(image, path: Path, *, replace: bool = True) -> None:
-    """Encode in memory, then write atomically (vtkvol.io.atomic): a failed write raises
-    OSError and never leaves a truncated PNG, nor replaces the previous one. With
-    ``replace=False`` an existing file (even one created meanwhile) raises FileExistsError."""
-    import errno
-
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-
-    from vtkvol.io.atomic import write_atomic
-
-    h, w, _ = image.shape
-    img = vtk.vtkImageData()
-    img.SetDimensions(w, h, 1)
-    img.GetPointData().SetScalars(numpy_to_vtk(image[::-1].reshape(-1, 3).copy(), deep=True))
-    writer = vtk.vtkPNGWriter()
-    writer.WriteToMemoryOn()
-    writer.SetInputData(img)
-    writer.Write()
-    if path.parent.exists() and not path.parent.is_dir():
-        raise NotADirectoryError(errno.ENOTDIR, f"{path.parent} is not a folder")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, vtk_to_numpy(writer.GetResult()).tobytes(), replace=replace)
 
 
 def _voxel_size_problem(voxel_size: Sequence[float] | None) -> str | None:

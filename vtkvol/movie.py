@@ -46,6 +46,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from vtkvol.files import write_png
+
 if TYPE_CHECKING:
     from vtkvol.engine.scene import VolumeScene
     from vtkvol.io import VolumeData
@@ -486,7 +488,7 @@ class _PngWriter:
         self.count = 0
 
     def add(self, frame: np.ndarray) -> None:
-        _write_png(frame, self.tmp / self.names[self.count])
+        write_png(frame, self.tmp / self.names[self.count])
         self.count += 1
 
     def finish(self, overwrite: bool) -> list[Path]:
@@ -501,24 +503,6 @@ class _PngWriter:
         if self.tmp is not None:
             shutil.rmtree(self.tmp, ignore_errors=True)
             self.tmp = None
-
-
-def _write_png(frame: np.ndarray, path: Path) -> None:
-    """An ``(h, w, 3)`` uint8 image, top row first, as a PNG (VTK's writer: no extra package)."""
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk
-
-    h, w, _ = frame.shape
-    image = vtk.vtkImageData()
-    image.SetDimensions(w, h, 1)
-    image.GetPointData().SetScalars(numpy_to_vtk(frame[::-1].reshape(-1, 3).copy(), deep=True))
-    writer = vtk.vtkPNGWriter()
-    writer.SetFileName(str(path))
-    writer.SetInputData(image)
-    writer.Write()
-    if writer.GetErrorCode():
-        raise OSError(f"{path.name}: the PNG could not be written (VTK error "
-                      f"{writer.GetErrorCode()})")
 
 
 def _publish(tmp: Path | None, target: Path) -> None:

@@ -6,11 +6,9 @@ The engine part is :mod:`.technique` (GPU propagation, numpy twin); the shaders 
 
 from __future__ import annotations
 
+from vtkvol.engine.light_grid import RESOLUTIONS
 from vtkvol.model.params import Invalidates, Param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
-
-#: Resolution choice -> reduction factor per axis.
-RESOLUTIONS: dict[str, int] = {"full": 1, "half": 2, "quarter": 4}
 
 _ILLUM = Invalidates.ILLUMINATION
 

@@ -16,21 +16,21 @@ import numpy as np
 
 from vtkvol.engine.gl import GLUnavailableError, Texture3D, compute_supported
 from vtkvol.engine.illuminator import scale_steps
-from vtkvol.engine.technique import Technique
-from vtkvol.model.params import Invalidates
-from vtkvol.plugins.shadow_volume import TECHNIQUE
-from vtkvol.plugins.shadow_volume.cpu import (
+from vtkvol.engine.light_grid import (
     LightGrid,
     light_softness,
     light_volume_cpu,
     prefilter_cpu,
     propagate_cpu,
 )
-from vtkvol.plugins.shadow_volume.gpu import (
+from vtkvol.engine.light_grid_gpu import (
     GpuPropagator,
     LightTexture,
     ensure_work_textures,
 )
+from vtkvol.engine.technique import Technique
+from vtkvol.model.params import Invalidates
+from vtkvol.plugins.shadow_volume import TECHNIQUE
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec

@@ -11,9 +11,9 @@ ambiguous. This module imports no VTK.
 
 from __future__ import annotations
 
+from vtkvol.engine.light_grid import RESOLUTIONS
 from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
-from vtkvol.plugins.shadow_volume import RESOLUTIONS
 
 _ILLUM = Invalidates.ILLUMINATION
 

@@ -1,7 +1,7 @@
 """Translucency on the CPU (numpy): the indirect extinction, the cone blur and the RGBA light
 volume of one light. No VTK, no GL.
 
-The propagation itself is the shadow volume's (:func:`vtkvol.plugins.shadow_volume.cpu.
+The propagation itself is the shadow volume's (:func:`vtkvol.engine.light_grid.
 propagate_cpu`, mirrored by its compute shader): the direct term is that model unchanged, the
 indirect term runs the same propagation once per RGB channel through its own extinction, with the
 per-slice Gaussian widened by the cone (docs/translucency.md). Spaces as in the shadow volume:
@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from vtkvol.plugins.shadow_volume.cpu import (
+from vtkvol.engine.light_grid import (
     MAX_OPACITY,
     LightGrid,
     light_softness,

@@ -4,7 +4,7 @@ One RGBA light volume per light (RGB = indirect transmittance, A = direct transm
 recomputed only when the opacity, the transfer function's colour (which sets the indirect
 extinction), the light geometry or an ILLUMINATION parameter changes, never on camera moves.
 The propagation is the shadow volume's, by import: its compute shader through
-:class:`~vtkvol.plugins.shadow_volume.gpu.GpuPropagator` (one dispatch sequence per channel) or
+:class:`~vtkvol.engine.light_grid_gpu.GpuPropagator` (one dispatch sequence per channel) or
 its numpy twin (:mod:`.cpu`); the two agree to about 1e-6.
 """
 
@@ -19,14 +19,14 @@ from vtk.util.numpy_support import vtk_to_numpy
 
 from vtkvol.engine import shaders, tf2d
 from vtkvol.engine.gl import GLUnavailableError, Texture3D
-from vtkvol.engine.technique import ComputePath, Technique
-from vtkvol.model.params import Invalidates
-from vtkvol.plugins.shadow_volume.cpu import LightGrid, light_volume_cpu
-from vtkvol.plugins.shadow_volume.gpu import (
+from vtkvol.engine.light_grid import LightGrid, light_volume_cpu
+from vtkvol.engine.light_grid_gpu import (
     GpuPropagator,
     LightTexture,
     ensure_work_textures,
 )
+from vtkvol.engine.technique import ComputePath, Technique
+from vtkvol.model.params import Invalidates
 from vtkvol.plugins.translucency import TECHNIQUE
 from vtkvol.plugins.translucency.cpu import (
     direct_softness,

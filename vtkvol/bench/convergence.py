@@ -33,7 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from vtkvol.bench import report
 from vtkvol.bench.references import MediumReference, ReferenceCache
+from vtkvol.bench.report import summary  # noqa: F401  (the study's summary, kept importable here)
 from vtkvol.bench.scenes import DEFAULT_LIGHT, Scene, Vec3
 from vtkvol.reference import image_metrics
 
@@ -246,23 +248,6 @@ def study_camera_paths(rig: Any, refs: dict[str, np.ndarray], config: StudyConfi
     return records
 
 
-def summary(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
-    """Per scene × method × light count: the last checkpoint's error, rate and memory, and
-    the time at which the image came within 1 dB of the reference's noise floor."""
-    out = []
-    keys = dict.fromkeys((r["renderer"], r["scene"], r["method"], r["lights"]) for r in records)
-    for key in keys:
-        rows = [r for r in records if (r["renderer"], r["scene"], r["method"], r["lights"]) == key]
-        last = rows[-1]
-        near = [r for r in rows if r["psnr_ms"] is not None
-                and r["psnr_ms"] >= r["floor_psnr"] - 1.0]
-        best = max(rows, key=lambda r: r["psnr_ms"] or -math.inf)
-        out.append({**last, "within_1db_s": near[0]["seconds"] if near else None,
-                    "within_1db_iteration": near[0]["iteration"] if near else None,
-                    "best_psnr_ms": best["psnr_ms"], "best_iteration": best["iteration"]})
-    return out
-
-
 def run(config: StudyConfig, out_dir: Any, scenes: Sequence[Scene],
         methods: Sequence[str] | None = None, *, budget: Any = None,
         command: str = "vtkvol bench --scattering", stream: Any = None) -> dict[str, Any]:
@@ -273,7 +258,6 @@ def run(config: StudyConfig, out_dir: Any, scenes: Sequence[Scene],
     import sys
     from pathlib import Path
 
-    from vtkvol.bench import report
     from vtkvol.bench.measure import Rig, VtkErrors, machine_info
     from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
     from vtkvol.bench.references import FULL_BUDGET

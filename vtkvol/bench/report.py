@@ -758,7 +758,6 @@ def scattering_chart(path: Path, records: Sequence[Mapping[str, Any]]) -> None:
 
 def scattering_markdown(doc: Mapping[str, Any]) -> list[str]:
     """The convergence section of ``benchmarks.md`` (empty without a study)."""
-    from vtkvol.bench.convergence import summary
 
     out: list[str] = []
     for run in doc.get("scattering_runs", []):
@@ -829,3 +828,20 @@ if __name__ == "__main__":
 
     for kind, path in regenerate(Path(sys.argv[1] if len(sys.argv) > 1 else "docs")).items():
         print(f"{kind}: {path}")
+
+
+def summary(records: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per scene × method × light count: the last checkpoint's error, rate and memory, and
+    the time at which the image came within 1 dB of the reference's noise floor."""
+    out = []
+    keys = dict.fromkeys((r["renderer"], r["scene"], r["method"], r["lights"]) for r in records)
+    for key in keys:
+        rows = [r for r in records if (r["renderer"], r["scene"], r["method"], r["lights"]) == key]
+        last = rows[-1]
+        near = [r for r in rows if r["psnr_ms"] is not None
+                and r["psnr_ms"] >= r["floor_psnr"] - 1.0]
+        best = max(rows, key=lambda r: r["psnr_ms"] or -math.inf)
+        out.append({**last, "within_1db_s": near[0]["seconds"] if near else None,
+                    "within_1db_iteration": near[0]["iteration"] if near else None,
+                    "best_psnr_ms": best["psnr_ms"], "best_iteration": best["iteration"]})
+    return out

@@ -56,11 +56,6 @@ def compute_supported(render_window: vtk.vtkRenderWindow) -> bool:
     return bool(vtk.vtkShader.IsComputeShaderSupported())
 
 
-def max_3d_texture_size(render_window: vtk.vtkRenderWindow) -> int:
-    GL = gl(render_window)
-    return int(GL.glGetIntegerv(GL.GL_MAX_3D_TEXTURE_SIZE))
-
-
 class Texture3D:
     """A float 3D texture of 1, 2 or 4 channels (R32F, RG32F, RGBA32F) in VTK's context.
 

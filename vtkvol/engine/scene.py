@@ -143,19 +143,6 @@ class VolumeScene:
         if data is not None:
             self.set_data(data)
 
-    # -- read-only access to VTK (changes there are not tracked or saved) ----------------------
-    @property
-    def vtk_volume(self) -> vtk.vtkVolume:
-        return self.volume
-
-    @property
-    def vtk_mapper(self) -> vtk.vtkOpenGLGPUVolumeRayCastMapper:
-        return self.mapper
-
-    @property
-    def vtk_property(self) -> vtk.vtkVolumeProperty:
-        return self.property
-
     # -- data -------------------------------------------------------------------------------------
     def set_data(self, data: VolumeData, *, reset_channels: bool | None = None) -> None:
         """Show ``data``. Channels are reset to defaults when their count differs from the

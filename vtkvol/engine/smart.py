@@ -147,3 +147,39 @@ class SmartStandIn:
         """Carry the last edits of the stand-in over to the smart mapper (the caller then puts
         the smart mapper back on the volume)."""
         self.sync(None)
+
+
+def check_mapper(volume: vtk.vtkVolume, renderer: vtk.vtkRenderer) -> vtk.vtkVolumeMapper:
+    """The volume's mapper if vtkvol can illuminate it: the GPU ray caster, or a smart mapper
+    (rendered through one). Anything else is a ``TypeError`` saying what to use instead."""
+    if isinstance(volume, vtk.vtkMultiVolume):
+        raise TypeError(
+            "vtkvol: multi-volume rendering (vtkMultiVolume) cannot be illuminated: give each "
+            "image its own vtkVolume and GPU ray-cast mapper")
+    mapper = volume.GetMapper()
+    if mapper is None:
+        for other in volumes_of(renderer):
+            if isinstance(other, vtk.vtkMultiVolume) and any(
+                    other.GetVolume(port) is volume
+                    for port in range(other.GetMapper().GetNumberOfInputPorts())):
+                raise TypeError(
+                    "vtkvol: this volume is a member of a multi-volume (vtkMultiVolume), "
+                    "which cannot be illuminated: give each image its own vtkVolume and GPU "
+                    "ray-cast mapper")
+        raise TypeError("vtkvol: the volume has no mapper; give it a "
+                        "vtkOpenGLGPUVolumeRayCastMapper (members of a vtkMultiVolume, "
+                        "multi-volume rendering, cannot be illuminated)")
+    if not isinstance(mapper, vtk.vtkGPUVolumeRayCastMapper | vtk.vtkSmartVolumeMapper):
+        raise TypeError(
+            "vtkvol illumination needs a GPU ray-cast mapper, not "
+            f"{type(mapper).__name__}: use vtkOpenGLGPUVolumeRayCastMapper (PyVista: "
+            'plotter.add_volume(..., mapper="gpu"))'
+        )
+    return mapper
+
+
+def volumes_of(renderer: vtk.vtkRenderer) -> list[vtk.vtkVolume]:
+    """The renderer's volumes (vtkMultiVolume included), in its order."""
+    volumes = renderer.GetVolumes()
+    volumes.InitTraversal()
+    return [volumes.GetNextVolume() for _ in range(volumes.GetNumberOfItems())]

@@ -41,19 +41,156 @@ import importlib
 import logging
 import time
 import warnings
-from collections.abc import Iterator, Mapping
-from typing import TYPE_CHECKING, Any, ClassVar
+from collections.abc import Generator, Iterable, Iterator, Mapping
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
 from vtkvol.engine import shaders
-from vtkvol.model.params import Param
+from vtkvol.model.params import Invalidates, Param
 from vtkvol.model.techniques import TechniqueSpec, get_spec, technique_specs
 
 if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
+    import vtk
+
+    from vtkvol.engine.gl import Texture3D
 
 logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class LightSpec:
+    """A light as techniques see it: **dataset space** (the image's own µm coordinates)."""
+
+    kind: str  #: "directional" or "point"
+    vector: tuple[float, float, float]  #: unit direction towards the light, or position (µm)
+    color: tuple[float, float, float]  #: colour × intensity
+    #: Physical extent: angular radius in **radians** (directional) or radius in µm (point);
+    #: 0 = ideal light.
+    size: float = 0.0
+    #: Inverse-square fall-off: irradiance × (d0/r)², d0 (µm) = distance to the volume's centre;
+    #: 0 = no fall-off.
+    falloff_distance: float = 0.0
+
+    @property
+    def is_point(self) -> bool:
+        return self.kind == "point"
+
+
+@dataclass
+class Changes:
+    """What changed since the technique's last ``prepare`` (merged over skipped frames)."""
+
+    opacity: bool = False  #: data, transfer function, crop, slice weights or volume placement
+    lights: bool = False  #: light geometry: kind, direction, position, size, enabled, fall-off
+    light_colors: bool = False  #: colour or intensity only (never a reason to recompute)
+    parameters: set[str] = field(default_factory=set)
+    #: Merged :class:`Invalidates` of the changed parameters.
+    invalidates: Invalidates = field(default_factory=lambda: Invalidates(0))
+    view: bool = False  #: camera or viewport changed (told to view-dependent techniques only)
+    first: bool = False  #: first frame after attach
+
+    def merge(self, later: Changes) -> Changes:
+        """These changes followed by ``later`` (what a technique must catch up on when it
+        skipped a prepare: the host deferred it)."""
+        return Changes(
+            opacity=self.opacity or later.opacity,
+            lights=self.lights or later.lights,
+            light_colors=self.light_colors or later.light_colors,
+            parameters=self.parameters | later.parameters,
+            invalidates=self.invalidates | later.invalidates,
+            view=self.view or later.view,
+            first=self.first or later.first,
+        )
+
+    def any_parameter(self, params: Iterable[Any], flag: Invalidates) -> bool:
+        return any(p.name in self.parameters and p.invalidates & flag for p in params)
+
+    @property
+    def reset_accumulation(self) -> bool:
+        """Whether a progressive technique must restart: anything but the camera changed."""
+        restart = Invalidates.ACCUMULATION | Invalidates.ILLUMINATION | Invalidates.SHADER
+        return (self.first or self.opacity or self.lights or self.light_colors
+                or bool(self.invalidates & restart))
+
+
+def run_steps(steps: Generator[Any, None, Any]) -> Any:
+    """Run a chunked computation (a generator) to its end; returns its return value."""
+    while True:
+        try:
+            next(steps)
+        except StopIteration as stop:
+            return stop.value
+
+
+def scale_steps(steps: Generator[float, None, Any], lo: float, hi: float
+                ) -> Generator[float, None, Any]:
+    """``steps``' fractions mapped onto ``lo…hi`` (a part of a larger progress); returns
+    its return value (``x = yield from scale_steps(...)``)."""
+    while True:
+        try:
+            fraction = next(steps)
+        except StopIteration as stop:
+            return stop.value
+        yield lo + (hi - lo) * fraction
+
+
+def warn_inert(spec: TechniqueSpec, method: str, names: Iterable[str],
+               values: Mapping[str, Any], warned: set[tuple[str, str]]) -> None:
+    """Warn (``UserWarning``, once per method and parameter, remembered in ``warned``) for each
+    of ``names`` that was just changed although its ``applies_when`` is false under
+    ``values``: e.g. ``softness`` while ``softness_from`` is not ``"custom"``. Such a value is
+    kept (it applies once the enabling parameter is set) but changes nothing now."""
+    for name in sorted(names):
+        reason = spec.parameter(name).inert_reason(values)
+        if reason is not None and (method, name) not in warned:
+            warned.add((method, name))
+            warnings.warn(f"vtkvol: {method}: {reason}", UserWarning, stacklevel=3)
+
+
+@runtime_checkable
+class TechniqueHost(Protocol):
+    """What a technique may use of its host (:class:`vtkvol.engine.illuminator.Illuminator`
+    implements it; a test can pass any object that has these members).
+
+    Geometry is the volume's input image: ``dims`` (nx, ny, nz) in voxels, ``spacing`` in µm
+    per voxel (x, y, z), ``unit_distance`` the µm per which opacities are expressed. Every call
+    happens with the GL context current (from the renderer's ``StartEvent`` or
+    :meth:`~vtkvol.engine.illuminator.Illuminator.precompute`)."""
+
+    #: The render window whose context is current during the hooks (None before a frame).
+    render_window: vtk.vtkRenderWindow | None
+    #: Techniques time their GPU work with timer queries only while this is True.
+    profiling: bool
+
+    @property
+    def volume(self) -> vtk.vtkVolume: ...
+    @property
+    def image(self) -> vtk.vtkImageData: ...
+    @property
+    def dims(self) -> tuple[int, int, int]: ...
+    @property
+    def spacing(self) -> tuple[float, float, float]: ...
+    @property
+    def unit_distance(self) -> float: ...
+    @property
+    def albedo(self) -> float: ...
+    @property
+    def phase_g(self) -> float: ...
+    @property
+    def shaded(self) -> bool: ...
+    @property
+    def precomputing(self) -> bool: ...
+    def light_specs(self) -> list[LightSpec]: ...
+    def opacity_volume(self) -> np.ndarray: ...
+    def opacity_volume_steps(self) -> Generator[float, None, np.ndarray]: ...
+    def opacity_texture_steps(self, quantity: str = "alpha"
+                              ) -> Generator[float, None, Texture3D]: ...
+    def classify_2d(self, c: int, what: Literal["alpha", "rgb"] = "alpha"
+                    ) -> np.ndarray | None: ...
+    def bind_texture(self, uniform: str, texture: Any, sampler: str = "sampler3D") -> None: ...
+    def unbind_texture(self, uniform: str) -> None: ...
 
 
 class Technique:
@@ -72,7 +209,7 @@ class Technique:
         if spec is not None:
             cls.NAME, cls.LABEL, cls.PARAMETERS = spec.name, spec.label, spec.parameters
 
-    def __init__(self, host: Illuminator) -> None:
+    def __init__(self, host: TechniqueHost) -> None:
         self.host = host
         #: Progressive techniques: iterations accumulated since the last reset, and whether
         #: the result is final (the host stops asking for frames). Others are always done.
@@ -135,7 +272,7 @@ class Technique:
 
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
         """Bring precomputed data up to date before a frame (``changes``: what changed since the
-        last ``prepare``, see :class:`~vtkvol.engine.illuminator.Changes`). A progressive
+        last ``prepare``, see :class:`Changes`). A progressive
         technique runs its iterations for this frame here, restarting when
         ``changes.reset_accumulation``, and updates :attr:`iteration` and :attr:`converged`.
 
@@ -202,7 +339,7 @@ class ComputePath:
         self.driver: Any = None
         self.failed = False
 
-    def get(self, host: Illuminator, backend: str) -> Any:
+    def get(self, host: TechniqueHost, backend: str) -> Any:
         """The driver, or None for the numpy path."""
         if backend == "cpu" or self.failed:
             self.release()

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -352,6 +352,3 @@ def read_pyramid(
         notes=[note, *pyramid.notes],
     )
 
-
-#: ``open(path, *, time_index, channels) -> Pyramid`` of a reader that has pyramids.
-PyramidOpener = Callable[..., Pyramid]

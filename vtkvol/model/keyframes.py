@@ -431,10 +431,6 @@ class Animation:
     def animates_time(self) -> bool:
         return self.keyframes[0].time_index is not None
 
-    @property
-    def animates_lights(self) -> bool:
-        return self.keyframes[0].lights is not None
-
     def time_indices(self) -> list[int]:
         """The time indices the keyframes name (empty when the time is not animated)."""
         return [k.time_index for k in self.keyframes if k.time_index is not None]

@@ -70,6 +70,16 @@ class Param:
         """Whether this parameter has an effect given the technique's other ``values``."""
         return all(values.get(other) in allowed for other, allowed in self.applies_when)
 
+    def inert_reason(self, values: Mapping[str, Any]) -> str | None:
+        """Why this parameter has no effect given ``values`` (one sentence naming the
+        parameter that would enable it), or None when it applies."""
+        for other, allowed in self.applies_when:
+            if values.get(other) not in allowed:
+                wanted = " or ".join(f"{other}={a!r}" for a in allowed)
+                return (f"{self.name} has no effect while {other} is {values.get(other)!r}; "
+                        f"set {wanted}")
+        return None
+
     def validate(self, value: Any) -> Any:
         """Return ``value`` coerced to this parameter's type, or raise ``ValueError``."""
         if self.kind == "bool":

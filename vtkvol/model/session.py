@@ -237,7 +237,7 @@ def save_session(
         cannot be represented as JSON (a non-finite number, a non-JSON window value), or the
         write failed. In every case the previous file, if any, is unchanged.
     """
-    target = _with_suffix(Path(path).expanduser()).absolute()
+    target = session_target(Path(path).expanduser()).absolute()
     folder = target.parent
     if not folder.is_dir():
         raise SessionError(target, f"cannot save: the folder {folder} does not exist")
@@ -336,9 +336,18 @@ def _dumps(value: Any, level: int = 0) -> str:
     return json.dumps(value, ensure_ascii=False, allow_nan=False)
 
 
-def _with_suffix(path: Path) -> Path:
+def is_session_path(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` names a session file: its name ends with ``.vtkvol.json`` in any case
+    (the one test the CLI, batch rendering and the app use)."""
+    return Path(path).name.lower().endswith(SUFFIX)
+
+
+def session_target(path: str | os.PathLike[str]) -> Path:
+    """The file :func:`save_session` writes for ``path``: ``path`` itself when it is a session
+    name (:func:`is_session_path`), else with ``.json`` or ``.vtkvol.json`` appended."""
+    path = Path(path)
     name = path.name
-    if name.lower().endswith(SUFFIX):
+    if is_session_path(path):
         return path
     if name.lower().endswith(".vtkvol"):
         return path.with_name(name + ".json")

@@ -1,6 +1,6 @@
-"""Shadow volumes on the GPU: the light texture and the drivers of shaders/propagate.comp.glsl
-(one dispatch per slice, plus one for the edge strips of large directional slices;
-docs/shadow-volume.md §3). Expects VTK's context to be current.
+"""The light grid on the GPU: the light texture and the drivers of
+resources/shaders/propagate.comp.glsl (one dispatch per slice, plus one for the edge strips
+of large directional slices; docs/shadow-volume.md §3). Expects VTK's context to be current.
 """
 
 from __future__ import annotations
@@ -14,14 +14,14 @@ import numpy as np
 import vtk
 
 from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
-from vtkvol.engine.shaders import compute_source
-from vtkvol.plugins.shadow_volume.cpu import (
+from vtkvol.engine.light_grid import (
     SEED000_RADIUS,
     LightGrid,
     gauss_taps,
     in_plane_axes,
     plan_passes,
 )
+from vtkvol.engine.shaders import compute_source
 
 #: Work-group size (u, v) of the propagation kernel.
 GROUP = (8, 8)
@@ -118,8 +118,7 @@ class GpuPropagator:
                     "VV_RADIUS": key[3], "VV_BLOCK": key[4], "VV_SIDE_FACES": int(key[5]),
                     "VV_GROUP_X": GROUP[0], "VV_GROUP_Y": GROUP[1],
                 }
-            source = compute_source(COMPUTE_SOURCE, {k: str(v) for k, v in defines.items()},
-                                    __package__)
+            source = compute_source(COMPUTE_SOURCE, {k: str(v) for k, v in defines.items()})
             prog = ComputeProgram(self.render_window, source, f"shadow {key}")
             self._programs[key] = prog
         return prog

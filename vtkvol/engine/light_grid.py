@@ -1,6 +1,8 @@
-"""Shadow volumes on the CPU (numpy): the light grid, the propagation passes and the
-slice-by-slice propagation, mirrored formula by formula by shaders/propagate.comp.glsl
-(docs/shadow-volume.md has the derivation). No VTK, no GL.
+"""The light grid on the CPU (numpy): the grid, the propagation passes and the slice-by-slice
+propagation, mirrored formula by formula by resources/shaders/propagate.comp.glsl
+(docs/shadow-volume.md has the derivation). No VTK, no GL. Engine machinery shared by the
+techniques that propagate light through a grid (shadow volume, translucency): a plugin imports
+it from here, never from a sibling plugin.
 
 Spaces: "data index" = voxel indices of the image; "grid" = indices of the light grid, cell g
 at data index g · step (step = (n − 1)/(m − 1) per axis); lights arrive in dataset space (µm).
@@ -15,11 +17,12 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from vtkvol.plugins.shadow_volume import RESOLUTIONS
-
 if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import LightSpec
+    from vtkvol.engine.technique import LightSpec
 
+
+#: Resolution choice -> reduction factor per axis.
+RESOLUTIONS: dict[str, int] = {"full": 1, "half": 2, "quarter": 4}
 #: Largest filter radius R in cells (the filter has (2R + 2)² taps per cell).
 RMAX = 8
 #: α is clamped here before s = −ln(1 − α), as in the compute shader (float32 of 0.999999).
