@@ -10,10 +10,6 @@ import pathlib
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 PLUGINS = ROOT / "plugins"
-#: Known exception at the time of writing: hybrid diffusion still builds on convection
-#: diffusion (owned by the engineer who moves that machinery into the engine; the lead removes
-#: this entry at merge).
-KNOWN: set[tuple[str, str]] = {("hybrid_diffusion", "convection_diffusion")}
 
 
 def imported_plugins(path: pathlib.Path, own: str) -> set[str]:
@@ -49,7 +45,7 @@ def cross_imports() -> set[tuple[str, str, str]]:
 
 def test_no_plugin_imports_another() -> None:
     offending = sorted(f"{path}: imports plugin {other!r}"
-                       for own, other, path in cross_imports() if (own, other) not in KNOWN)
+                       for own, other, path in cross_imports())
     assert not offending, "\n".join(offending)
 
 

@@ -45,7 +45,7 @@ def _clipping_signature(mapper: vtk.vtkVolumeMapper) -> tuple:
 _COORDS_CACHE_VOXELS = 32 * 1024 * 1024
 
 
-def _gradient_opacity_on(prop: vtk.vtkVolumeProperty, c: int) -> bool:
+def gradient_opacity_on(prop: vtk.vtkVolumeProperty, c: int) -> bool:
     """True when VTK multiplies component ``c``'s opacity by a gradient-opacity function
     (1-D mode; VTK ignores it in 2-D mode)."""
     return bool(prop.HasGradientOpacity(c)) and not prop.GetDisableGradientOpacity(c)
@@ -160,7 +160,7 @@ class OpacitySource:
                 tables[c] = tf2d.unit_alpha_table(prop.GetTransferFunction2D(fc), step,
                                                   prop.GetScalarOpacityUnitDistance(fc))
                 coords[c] = self._table_coords(c, values[..., c], spacing, value_range)
-            elif _gradient_opacity_on(prop, fc):
+            elif gradient_opacity_on(prop, fc):
                 # VTK's table spans |g| in 0…¼·range and |g| is clamped to it.
                 span = float(value_range[1] - value_range[0]) or 1.0
                 gradients[c] = tf2d.normalised_gradient(values[..., c], spacing, value_range) * (
@@ -488,7 +488,7 @@ class OpacitySource:
                 for c in range(max(1, ncomp))) else None)
         else:
             classification = ("1d", tuple(
-                prop.GetGradientOpacity(c).GetMTime() if _gradient_opacity_on(prop, c) else None
+                prop.GetGradientOpacity(c).GetMTime() if gradient_opacity_on(prop, c) else None
                 for c in range(max(1, ncomp))))
         weights = tuple(prop.GetComponentWeight(c) for c in range(max(1, ncomp)))
         units = tuple(prop.GetScalarOpacityUnitDistance(c) for c in range(max(1, ncomp)))

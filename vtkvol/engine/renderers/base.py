@@ -34,7 +34,8 @@ import numpy as np
 import vtk
 
 from vtkvol.engine.gl import Texture2D, Texture3D, gl
-from vtkvol.engine.illuminator import _gradient_opacity_on, _no_collection
+from vtkvol.engine.opacity_source import gradient_opacity_on
+from vtkvol.engine.precompute import no_collection as _no_collection
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -345,7 +346,7 @@ class BesideRenderer:
             return "more than one channel"
         if prop.GetTransferFunctionMode() != vtk.vtkVolumeProperty.TF_1D:
             return "a 2-D transfer function"
-        if _gradient_opacity_on(prop, 0):
+        if gradient_opacity_on(prop, 0):
             return "gradient opacity"
         if mapper.GetCropping():
             return "cropping"
