@@ -513,10 +513,10 @@ def test_scene_follows_the_model_and_falls_back_with_the_reason():
         scene.error.connect(errors.append)
         scene.model.render.renderer = "slicing"
         rw.Render()
-        assert scene.illuminator.beside is not None and scene.vtk_volume.GetVisibility() == 0
+        assert scene.illuminator.beside is not None and scene.volume.GetVisibility() == 0
         scene.model.illumination.method = "shadow_volume"
         rw.Render()
-        assert scene.illuminator.beside is None and scene.vtk_volume.GetVisibility() == 1
+        assert scene.illuminator.beside is None and scene.volume.GetVisibility() == 1
         assert errors == ["vtkvol: the slicing renderer shades with local lighting only; "
                           "method 'shadow_volume' needs the raycast renderer"]
         scene.model.illumination.method = "local"

@@ -410,7 +410,7 @@ def cmd_render(args: argparse.Namespace) -> int:
 def _renderer_problem(args: argparse.Namespace, model: Any) -> str | None:
     """Why ``--renderer`` (or the session's ``render.renderer``) cannot draw this scene with
     the method and blend mode asked for, or None."""
-    from vtkvol.model.renderers import model_unsupported_reason
+    from vtkvol.model.scene import model_unsupported_reason
 
     if args.renderer:
         model.render.renderer = args.renderer

@@ -41,8 +41,8 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.evented import touches
 from vtkvol.model.params import Param
-from vtkvol.model.renderers import RENDERERS, model_unsupported_reason
-from vtkvol.model.scene import MAX_ANGULAR_RADIUS, Light, SceneModel
+from vtkvol.model.renderers import RENDERERS
+from vtkvol.model.scene import MAX_ANGULAR_RADIUS, Light, SceneModel, model_unsupported_reason
 from vtkvol.model.techniques import TechniqueSpec, technique_specs
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box

@@ -17,8 +17,7 @@ from vtkvol.engine.renderers import set_renderer
 from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.presets import apply_preset
-from vtkvol.model.renderers import model_unsupported_reason
-from vtkvol.model.scene import Light, SceneModel
+from vtkvol.model.scene import Light, SceneModel, model_unsupported_reason
 from vtkvol.model.techniques import get_spec
 
 if TYPE_CHECKING:

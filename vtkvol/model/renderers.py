@@ -18,10 +18,7 @@ raises it as an error, the app greys the choice with it as the tooltip.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Literal
-
-if TYPE_CHECKING:
-    from vtkvol.model.scene import SceneModel
+from typing import Literal
 
 RendererName = Literal["raycast", "path_tracer", "half_angle", "slicing"]
 RENDERERS: tuple[str, ...] = ("raycast", "path_tracer", "half_angle", "slicing")
@@ -55,13 +52,3 @@ def unsupported_reason(renderer: str, *, method: str = "local", blend_mode: str 
         return (f"the slicing renderer shades with local lighting only; method {method!r} "
                 "needs the raycast renderer")
     return None
-
-
-def model_unsupported_reason(model: SceneModel, renderer: str | None = None) -> str | None:
-    """:func:`unsupported_reason` for a scene model (its ``render.renderer`` unless
-    ``renderer`` is given): its method, blend mode, enabled lights and channels."""
-    return unsupported_reason(
-        model.render.renderer if renderer is None else renderer,
-        method=model.illumination.method, blend_mode=model.render.blend_mode,
-        lights=sum(1 for light in model.lights if light.enabled and light.intensity > 0),
-        channels=max(1, len(model.channels)))

@@ -16,7 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from vtkvol.model.evented import EventedModel
-from vtkvol.model.renderers import RendererName
+from vtkvol.model.renderers import RendererName, unsupported_reason
 from vtkvol.model.transfer_function import RGB, TransferFunction, TransferFunction2D
 
 BlendMode = Literal["composite", "mip", "minip", "average", "additive", "isosurface"]
@@ -424,3 +424,13 @@ class SceneModel(EventedModel):
         if len(self.lights) > 4:
             raise ValueError(f"at most 4 lights are supported, not {len(self.lights)}")
         return self
+
+
+def model_unsupported_reason(model: SceneModel, renderer: str | None = None) -> str | None:
+    """:func:`unsupported_reason` for a scene model (its ``render.renderer`` unless
+    ``renderer`` is given): its method, blend mode, enabled lights and channels."""
+    return unsupported_reason(
+        model.render.renderer if renderer is None else renderer,
+        method=model.illumination.method, blend_mode=model.render.blend_mode,
+        lights=sum(1 for light in model.lights if light.enabled and light.intensity > 0),
+        channels=max(1, len(model.channels)))

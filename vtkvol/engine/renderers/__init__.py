@@ -11,9 +11,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-import vtk
-
-from vtkvol.model.renderers import RENDERERS, unsupported_reason
+from vtkvol.engine.renderers.base import check_renderer
+from vtkvol.model.renderers import RENDERERS
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -27,29 +26,6 @@ def renderer_class(name: str) -> type[BesideRenderer]:
     from vtkvol.engine.renderers.slicing import ViewAlignedSlicing
 
     return {"path_tracer": PathTracer, "slicing": ViewAlignedSlicing}[name]
-
-
-def check_renderer(host: Illuminator, name: str) -> None:
-    """Raise ``ValueError`` (one sentence, ``vtkvol:`` prefixed) when ``name`` cannot render
-    the host's volume as it is set up now."""
-    mapper = host.volume.GetMapper()
-    blend = {vtk.vtkVolumeMapper.COMPOSITE_BLEND: "composite",
-             vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND: "mip",
-             vtk.vtkVolumeMapper.MINIMUM_INTENSITY_BLEND: "minip",
-             vtk.vtkVolumeMapper.AVERAGE_INTENSITY_BLEND: "average",
-             vtk.vtkVolumeMapper.ADDITIVE_BLEND: "additive",
-             vtk.vtkVolumeMapper.ISOSURFACE_BLEND: "isosurface",
-             }.get(mapper.GetBlendMode(), "other")
-    scalars = host.image.GetPointData().GetScalars()
-    channels = scalars.GetNumberOfComponents() if scalars is not None else 1
-    reason = unsupported_reason(name, method=host.method, blend_mode=blend,
-                                lights=len(host.light_specs()), channels=channels)
-    if reason is None and name != "raycast" and channels > 1 and not bool(
-            host.volume.GetProperty().GetIndependentComponents()):
-        reason = (f"the {name} renderer takes independent channels only; dependent "
-                  f"{channels}-component colour data needs the raycast renderer")
-    if reason is not None:
-        raise ValueError(f"vtkvol: {reason}")
 
 
 def set_renderer(host: Illuminator, name: str, **options: Any) -> BesideRenderer | None:

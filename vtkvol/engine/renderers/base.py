@@ -36,6 +36,7 @@ import vtk
 from vtkvol.engine.gl import Texture2D, Texture3D, gl
 from vtkvol.engine.opacity_source import gradient_opacity_on
 from vtkvol.engine.precompute import no_collection as _no_collection
+from vtkvol.model.renderers import unsupported_reason
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -473,8 +474,6 @@ class BesideRenderer:
         self.last_pass_ms = (time.perf_counter() - t0) * 1e3
 
     def _frame(self, window: vtk.vtkRenderWindow) -> None:
-        from vtkvol.engine.renderers import check_renderer
-
         try:  # the host's method, blend mode or lights may have changed since attach
             check_renderer(self.host, self.NAME)
         except ValueError as exc:
@@ -594,3 +593,26 @@ class BesideRenderer:
         self.renderer.RemoveActor(self._proxy)
         self.release_gl()
         self.volume.SetVisibility(self._was_visible)
+
+
+def check_renderer(host: Illuminator, name: str) -> None:
+    """Raise ``ValueError`` (one sentence, ``vtkvol:`` prefixed) when ``name`` cannot render
+    the host's volume as it is set up now."""
+    mapper = host.volume.GetMapper()
+    blend = {vtk.vtkVolumeMapper.COMPOSITE_BLEND: "composite",
+             vtk.vtkVolumeMapper.MAXIMUM_INTENSITY_BLEND: "mip",
+             vtk.vtkVolumeMapper.MINIMUM_INTENSITY_BLEND: "minip",
+             vtk.vtkVolumeMapper.AVERAGE_INTENSITY_BLEND: "average",
+             vtk.vtkVolumeMapper.ADDITIVE_BLEND: "additive",
+             vtk.vtkVolumeMapper.ISOSURFACE_BLEND: "isosurface",
+             }.get(mapper.GetBlendMode(), "other")
+    scalars = host.image.GetPointData().GetScalars()
+    channels = scalars.GetNumberOfComponents() if scalars is not None else 1
+    reason = unsupported_reason(name, method=host.method, blend_mode=blend,
+                                lights=len(host.light_specs()), channels=channels)
+    if reason is None and name != "raycast" and channels > 1 and not bool(
+            host.volume.GetProperty().GetIndependentComponents()):
+        reason = (f"the {name} renderer takes independent channels only; dependent "
+                  f"{channels}-component colour data needs the raycast renderer")
+    if reason is not None:
+        raise ValueError(f"vtkvol: {reason}")
