@@ -560,6 +560,12 @@ class MainWindow(QMainWindow):
         self.refine_label.setObjectName("status_refine")
         self.refine_label.setToolTip("A progressive illumination method is refining the light; "
                                      "moving the camera does not restart it")
+        self.quality_label = QLabel("")
+        self.quality_label.setObjectName("status_quality")
+        self.quality_label.setToolTip("This machine renders a full-quality frame slower than the "
+                                      "window may wait: a coarse image is shown first and full "
+                                      "quality is drawn in strips while you are idle")
+        self.viewport.refinementChanged.connect(self.quality_label.setText)
         self.probe_label = QLabel("")
         self.probe_label.setObjectName("status_probe")
         self.probe_label.setToolTip("Intensity probe: the first visible voxel under the mouse "
@@ -567,6 +573,7 @@ class MainWindow(QMainWindow):
                                     "value)")
         self.viewport.probed.connect(self.probe_label.setText)
         status.addWidget(self.probe_label)
+        status.addPermanentWidget(self.quality_label)
         status.addPermanentWidget(self.refine_label)
         status.addPermanentWidget(self.data_label)
         status.addPermanentWidget(self.frame_label)

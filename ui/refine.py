@@ -1,0 +1,185 @@
+"""Progressive refinement of the 3-D view: every frame fits a time budget, full quality comes
+in tiles while the user is idle (issue 25 §1).
+
+On a machine without a usable GPU (Mesa llvmpipe, remote desktops, virtual machines) one
+full-quality frame of a 256×256×100 two-channel stack in a ~900×500 view takes seconds to tens
+of seconds, and a VTK render cannot be interrupted: the window froze that long after every
+gesture. :class:`Refiner` keeps every frame under :data:`FRAME_BUDGET_MS`:
+
+* **Cost model.** Each frame's duration divided by the number of rays it cast (view pixels
+  over the squared image sample distance, or a tile's pixels) gives the cost of one ray, kept
+  separately for interactive and full sampling along the ray. The newest frame replaces the
+  estimate (the machine's load and the scene change; an outlier is corrected one frame later).
+* **Fast path.** When a full-quality frame is predicted to fit the budget (a GPU desktop), it
+  is rendered as before: one frame, nothing else.
+* **Coarse first.** Otherwise the first frame after a change renders the whole view with the
+  smallest image sample distance of :data:`FACTORS` whose frame fits the budget.
+* **Tiles while idle.** Then the view is rendered again at full quality in horizontal strips,
+  one strip per frame, through the camera's scissor rectangle (VTK clears and ray-casts only
+  inside it; the rest of its framebuffer keeps the coarse image and the strips done before).
+  Each strip's height is chosen from the cost model to fit the budget; the event loop runs
+  between strips, so input is handled at most one strip late.
+* **Cancel.** Any new frame request (a model change, a camera or gizmo move, a resize)
+  :meth:`Refiner.cancel`\\ s the strips; the next frame starts over with a coarse image.
+
+The class holds no Qt or VTK objects: the viewport asks it what the next frame is
+(:meth:`Refiner.plan_frame`, :meth:`Refiner.next_tile`) and reports every frame's duration
+(:meth:`Refiner.frame_done`). Pixel coordinates are VTK's display pixels (origin bottom-left).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: A frame should take at most this long (ms): the event loop then runs at least twice a
+#: second even on a slow machine (issue 25's 0.5 s, with room for the frame's overhead).
+FRAME_BUDGET_MS = 250.0
+#: Image sample distances (view pixels per cast ray, along each side) a coarse frame may use.
+FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
+#: The first coarse frame, before any frame was measured.
+UNMEASURED_FACTOR = 4.0
+#: The thinnest strip (rows): below this, a frame's fixed cost dominates.
+MIN_TILE_ROWS = 4
+
+
+@dataclass(frozen=True)
+class Frame:
+    """What one frame renders.
+
+    ``kind`` is ``"full"`` (the whole view at full quality), ``"interactive"`` (the whole
+    view at the interactive sampling, coarsened to fit the budget), ``"coarse"`` (the whole
+    view at full sampling along the ray, coarsened) or ``"tile"`` (a strip at full quality).
+    ``image_factor`` is the mapper's image sample distance; ``tile`` the strip as
+    ``(x, y, width, height)`` display pixels, None for a whole-view frame.
+    """
+
+    kind: str
+    image_factor: float
+    tile: tuple[int, int, int, int] | None = None
+
+    @property
+    def interactive(self) -> bool:
+        return self.kind == "interactive"
+
+
+class Refiner:
+    """Decides each frame's quality and the strips of the refinement (see the module
+    docstring)."""
+
+    def __init__(self, budget_ms: float = FRAME_BUDGET_MS) -> None:
+        self.budget_ms = float(budget_ms)
+        #: ms per cast ray, for full (False) and interactive (True) sampling along the ray.
+        self._ms_per_ray: dict[bool, float | None] = {False: None, True: None}
+        self._view: tuple[int, int] | None = None
+        self._tiles: list[tuple[int, int, int, int]] = []
+        self._next_row = 0  # display rows from the top already planned
+        self._rows_done = 0
+        #: The refinement in progress: a coarse image was drawn and strips are due.
+        self.active = False
+        #: The image sample distance of the coarse frame under the strips.
+        self.coarse_factor = 1.0
+        #: Whether the last frame that finished showed the view at full quality throughout.
+        self.complete = True
+
+    # -- cost model -------------------------------------------------------------------------
+    def predict_ms(self, interactive: bool, rays: float) -> float | None:
+        """Predicted duration (ms) of a frame casting ``rays`` rays; None before any frame."""
+        cost = self._ms_per_ray[interactive]
+        if cost is None and interactive:
+            cost = self._ms_per_ray[False]  # interactive sampling is never slower
+        return None if cost is None else cost * rays
+
+    def fit_factor(self, interactive: bool, view: tuple[int, int],
+                   minimum: float = 1.0) -> float:
+        """The smallest image sample distance (≥ ``minimum``) whose whole-view frame is
+        predicted to fit the budget (the largest of :data:`FACTORS` when none does)."""
+        pixels = float(max(1, view[0]) * max(1, view[1]))
+        if self.predict_ms(interactive, pixels) is None:
+            return max(minimum, UNMEASURED_FACTOR)
+        for factor in FACTORS:
+            if factor < minimum:
+                continue
+            predicted = self.predict_ms(interactive, pixels / (factor * factor))
+            if predicted is not None and predicted <= self.budget_ms:
+                return factor
+        return max(minimum, FACTORS[-1])
+
+    def frame_done(self, frame: Frame, frame_ms: float, view: tuple[int, int]) -> None:
+        """Learn from a finished frame: ``frame_ms`` for the rays ``frame`` cast in a view of
+        ``view`` (width, height) display pixels."""
+        if frame.tile is not None:
+            rays = float(frame.tile[2] * frame.tile[3])
+            self._rows_done += frame.tile[3]
+        else:
+            rays = view[0] * view[1] / (frame.image_factor * frame.image_factor)
+        if rays >= 1 and frame_ms > 0:
+            self._ms_per_ray[frame.interactive] = frame_ms / rays
+        self.complete = frame.kind == "full" or (
+            frame.kind == "tile" and self._rows_done >= view[1])
+
+    # -- planning ---------------------------------------------------------------------------
+    def plan_frame(self, interactive: bool, view: tuple[int, int],
+                   interactive_factor: float) -> Frame:
+        """The frame to render for a new request (any refinement in progress is cancelled):
+        while the user moves something, the interactive sampling with an image factor of at
+        least ``interactive_factor``; otherwise full quality when it fits the budget, else a
+        coarse frame that starts a refinement."""
+        self.cancel()
+        if interactive:
+            return Frame("interactive", self.fit_factor(True, view, interactive_factor))
+        predicted = self.predict_ms(False, float(view[0] * view[1]))
+        if predicted is not None and predicted <= self.budget_ms:
+            return Frame("full", 1.0)
+        self.coarse_factor = self.fit_factor(False, view, 1.0)
+        if self.coarse_factor <= 1.0:
+            return Frame("full", 1.0)
+        self.active = True
+        self._view = view
+        self._next_row = 0
+        self._rows_done = 0
+        return Frame("coarse", self.coarse_factor)
+
+    def next_tile(self, view: tuple[int, int]) -> Frame | None:
+        """The next strip of the refinement (top to bottom), sized to fit the budget; None
+        when the refinement is over or the view's size changed (then it is cancelled)."""
+        if not self.active:
+            return None
+        if view != self._view:
+            self.cancel()
+            return None
+        width, height = view
+        if self._next_row >= height:
+            self.active = False
+            return None
+        per_row = self.predict_ms(False, float(width))
+        rows = height if per_row is None or per_row <= 0 else int(self.budget_ms / per_row)
+        rows = min(height - self._next_row, max(MIN_TILE_ROWS, rows))
+        top = self._next_row
+        self._next_row += rows
+        # Display pixels count rows from the bottom; the strips go down from the top.
+        return Frame("tile", 1.0, (0, height - top - rows, width, rows))
+
+    def cancel(self) -> None:
+        """Forget the strips still to come."""
+        self.active = False
+        self._view = None
+
+    def progress(self, view: tuple[int, int]) -> float:
+        """Fraction of the view refined to full quality (0…1) in the refinement in progress."""
+        if not self.active or view[1] <= 0:
+            return 1.0 if self.complete else 0.0
+        return min(1.0, self._rows_done / view[1])
+
+    def status_text(self, view: tuple[int, int]) -> str:
+        """The "refining…" indicator: empty when the view shows full quality."""
+        if not self.active:
+            return ""
+        done = round(100 * self.progress(view))
+        return (f"Refining… {done} % at full quality "
+                f"(rest at 1/{_factor_text(self.coarse_factor)} resolution)")
+
+
+def _factor_text(factor: float) -> str:
+    """1/2, 1/1.5, 1/16: the coarse frame's linear resolution."""
+    return str(int(factor)) if math.isclose(factor, round(factor)) else f"{factor:g}"
