@@ -71,6 +71,7 @@ def main() -> None:
     parser.add_argument("--json", type=Path, help="also write the rows as JSON here")
     parser.add_argument("--phase-timeout", type=float, default=240.0,
                         help="give up waiting for one phase to settle after this many seconds")
+    parser.add_argument("--frames", action="store_true", help="print every frame's duration")
     parser.add_argument("--progressive-timeout", type=float, default=60.0,
                         help="seconds given to a progressive method before moving on")
     args = parser.parse_args()
@@ -114,6 +115,10 @@ def main() -> None:
         state["last_frame"] = now
         state["frames"] += 1
         frames.append((now - frame_ms, now))
+        if args.frames:  # what the view rendered (newer versions say which kind of frame)
+            planned = getattr(window.viewport, "_frame", None)
+            kind = "" if planned is None else f" {planned.kind} 1/{planned.image_factor:g}"
+            print(f"  frame {frame_ms:.0f} ms{kind}", flush=True)
 
     heartbeat = QTimer()
     heartbeat.setInterval(HEARTBEAT_MS)

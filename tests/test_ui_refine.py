@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from PySide6.QtWidgets import QApplication
+from PySide6.QtCore import QTimer
 
-from vtkvol.ui.refine import FRAME_BUDGET_MS, Frame, Refiner
+from vtkvol.ui.refine import FRAME_BUDGET_MS, MIN_TILE_ROWS, Frame, Refiner
 
 VIEW = (200, 120)
 
@@ -98,6 +98,36 @@ def test_interactive_frames_are_coarsened_to_the_budget_but_never_finer_than_ask
     assert measured(0.1).plan_frame(True, VIEW, 2.0) == Frame("interactive", 2.0)
 
 
+def test_a_cheap_frame_lowers_the_estimate_only_halfway():
+    refiner = measured(8.0)
+    refiner.frame_done(Frame("full", 1.0), 0.0 * FRAME_BUDGET_MS + 1e-9, VIEW)
+    assert refiner.predict_ms(False, VIEW[0] * VIEW[1]) == pytest.approx(4.0 * FRAME_BUDGET_MS)
+    refiner.frame_done(Frame("full", 1.0), 16.0 * FRAME_BUDGET_MS, VIEW)
+    assert refiner.predict_ms(False, VIEW[0] * VIEW[1]) == pytest.approx(16.0 * FRAME_BUDGET_MS)
+
+
+def test_strips_follow_the_cost_per_row_of_the_last_refinement():
+    refiner = measured(4.0)
+    refiner.frame_done(refiner.plan_frame(False, VIEW, 2.0), FRAME_BUDGET_MS, VIEW)
+    # Empty background in the upper half, the specimen (15× dearer per row) in the lower.
+    while (tile := refiner.next_tile(VIEW)) is not None:
+        _x, y, _w, h = tile.tile
+        top = VIEW[1] - y - h
+        dear = sum(1 for r in range(top, top + h) if r >= VIEW[1] // 2)
+        refiner.frame_done(tile, (h - dear) * 0.5 + dear * 7.5, VIEW)
+    refiner.frame_done(refiner.plan_frame(False, VIEW, 2.0), FRAME_BUDGET_MS, VIEW)
+    heights = []
+    while (tile := refiner.next_tile(VIEW)) is not None:
+        heights.append(tile.tile[3])
+        top = VIEW[1] - tile.tile[1] - tile.tile[3]
+        assert tile.tile[3] == MIN_TILE_ROWS or sum(
+            0.5 if r < VIEW[1] // 2 else 7.5 for r in range(top, top + tile.tile[3])
+        ) <= FRAME_BUDGET_MS
+        refiner.frame_done(tile, FRAME_BUDGET_MS, VIEW)
+    # The empty half (60 × 0.5 = 30 ms) and 29 dear rows (217.5 ms), then the 31 left.
+    assert heights == [89, 31]
+
+
 def test_before_any_frame_the_first_one_is_coarse():
     assert Refiner().plan_frame(False, VIEW, 2.0) == Frame("coarse", 4.0)
 
@@ -169,14 +199,28 @@ def test_new_input_during_the_strips_starts_over_with_a_coarse_frame(refining, q
     window, _texts = refining
     viewport = window.viewport
     frames = viewport.refiner.frames
-    window.model.channels[0].color = (1.0, 0.8, 0.8)
-    qtbot.waitUntil(lambda: [f.kind for f in frames][:2] == ["coarse", "tile"], timeout=30_000)
-    window.model.channels[0].color = (1.0, 0.6, 0.6)  # new input after the first strip
-    qtbot.waitUntil(lambda: not viewport.refining and len(frames) >= 7, timeout=60_000)
-    QApplication.processEvents()
+
+    def new_input() -> None:  # the user's next edit, as soon as the first strip is drawn
+        window.model.channels[0].color = (1.0, 0.6, 0.6)
+
+    first_strip: list[int] = []
+
+    def on_frame(*_: object) -> None:
+        if not first_strip and [f.kind for f in frames[-2:]] == ["coarse", "tile"]:
+            first_strip.append(len(frames))
+            QTimer.singleShot(0, new_input)
+
+    viewport.frameRendered.connect(on_frame)
+    try:
+        window.model.channels[0].color = (1.0, 0.8, 0.8)
+        qtbot.waitUntil(lambda: window.model.channels[0].color == (1.0, 0.6, 0.6)
+                        and not viewport.refining and len(frames) >= 7, timeout=60_000)
+    finally:
+        viewport.frameRendered.disconnect(on_frame)
     kinds = [f.kind for f in frames]
-    second = kinds.index("coarse", 1)
-    assert second <= 3  # at most the strip already under way came before the new input
+    second = kinds.index("coarse", first_strip[0])
+    # At most the strip already due came before the new input.
+    assert second - first_strip[0] in (0, 1), kinds
     assert kinds[second:] == ["coarse", "tile", "tile", "tile", "tile"]
 
 
@@ -184,8 +228,9 @@ def test_new_input_during_the_strips_starts_over_with_a_coarse_frame(refining, q
 def test_a_fast_machine_renders_one_full_frame_per_change(refining, qtbot):
     window, _texts = refining
     viewport = window.viewport
-    viewport.refiner.ms_per_ray = full_cost_ms(0.5, viewport.render_window.GetSize())
-    viewport.refiner.frame_done(Frame("full", 1.0), 0.0, viewport.render_window.GetSize())
+    size = viewport.render_window.GetSize()
+    viewport.refiner = FixedCost(full_cost_ms(0.5, size))
+    viewport.refiner.frame_done(Frame("full", 1.0), 0.0, size)
     viewport.refiner.frames.clear()
     window.model.channels[0].color = (1.0, 0.8, 0.8)
     qtbot.waitUntil(lambda: len(viewport.refiner.frames) >= 1, timeout=30_000)

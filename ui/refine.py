@@ -6,10 +6,13 @@ full-quality frame of a 256×256×100 two-channel stack in a ~900×500 view take
 of seconds, and a VTK render cannot be interrupted: the window froze that long after every
 gesture. :class:`Refiner` keeps every frame under :data:`FRAME_BUDGET_MS`:
 
-* **Cost model.** Each frame's duration divided by the number of rays it cast (view pixels
-  over the squared image sample distance, or a tile's pixels) gives the cost of one ray, kept
-  separately for interactive and full sampling along the ray. The newest frame replaces the
-  estimate (the machine's load and the scene change; an outlier is corrected one frame later).
+* **Cost model.** A whole-view frame's duration divided by the number of rays it cast (view
+  pixels over the squared image sample distance) gives the cost of one ray, kept separately
+  for interactive and full sampling along the ray. A dearer frame replaces the estimate at
+  once, a cheaper one only halves the difference: underestimating freezes the window,
+  overestimating only coarsens one frame. Rays through the specimen cost many times those
+  through empty background, so strips are planned from a **cost per row** of the view, learned
+  from the strips of the previous refinement (uniform, from the whole-view estimate, at first).
 * **Fast path.** When a full-quality frame is predicted to fit the budget (a GPU desktop), it
   is rendered as before: one frame, nothing else.
 * **Coarse first.** Otherwise the first frame after a change renders the whole view with the
@@ -17,8 +20,8 @@ gesture. :class:`Refiner` keeps every frame under :data:`FRAME_BUDGET_MS`:
 * **Tiles while idle.** Then the view is rendered again at full quality in horizontal strips,
   one strip per frame, through the camera's scissor rectangle (VTK clears and ray-casts only
   inside it; the rest of its framebuffer keeps the coarse image and the strips done before).
-  Each strip's height is chosen from the cost model to fit the budget; the event loop runs
-  between strips, so input is handled at most one strip late.
+  Each strip is as many rows as the cost per row predicts to fit the budget; the event loop
+  runs between strips, so input is handled at most one strip late.
 * **Cancel.** Any new frame request (a model change, a camera or gizmo move, a resize)
   :meth:`Refiner.cancel`\\ s the strips; the next frame starts over with a coarse image.
 
@@ -31,6 +34,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+
+import numpy as np
 
 #: A frame should take at most this long (ms): the event loop then runs at least twice a
 #: second even on a slow machine (issue 25's 0.5 s, with room for the frame's overhead).
@@ -72,6 +77,8 @@ class Refiner:
         #: ms per cast ray, for full (False) and interactive (True) sampling along the ray.
         self._ms_per_ray: dict[bool, float | None] = {False: None, True: None}
         self._view: tuple[int, int] | None = None
+        #: Predicted ms of a full-quality strip per display row, top row first (learned).
+        self._row_ms: np.ndarray | None = None
         self._tiles: list[tuple[int, int, int, int]] = []
         self._next_row = 0  # display rows from the top already planned
         self._rows_done = 0
@@ -109,14 +116,36 @@ class Refiner:
         """Learn from a finished frame: ``frame_ms`` for the rays ``frame`` cast in a view of
         ``view`` (width, height) display pixels."""
         if frame.tile is not None:
-            rays = float(frame.tile[2] * frame.tile[3])
             self._rows_done += frame.tile[3]
-        else:
-            rays = view[0] * view[1] / (frame.image_factor * frame.image_factor)
+            rows = self._rows(view)
+            _x, y, _w, h = frame.tile
+            top = view[1] - y - h
+            rows[max(0, top):top + h] = max(frame_ms, 0.0) / max(1, h)
+            self.complete = self._rows_done >= view[1]
+            if self.complete:  # the whole view at full quality: its true cost per ray
+                self._learn(False, float(rows.sum()) / (view[0] * view[1]))
+            return
+        rays = view[0] * view[1] / (frame.image_factor * frame.image_factor)
         if rays >= 1 and frame_ms > 0:
-            self._ms_per_ray[frame.interactive] = frame_ms / rays
-        self.complete = frame.kind == "full" or (
-            frame.kind == "tile" and self._rows_done >= view[1])
+            self._learn(frame.interactive, frame_ms / rays)
+        self.complete = frame.kind == "full"
+        if frame.kind == "full" and self._row_ms is not None and len(self._row_ms) == view[1]:
+            # The specimen's rows are unknown from one frame: spread it evenly.
+            self._row_ms[:] = frame_ms / view[1]
+
+    def _learn(self, interactive: bool, ms_per_ray: float) -> None:
+        old = self._ms_per_ray[interactive]
+        self._ms_per_ray[interactive] = (
+            ms_per_ray if old is None or ms_per_ray >= old else 0.5 * (old + ms_per_ray))
+
+    def _rows(self, view: tuple[int, int]) -> np.ndarray:
+        """The cost per row for ``view``, uniform from the whole-view estimate when the view's
+        height changed or nothing was learned yet."""
+        if self._row_ms is None or len(self._row_ms) != view[1]:
+            per_row = self.predict_ms(False, float(view[0]))
+            self._row_ms = np.full(view[1], self.budget_ms / MIN_TILE_ROWS
+                                   if per_row is None else per_row, dtype=np.float64)
+        return self._row_ms
 
     # -- planning ---------------------------------------------------------------------------
     def plan_frame(self, interactive: bool, view: tuple[int, int],
@@ -152,10 +181,10 @@ class Refiner:
         if self._next_row >= height:
             self.active = False
             return None
-        per_row = self.predict_ms(False, float(width))
-        rows = height if per_row is None or per_row <= 0 else int(self.budget_ms / per_row)
-        rows = min(height - self._next_row, max(MIN_TILE_ROWS, rows))
         top = self._next_row
+        cost = np.cumsum(self._rows(view)[top:])
+        rows = int(np.searchsorted(cost, self.budget_ms * (1 + 1e-9), side="right"))
+        rows = min(height - top, max(MIN_TILE_ROWS, rows))
         self._next_row += rows
         # Display pixels count rows from the bottom; the strips go down from the top.
         return Frame("tile", 1.0, (0, height - top - rows, width, rows))

@@ -320,7 +320,7 @@ class Viewport(QWidget):
         self.refiner = Refiner()
         #: What the next frame renders (set before each paint that renders).
         self._frame = Frame("full", 1.0)
-        self._tile_issued = False  # the next frame is the strip _render_tile asked for
+        self._frame_fresh = False  # _frame was planned for the next frame, not rendered yet
         self._refine_text = ""
         #: Makes the progress callback of precomputation (tests replace it).
         self.progress_factory: Callable[[str], ChunkProgress] = (
@@ -497,19 +497,18 @@ class Viewport(QWidget):
     def _plan_frame(self) -> None:
         """Choose the next frame's quality for a new request (cancels any refinement)."""
         self._refine_timer.stop()
-        self._tile_issued = False
         if self.scene is None or not self.progressive_refinement:
             self._plan_full()
             return
         self._frame = self.refiner.plan_frame(
             self.scene.interactive, self._view_px(),
             float(self.model.render.interactive_image_factor))
+        self._frame_fresh = True
 
     def _plan_full(self) -> None:
         """The next frames render at the scene's own quality, whole (screenshots, tests)."""
         self._refine_timer.stop()
         self.refiner.cancel()
-        self._tile_issued = False
         interactive = self.scene is not None and self.scene.interactive
         factor = float(self.model.render.interactive_image_factor) if interactive else 1.0
         self._frame = Frame("interactive" if interactive else "full", factor)
@@ -525,20 +524,20 @@ class Viewport(QWidget):
                 self.request_render()  # the view was resized meanwhile: start over
             return
         self._frame = frame
-        self._tile_issued = True
+        self._frame_fresh = True
         self.plotter.needs_render = True
         self.plotter.update()
 
     def _apply_frame(self) -> None:
         """At the start of every frame: the image sample distance and scissor strip of the
-        planned frame. A frame that was not asked as the planned strip (a resize, a paint
-        VTK asked for) renders the whole view instead."""
+        planned frame. A frame nobody planned (a resize, an exposure) after a coarse frame
+        or a strip starts the refinement over (a strip drawn twice, or a coarse frame over
+        the strips, would leave the view coarse)."""
         if self.scene is None:
             return
-        if self._frame.tile is not None and not self._tile_issued:
-            self.refiner.cancel()
-            self._frame = Frame("coarse", self.refiner.coarse_factor)
-        self._tile_issued = False
+        if self._frame.kind in ("coarse", "tile") and not self._frame_fresh:
+            self._plan_frame()
+        self._frame_fresh = False
         self.scene.mapper.SetImageSampleDistance(self._frame.image_factor)
         if self._frame.tile is not None:
             camera = self.renderer.GetActiveCamera()
