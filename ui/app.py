@@ -588,6 +588,7 @@ class MainWindow(QMainWindow):
     def _make_time_bar(self) -> None:
         """The time series' tool bar (below the docks) and its View-menu actions."""
         player = self.time_player
+        player.view_ready = lambda: not self.viewport.frame_pending
         self.time_bar = TimeBar(player, self)
         self.time_toolbar = QToolBar("Time series", self)
         self.time_toolbar.setObjectName("time_toolbar")

@@ -550,6 +550,13 @@ class Viewport(QWidget):
             self.refinementChanged.emit(text)
 
     @property
+    def frame_pending(self) -> bool:
+        """A frame was asked for and not drawn yet (time-lapse playback waits for it)."""
+        # A hidden view paints nothing: it would hold playback for ever.
+        return self._render_timer.isActive() or self._busy > 0 or (
+            self.plotter.needs_render and self.plotter.isVisible())
+
+    @property
     def refining(self) -> bool:
         """True while full quality is still being rendered in strips."""
         return self.refiner.active
