@@ -321,6 +321,7 @@ class Viewport(QWidget):
         #: What the next frame renders (set before each paint that renders).
         self._frame = Frame("full", 1.0)
         self._frame_fresh = False  # _frame was planned for the next frame, not rendered yet
+        self._frame_sticky = False  # a screenshot: every frame whole, at full quality
         self._refine_text = ""
         #: Makes the progress callback of precomputation (tests replace it).
         self.progress_factory: Callable[[str], ChunkProgress] = (
@@ -512,6 +513,7 @@ class Viewport(QWidget):
         interactive = self.scene is not None and self.scene.interactive
         factor = float(self.model.render.interactive_image_factor) if interactive else 1.0
         self._frame = Frame("interactive" if interactive else "full", factor)
+        self._frame_fresh = True
 
     def _render_tile(self) -> None:
         """Render the refinement's next strip (the timer runs it between event-loop passes)."""
@@ -530,12 +532,12 @@ class Viewport(QWidget):
 
     def _apply_frame(self) -> None:
         """At the start of every frame: the image sample distance and scissor strip of the
-        planned frame. A frame nobody planned (a resize, an exposure) after a coarse frame
-        or a strip starts the refinement over (a strip drawn twice, or a coarse frame over
-        the strips, would leave the view coarse)."""
+        planned frame. A frame nobody planned (a resize, an exposure, the first frame) is
+        planned now: a strip drawn twice, or a coarse frame over the strips, would leave the
+        view coarse, and an unplanned full-quality frame could freeze the window."""
         if self.scene is None:
             return
-        if self._frame.kind in ("coarse", "tile") and not self._frame_fresh:
+        if not self._frame_fresh and not self._frame_sticky:
             self._plan_frame()
         self._frame_fresh = False
         self.scene.mapper.SetImageSampleDistance(self._frame.image_factor)
@@ -651,6 +653,7 @@ class Viewport(QWidget):
         self._settle_timer.stop()
         self.scene.set_interactive(False)
         self._plan_full()
+        self._frame_sticky = True  # every render of the screenshot (tiles too) at full quality
         illuminator = self.scene.illuminator
         if illuminator is not None:
             illuminator.defer_precompute = False
@@ -704,6 +707,7 @@ class Viewport(QWidget):
             if self.scene is not None:
                 self.scene.volume.SetVisibility(volume_visible)
                 self.scene.overlays.magnify(1)
+            self._frame_sticky = False
             self._gizmo.set_visible(gizmo)
             self.request_render()
         return np.ascontiguousarray(image[..., :3], dtype=np.uint8)
