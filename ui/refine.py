@@ -23,7 +23,8 @@ gesture. :class:`Refiner` keeps every frame under :data:`FRAME_BUDGET_MS`:
   Each strip is as many rows as the cost per row predicts to fit the budget; the event loop
   runs between strips, so input is handled at most one strip late.
 * **Cancel.** Any new frame request (a model change, a camera or gizmo move, a resize)
-  :meth:`Refiner.cancel`\\ s the strips; the next frame starts over with a coarse image.
+  drops the strips still to come (:meth:`Refiner.cancel`); the next frame starts over with a
+  coarse image.
 
 The class holds no Qt or VTK objects: the viewport asks it what the next frame is
 (:meth:`Refiner.plan_frame`, :meth:`Refiner.next_tile`) and reports every frame's duration
