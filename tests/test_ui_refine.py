@@ -124,8 +124,25 @@ def test_strips_follow_the_cost_per_row_of_the_last_refinement():
             0.5 if r < VIEW[1] // 2 else 7.5 for r in range(top, top + tile.tile[3])
         ) <= FRAME_BUDGET_MS
         refiner.frame_done(tile, FRAME_BUDGET_MS, VIEW)
-    # The empty half (60 × 0.5 = 30 ms) and 29 dear rows (217.5 ms), then the 31 left.
-    assert heights == [89, 31]
+    # The whole empty half in the first strip (uniform strips would take 30 rows each), and
+    # no strip over the budget at the true costs (asserted above).
+    assert heights[0] > VIEW[1] // 2 and len(heights) <= 3, heights
+
+
+def test_a_dearer_coarse_frame_thins_the_strips():
+    """After a switch to a dearer method the coarse frame costs 3× the last one per ray: the
+    strips planned from the old rows are thinned by as much."""
+    refiner = measured(4.0)
+    refiner.frame_done(refiner.plan_frame(False, VIEW, 2.0), FRAME_BUDGET_MS, VIEW)
+    while (tile := refiner.next_tile(VIEW)) is not None:
+        refiner.frame_done(tile, FRAME_BUDGET_MS * tile.tile[3] / 30, VIEW)
+    first = refiner.plan_frame(False, VIEW, 2.0)
+    rays = VIEW[0] * VIEW[1] / first.image_factor ** 2
+    before = refiner._ms_per_ray[False]
+    last_coarse = FRAME_BUDGET_MS / (VIEW[0] * VIEW[1] / 4)  # ms per ray, the coarse frame before
+    refiner.frame_done(first, 3 * last_coarse * rays, VIEW)
+    assert refiner._ms_per_ray[False] > before
+    assert refiner.next_tile(VIEW).tile[3] == 10  # 30 rows fitted the budget before
 
 
 def test_before_any_frame_the_first_one_is_coarse():

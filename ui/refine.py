@@ -13,6 +13,9 @@ gesture. :class:`Refiner` keeps every frame under :data:`FRAME_BUDGET_MS`:
   overestimating only coarsens one frame. Rays through the specimen cost many times those
   through empty background, so strips are planned from a **cost per row** of the view, learned
   from the strips of the previous refinement (uniform, from the whole-view estimate, at first).
+  What changed since (another illumination method, a denser transfer function) scales it: by
+  the ratio of this refinement's coarse frame to the one before at first, then by how much the
+  last strip cost over its prediction.
 * **Fast path.** When a full-quality frame is predicted to fit the budget (a GPU desktop), it
   is rendered as before: one frame, nothing else.
 * **Coarse first.** Otherwise the first frame after a change renders the whole view with the
@@ -47,6 +50,8 @@ FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
 UNMEASURED_FACTOR = 4.0
 #: The thinnest strip (rows): below this, a frame's fixed cost dominates.
 MIN_TILE_ROWS = 4
+#: Bounds of the correction applied to the learned cost per row.
+MIN_SCALE, MAX_SCALE = 0.5, 8.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +85,11 @@ class Refiner:
         self._view: tuple[int, int] | None = None
         #: Predicted ms of a full-quality strip per display row, top row first (learned).
         self._row_ms: np.ndarray | None = None
+        #: Correction of ``_row_ms`` for what changed since it was learned (see the docstring).
+        self._scale = 1.0
+        #: ms per ray of this refinement's coarse frame and of the previous refinement's.
+        self._coarse_ray_ms: float | None = None
+        self._last_coarse_ray_ms: float | None = None
         self._tiles: list[tuple[int, int, int, int]] = []
         self._next_row = 0  # display rows from the top already planned
         self._rows_done = 0
@@ -120,8 +130,11 @@ class Refiner:
             self._rows_done += frame.tile[3]
             rows = self._rows(view)
             _x, y, _w, h = frame.tile
-            top = view[1] - y - h
-            rows[max(0, top):top + h] = max(frame_ms, 0.0) / max(1, h)
+            top = max(0, view[1] - y - h)
+            predicted = float(rows[top:top + h].sum())
+            if predicted > 0 and frame_ms > 0:
+                self._scale = min(MAX_SCALE, max(MIN_SCALE, frame_ms / predicted))
+            rows[top:top + h] = max(frame_ms, 0.0) / max(1, h)
             self.complete = self._rows_done >= view[1]
             if self.complete:  # the whole view at full quality: its true cost per ray
                 self._learn(False, float(rows.sum()) / (view[0] * view[1]))
@@ -129,6 +142,11 @@ class Refiner:
         rays = view[0] * view[1] / (frame.image_factor * frame.image_factor)
         if rays >= 1 and frame_ms > 0:
             self._learn(frame.interactive, frame_ms / rays)
+            if frame.kind == "coarse" and self.active:
+                self._coarse_ray_ms = frame_ms / rays
+                before = self._last_coarse_ray_ms
+                self._scale = 1.0 if before is None else min(
+                    MAX_SCALE, max(MIN_SCALE, self._coarse_ray_ms / before))
         self.complete = frame.kind == "full"
         if frame.kind == "full" and self._row_ms is not None and len(self._row_ms) == view[1]:
             # The specimen's rows are unknown from one frame: spread it evenly.
@@ -164,6 +182,9 @@ class Refiner:
         self.coarse_factor = self.fit_factor(False, view, 1.0)
         if self.coarse_factor <= 1.0:
             return Frame("full", 1.0)
+        if self._coarse_ray_ms is not None:  # the rows were learned with that coarse frame
+            self._last_coarse_ray_ms = self._coarse_ray_ms
+        self._scale = 1.0
         self.active = True
         self._view = view
         self._next_row = 0
@@ -183,7 +204,7 @@ class Refiner:
             self.active = False
             return None
         top = self._next_row
-        cost = np.cumsum(self._rows(view)[top:])
+        cost = np.cumsum(self._rows(view)[top:]) * self._scale
         rows = int(np.searchsorted(cost, self.budget_ms * (1 + 1e-9), side="right"))
         rows = min(height - top, max(MIN_TILE_ROWS, rows))
         self._next_row += rows
