@@ -49,6 +49,9 @@ def main_window(qapp, tmp_path_factory):
     window.resize(900, 700)
     window.viewport.setMaximumSize(256, 256)
     window.model.render.sample_distance = 1.0
+    # Every frame at the model's quality, so tests may count frames whatever this machine's
+    # speed; tests/test_ui_refine.py switches the progressive refinement on.
+    window.viewport.progressive_refinement = False
     window.show()
     qapp.processEvents()
     yield window

@@ -566,6 +566,12 @@ class MainWindow(QMainWindow):
         self.refine_label.setObjectName("status_refine")
         self.refine_label.setToolTip("A progressive illumination method is refining the light; "
                                      "moving the camera does not restart it")
+        self.quality_label = QLabel("")
+        self.quality_label.setObjectName("status_quality")
+        self.quality_label.setToolTip("This machine renders a full-quality frame slower than the "
+                                      "window may wait: a coarse image is shown first and full "
+                                      "quality is drawn in strips while you are idle")
+        self.viewport.refinementChanged.connect(self.quality_label.setText)
         self.probe_label = QLabel("")
         self.probe_label.setObjectName("status_probe")
         self.probe_label.setToolTip("Intensity probe: the first visible voxel under the mouse "
@@ -573,6 +579,7 @@ class MainWindow(QMainWindow):
                                     "value)")
         self.viewport.probed.connect(self.probe_label.setText)
         status.addWidget(self.probe_label)
+        status.addPermanentWidget(self.quality_label)
         status.addPermanentWidget(self.refine_label)
         status.addPermanentWidget(self.data_label)
         status.addPermanentWidget(self.frame_label)
@@ -587,6 +594,7 @@ class MainWindow(QMainWindow):
     def _make_time_bar(self) -> None:
         """The time series' tool bar (below the docks) and its View-menu actions."""
         player = self.time_player
+        player.view_ready = lambda: not self.viewport.frame_pending
         self.time_bar = TimeBar(player, self)
         self.time_toolbar = QToolBar("Time series", self)
         self.time_toolbar.setObjectName("time_toolbar")

@@ -15,11 +15,17 @@ crop, slice weights, lights and method stay; the illumination technique recomput
 new voxels. Its precomputed volumes are not cached per time point: they live in the
 technique's GL textures, and the technique contract has no way to hand them out or back.
 
-**Playback** runs on a clock: at ``fps`` frames per second the wanted point is
-``start + elapsed·fps``. A tick shows the newest cached point up to that one; when none is
-cached the tick is dropped (never queued) and the next point the clock will reach once a
-read is done is read ahead. The effective rate (frames shown per second) is reported. A read
-that fails stops playback with a message; the shown point stays.
+**Playback** has two modes. *Real time* (the default) runs on a clock: at ``fps`` frames per
+second the wanted point is ``start + elapsed·fps``. A tick shows the newest cached point up to
+that one; when none is cached the tick is dropped (never queued) and the next point the clock
+will reach once a read is done is read ahead. The clock never takes playback past the last
+point of the current loop: when frames are slower than a whole loop, the points between are
+skipped but the shown point never moves backwards (it wraps only past the last point), and
+the clock starts again from the point shown. *Every point* shows each point in turn, as
+fast as reading and rendering allow (at most ``fps``). In both modes a tick waits until the
+view has drawn the point shown before (``view_ready``), so the effective rate (points shown
+per second, over the last :data:`RATE_POINTS` points) is what the user saw. A read that fails
+stops playback with a message; the shown point stays.
 """
 
 from __future__ import annotations
@@ -61,8 +67,9 @@ from vtkvol.ui.background import Worker
 #: Playback speed when the app starts (time points per second).
 DEFAULT_FPS = 10.0
 MIN_FPS, MAX_FPS = 0.1, 60.0
-#: The effective rate is measured over the frames shown in this many seconds.
-RATE_WINDOW_S = 2.0
+#: The effective rate is measured over the intervals between this many points shown, however
+#: long they took (a time window would read 0 once one frame took longer than it).
+RATE_POINTS = 6
 #: A tick looks this many points back from the clock's point for a cached one to show.
 MAX_LOOK_BACK = 256
 MIB = 1 << 20
@@ -106,7 +113,7 @@ class TimeSeriesPlayer(QObject):
         A time point could not be read or shown (one line); playback stopped.
     playingChanged(bool)
     rateChanged(float)
-        Frames shown per second while playing (measured over the last two seconds).
+        Points shown per second while playing (over the last :data:`RATE_POINTS`).
     stateChanged()
         The number of time points, the cache or a pending read changed.
     """
@@ -149,7 +156,12 @@ class TimeSeriesPlayer(QObject):
         self._clock_start = 0.0
         self._clock_position = 0  # unwrapped position of the time point shown at the start
         self._shown_position = 0  # unwrapped position of the time point on screen
-        self._frame_times: deque[float] = deque()
+        self._frame_times: deque[float] = deque(maxlen=RATE_POINTS)
+        #: Show every time point in turn instead of following the clock (skipping points).
+        self.every_point = False
+        #: Whether the view has drawn what it was last given (None: always): playback does
+        #: not step on before it has (the main window asks its viewport).
+        self.view_ready: Callable[[], bool] | None = None
         #: Since Play: timer ticks that showed nothing (the point was not read yet) and time
         #: points the clock passed without showing them.
         self.dropped_ticks = 0
@@ -257,10 +269,7 @@ class TimeSeriesPlayer(QObject):
             return
         self.shown_index = index
         if self.playing:
-            now = time.perf_counter()
-            self._frame_times.append(now)
-            while self._frame_times and now - self._frame_times[0] > RATE_WINDOW_S:
-                self._frame_times.popleft()
+            self._frame_times.append(time.perf_counter())
             self.rateChanged.emit(self.effective_rate())
         self.shown.emit(index)
         self.stateChanged.emit()
@@ -400,7 +409,7 @@ class TimeSeriesPlayer(QObject):
         self.pause() if self.playing else self.play()
 
     def effective_rate(self) -> float:
-        """Frames shown per second over the last :data:`RATE_WINDOW_S` of playback."""
+        """Points shown per second over the last :data:`RATE_POINTS` shown while playing."""
         times = self._frame_times
         if len(times) < 2 or times[-1] <= times[0]:
             return 0.0
@@ -427,12 +436,22 @@ class TimeSeriesPlayer(QObject):
         if not self.loop and self.shown_index >= self.count - 1:
             self.pause()  # the last time point is on screen
             return
-        target = self._clock_target(time.perf_counter())
+        if self._wanted is not None or (self.view_ready is not None and not self.view_ready()):
+            self.dropped_ticks += 1  # the point asked for last is still being read or drawn
+            return
+        now = time.perf_counter()
+        if self.every_point:
+            target = self._shown_position + 1
+        else:
+            target = self._clock_target(now)
+            # Never past this loop's last point: beyond it the index would be lower than the
+            # one shown (0 → 4 → 3 → 2 at one loop minus one per tick).
+            lap_end = ((self._shown_position + 1) // self.count + 1) * self.count - 1
+            if target > lap_end:
+                target = lap_end
+                self._clock_start, self._clock_position = now, lap_end
         if not self.loop:
             target = min(target, self.count - 1)
-        if self._wanted is not None:
-            self.dropped_ticks += 1  # the point asked for last is still being read
-            return
         # The newest cached point between the one shown and the clock's: drop the rest.
         lowest = max(self._shown_position + 1, target - MAX_LOOK_BACK)
         for position in range(target, lowest - 1, -1):
@@ -552,6 +571,14 @@ class TimeBar(QWidget):
         self.loop_box.setToolTip("Start again from the first time point after the last")
         self.loop_box.toggled.connect(self._on_loop)
         layout.addWidget(self.loop_box)
+        self.every_point_box = QCheckBox("Every point", self)
+        self.every_point_box.setObjectName("time_every_point")
+        self.every_point_box.setChecked(player.every_point)
+        self.every_point_box.setToolTip(
+            "Show every time point in turn, as fast as reading and rendering allow (at most "
+            "the speed set). Off: real time, skipping points when the view is slower")
+        self.every_point_box.toggled.connect(self._on_every_point)
+        layout.addWidget(self.every_point_box)
         self.cache_box = QSpinBox(self)
         self.cache_box.setObjectName("time_cache")
         self.cache_box.setRange(0, max(1, max_cache_bytes() // MIB))
@@ -611,6 +638,11 @@ class TimeBar(QWidget):
 
     def _on_fps(self, value: float) -> None:
         self.player.fps = value
+
+    def _on_every_point(self, on: bool) -> None:
+        self.player.every_point = bool(on)
+        if self.player.playing:
+            self.player._restart_clock()
 
     def _on_loop(self, on: bool) -> None:
         self.player.loop = bool(on)

@@ -18,6 +18,12 @@ This is the only module of the app that talks to VTK (style-anchors §4 items 11
   (the previous light volume stays); a short settle timer after the last interaction syncs
   the camera into the model and renders one full-quality frame with the light brought up
   to date.
+* **Every frame within a time budget.** Each frame's image sample distance comes from
+  :class:`~vtkvol.ui.refine.Refiner`: full quality at once when this machine renders it
+  within :data:`~vtkvol.ui.refine.FRAME_BUDGET_MS` (a GPU desktop), otherwise a coarse frame
+  that fits, then full quality in strips (the camera's scissor rectangle), one per
+  event-loop pass, while the user is idle; any new frame request cancels the strips.
+  :attr:`Viewport.refinementChanged` carries the "refining…" text for the status bar.
 * **Long precomputation keeps the window alive.** Before a frame, the illumination's
   precomputation runs outside the render, in the technique's chunks, with the event loop
   running between them and a progress dialog with Cancel once it takes longer than half a
@@ -55,6 +61,7 @@ from vtkvol.model.evented import touches
 from vtkvol.model.scene import ClipPlane, SceneModel
 from vtkvol.model.techniques import get_spec
 from vtkvol.ui.progress import ChunkProgress
+from vtkvol.ui.refine import Frame, Refiner
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -281,6 +288,9 @@ class Viewport(QWidget):
         material under the resting mouse pointer ("" when there is none).
     illuminationCancelled(message)
         The user cancelled a precomputation: local shading is shown (the model says so).
+    refinementChanged(text)
+        The "refining…" indicator: how much of the view has reached full quality, "" once
+        all of it has (or the frame was full quality at once).
     """
 
     frameRendered = Signal(float, float)
@@ -288,6 +298,7 @@ class Viewport(QWidget):
     illuminationProgress = Signal(int, bool)
     probed = Signal(str)
     illuminationCancelled = Signal(str)
+    refinementChanged = Signal(str)
 
     def __init__(self, model: SceneModel, parent: QWidget | None = None) -> None:
         super().__init__(parent)
@@ -309,6 +320,15 @@ class Viewport(QWidget):
         self._reduced_shown = False
         self._edits = 0  # drags in progress in the docks (begin_edit/end_edit)
         self._camera_moved = False  # the camera style moved the camera since the last settle
+        #: Each frame's quality (see the module docstring); False renders every frame at
+        #: the model's quality, as before issue 25.
+        self.progressive_refinement = True
+        self.refiner = Refiner()
+        #: What the next frame renders (set before each paint that renders).
+        self._frame = Frame("full", 1.0)
+        self._frame_fresh = False  # _frame was planned for the next frame, not rendered yet
+        self._frame_sticky = False  # a screenshot: every frame whole, at full quality
+        self._refine_text = ""
         #: Makes the progress callback of precomputation (tests replace it).
         self.progress_factory: Callable[[str], ChunkProgress] = (
             lambda label: ChunkProgress(self.window(), label))
@@ -339,6 +359,11 @@ class Viewport(QWidget):
         self._settle_timer.setSingleShot(True)
         self._settle_timer.setInterval(SETTLE_MS)
         self._settle_timer.timeout.connect(self._settle)
+        # The next strip of a refinement, after the events that came during the last one.
+        self._refine_timer = QTimer(self)
+        self._refine_timer.setSingleShot(True)
+        self._refine_timer.setInterval(0)
+        self._refine_timer.timeout.connect(self._render_tile)
 
         # The intensity probe runs once the pointer rests (picking casts a CPU ray).
         self._probe_timer = QTimer(self)
@@ -395,6 +420,7 @@ class Viewport(QWidget):
         if self.plotter._in_paint:
             self.render_window.Render()
         else:
+            self._plan_frame()  # VTK's own request (camera, gizmo): new input, replan
             self.plotter.needs_render = True
             self.plotter.update()
 
@@ -441,8 +467,11 @@ class Viewport(QWidget):
 
     # -- rendering ------------------------------------------------------------------------------
     def request_render(self) -> None:
-        """Ask for a frame; many requests in one event-loop pass give one frame."""
+        """Ask for a frame; many requests in one event-loop pass give one frame. A
+        refinement in progress stops (the frame starts a new one)."""
         if not self._closed:
+            self._refine_timer.stop()
+            self.refiner.cancel()
             self._render_timer.start()
 
     def _render_now(self) -> None:
@@ -453,6 +482,7 @@ class Viewport(QWidget):
             return
         if not self._precompute():
             return
+        self._plan_frame()
         self.plotter.needs_render = True
         self.plotter.update()  # the paint renders (see _install_render_redirect)
 
@@ -463,8 +493,87 @@ class Viewport(QWidget):
         self._render_timer.stop()
         if not self._precompute():
             return
+        self._plan_full()
         self.plotter.needs_render = True
         self.plotter.repaint()
+
+    # -- progressive refinement (vtkvol.ui.refine) ---------------------------------------------
+    def _view_px(self) -> tuple[int, int]:
+        width, height = self.render_window.GetSize()
+        return (max(1, int(width)), max(1, int(height)))
+
+    def _plan_frame(self) -> None:
+        """Choose the next frame's quality for a new request (cancels any refinement)."""
+        self._refine_timer.stop()
+        if self.scene is None or not self.progressive_refinement:
+            self._plan_full()
+            return
+        self._frame = self.refiner.plan_frame(
+            self.scene.interactive, self._view_px(),
+            float(self.model.render.interactive_image_factor))
+        self._frame_fresh = True
+
+    def _plan_full(self) -> None:
+        """The next frames render at the scene's own quality, whole (screenshots, tests)."""
+        self._refine_timer.stop()
+        self.refiner.cancel()
+        interactive = self.scene is not None and self.scene.interactive
+        factor = float(self.model.render.interactive_image_factor) if interactive else 1.0
+        self._frame = Frame("interactive" if interactive else "full", factor)
+        self._frame_fresh = True
+
+    def _render_tile(self) -> None:
+        """Render the refinement's next strip (the timer runs it between event-loop passes)."""
+        if self._closed or self.scene is None or self._busy:
+            return
+        frame = self.refiner.next_tile(self._view_px())
+        if frame is None:
+            self._set_refine_text("")
+            if not self.refiner.complete:
+                self.request_render()  # the view was resized meanwhile: start over
+            return
+        self._frame = frame
+        self._frame_fresh = True
+        self.plotter.needs_render = True
+        self.plotter.update()
+
+    def _apply_frame(self) -> None:
+        """At the start of every frame: the image sample distance and scissor strip of the
+        planned frame. A frame nobody planned (a resize, an exposure, the first frame) is
+        planned now: a strip drawn twice, or a coarse frame over the strips, would leave the
+        view coarse, and an unplanned full-quality frame could freeze the window."""
+        if self.scene is None:
+            return
+        if not self._frame_fresh and not self._frame_sticky:
+            self._plan_frame()
+        self._frame_fresh = False
+        self.scene.mapper.SetImageSampleDistance(self._frame.image_factor)
+        if self._frame.tile is not None:
+            camera = self.renderer.GetActiveCamera()
+            camera.SetScissorRect(vtk.vtkRecti(*self._frame.tile))
+            camera.SetUseScissor(True)  # VTK resets it after this frame
+
+    def _set_refine_text(self, text: str) -> None:
+        if text != self._refine_text:
+            self._refine_text = text
+            self.refinementChanged.emit(text)
+
+    @property
+    def frame_pending(self) -> bool:
+        """A frame was asked for and not drawn yet (time-lapse playback waits for it)."""
+        # A hidden view paints nothing: it would hold playback for ever.
+        return self._render_timer.isActive() or self._busy > 0 or (
+            self.plotter.needs_render and self.plotter.isVisible())
+
+    @property
+    def refining(self) -> bool:
+        """True while full quality is still being rendered in strips."""
+        return self.refiner.active
+
+    @property
+    def refinement_text(self) -> str:
+        """The "refining…" indicator's text ("" at full quality)."""
+        return self._refine_text
 
     @property
     def busy(self) -> bool:
@@ -526,10 +635,17 @@ class Viewport(QWidget):
 
     def _on_frame_start(self, *_: Any) -> None:
         self._frame_start = time.perf_counter()
+        self._apply_frame()
 
     def _on_frame_end(self, *_: Any) -> None:
         self.last_frame_ms = (time.perf_counter() - self._frame_start) * 1e3
         self.frame_count += 1
+        if self.scene is not None:
+            view = self._view_px()
+            self.refiner.frame_done(self._frame, self.last_frame_ms, view)
+            if self.refiner.active and not self._closed:
+                self._refine_timer.start()
+            self._set_refine_text(self.refiner.status_text(view))
         if self.scene is not None and self.scene.interactive:
             self._reduced_shown = True
         illum = self.scene.illuminator if self.scene is not None else None
@@ -554,6 +670,8 @@ class Viewport(QWidget):
         self._gizmo.set_visible(False)
         self._settle_timer.stop()
         self.scene.set_interactive(False)
+        self._plan_full()
+        self._frame_sticky = True  # every render of the screenshot (tiles too) at full quality
         illuminator = self.scene.illuminator
         if illuminator is not None:
             illuminator.defer_precompute = False
@@ -607,6 +725,7 @@ class Viewport(QWidget):
             if self.scene is not None:
                 self.scene.volume.SetVisibility(volume_visible)
                 self.scene.overlays.magnify(1)
+            self._frame_sticky = False
             self._gizmo.set_visible(gizmo)
             self.request_render()
         return np.ascontiguousarray(image[..., :3], dtype=np.uint8)
@@ -829,6 +948,7 @@ class Viewport(QWidget):
         self._closed = True
         self._render_timer.stop()
         self._settle_timer.stop()
+        self._refine_timer.stop()
         self.plotter.removeEventFilter(self)
         self.model.changed.disconnect(self._on_model_changed)
         rw = self.render_window

@@ -209,9 +209,10 @@ class VolumeScene:
     def _on_model_changed(self, paths: frozenset[str]) -> None:
         if self.data is None:
             return
-        paths = frozenset(p for p in paths if tuple(fields_of(p)[:3]) not in _EDITOR_ONLY)
+        paths = frozenset(p for p in paths if tuple(fields_of(p)[:3]) not in _EDITOR_ONLY
+                          and tuple(fields_of(p)[:2]) != ("volume", "time_index"))
         if not paths:
-            return
+            return  # (the time index: the new voxels come with set_voxels, and their frame)
         if touches(paths, "cursor"):
             self._apply_cursor()
             if paths == {"cursor"} and not self.model.overlays.slice_planes:
