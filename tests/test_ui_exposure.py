@@ -48,3 +48,26 @@ def test_a_full_frame_with_shadows_measures_the_exposure(window):
     assert scene.exposure_measurement is measurement
     window.model.render.auto_exposure = False
     assert scene.illuminator.exposure == pytest.approx(window.model.render.exposure)
+
+
+def test_measuring_frames_are_not_the_views_frames(window, monkeypatch):
+    """The two coarse measuring frames neither take the planned strip nor count as frames
+    (the refiner learns its cost per row from the view's frames only)."""
+    viewport, scene = window.viewport, window.viewport.scene
+    window.model.illumination.method = "shadow_volume"
+    window.model.render.auto_exposure = True
+    seen = []
+    measure = scene.update_exposure
+
+    def counted() -> bool:
+        before = (viewport.frame_count, len(viewport.refiner.__dict__))
+        changed = measure()
+        seen.append((before[0], viewport.frame_count, scene.exposure_measurement))
+        return changed
+
+    monkeypatch.setattr(scene, "update_exposure", counted)
+    window.model.lights[0].intensity = 0.9  # the light changed: measured again
+    viewport.render_now()
+    measured = [s for s in seen if s[2] is not None]
+    assert measured, "no measurement ran before the full frame"
+    assert all(before == after for before, after, _ in measured)

@@ -338,6 +338,7 @@ class Viewport(QWidget):
         # auto_update=False: no 5 Hz timer; this widget renders only when asked (§4 item 12).
         self.plotter = ViewWidget(self, auto_update=False)
         self.plotter.before_frame = self._before_frame
+        self._measuring = False  # the automatic exposure's frames are rendering
         self.plotter.setAcceptDrops(False)  # dropped files go to the main window, not pyvista
         layout.addWidget(self.plotter)
         self.setMinimumSize(160, 120)
@@ -628,16 +629,25 @@ class Viewport(QWidget):
         scene = self.scene
         if self._closed or scene is None or scene.interactive:
             return
+        # The measuring frames are not the view's: no planned strip or image factor applies
+        # to them, and they count neither as frames nor in the refiner's cost per row.
+        self._measuring = True
         try:
             scene.update_exposure()
         except Exception:  # a failed measurement keeps the last exposure; the view must draw
             logging.getLogger(__name__).exception("automatic exposure failed")
+        finally:
+            self._measuring = False
 
     def _on_frame_start(self, *_: Any) -> None:
+        if self._measuring:
+            return
         self._frame_start = time.perf_counter()
         self._apply_frame()
 
     def _on_frame_end(self, *_: Any) -> None:
+        if self._measuring:
+            return
         self.last_frame_ms = (time.perf_counter() - self._frame_start) * 1e3
         self.frame_count += 1
         if self.scene is not None:
