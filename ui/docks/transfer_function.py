@@ -70,6 +70,7 @@ from vtkvol.model.transfer_function import (
     TransferFunction,
     TransferFunction2D,
     above,
+    paint_from_1d,
 )
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
@@ -785,7 +786,18 @@ class TransferFunctionDock(ModelDock):
             self.current_tf2d().paint = None
 
     def _on_dimension(self, index: int) -> None:
-        self.current_channel().tf_mode = _DIMENSIONS[index][0]
+        channel = self.current_channel()
+        mode = _DIMENSIONS[index][0]
+        tf2d = channel.tf2d
+        if mode == "2d" and not tf2d.primitives and (tf2d.paint is None or tf2d.paint.empty):
+            # An empty 2-D TF shows nothing: start from the 1-D TF's equivalent, painted over
+            # the editor's axes (Clear paint empties it), in the same undo step.
+            values, gradients = self.axes_2d()
+            with self._step():
+                tf2d.paint = paint_from_1d(self.current_tf(), values, gradients)
+                channel.tf_mode = mode
+            return
+        channel.tf_mode = mode
 
     def add_primitive(self, kind: str) -> None:
         """Add a rectangle or triangle in the middle of the editor's axes and select it."""
