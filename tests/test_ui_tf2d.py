@@ -163,6 +163,7 @@ def test_colour_delete_and_proposed_classes_are_undoable(window, monkeypatch) ->
     dock.propose_button.click()
     proposed = channel.tf2d.primitives
     assert len(proposed) > 0 and len({p.color for p in proposed}) >= 2
+    assert len(proposed) == len({p.color for p in proposed})  # one region per class
     assert max(p.opacity for p in proposed) > min(p.opacity for p in proposed)
     assert drawn(shot(window), window) > 0.01
     assert window.recorder.stack.count() == count + 1

@@ -882,7 +882,10 @@ class TransferFunctionDock(ModelDock):
         try:
             classes = spatialized_classes(self._features.sample(self.data, index), values,
                                           gradients, radius=self.stf_radius.value())
-            proposed = classes_to_tf(classes, opacity_scale=self.stf_opacity.value())
+            # One region per class, the background class left out (issue 25: ~60 small
+            # rectangles, and a blue fog of background noise over the volume).
+            proposed = classes_to_tf(classes, opacity_scale=self.stf_opacity.value(),
+                                     one_per_class=True, background=False)
         except ValueError as exc:
             errors.show_error(self, exc, action="Could not propose classes")
             return
