@@ -416,3 +416,35 @@ def test_fit_turn_keeps_every_corner_in_frame_at_every_angle(aspect):
 def test_turntable_axis_is_checked():
     with pytest.raises(ValueError, match="axis must be 'sample' or 'view'"):
         next(turntable_frames(None, frames=2, axis="diagonal"))  # type: ignore[arg-type]
+
+
+def test_overlays_scale_with_the_frame():
+    """Issue 25: the colour legend took a fifth of small movie frames (fixed 12 px text,
+    90 px wide). Its pixel sizes now follow the frame's shorter side, so it takes about the
+    same share of a small frame as of a large one."""
+    import vtk
+
+    from vtkvol.engine.offscreen import make_render_window
+    from vtkvol.engine.overlays import SceneOverlays, overlay_scale
+    from vtkvol.model.scene import Overlays
+
+    assert overlay_scale(1200, 600) == 1.0 and overlay_scale(320, 240) == pytest.approx(0.45)
+    assert overlay_scale(4000, 3000) == 3.0
+    shares = []
+    for width, height in ((320, 240), (960, 720)):
+        window = make_render_window((width, height))
+        renderer = vtk.vtkRenderer()
+        window.AddRenderer(renderer)
+        overlays = SceneOverlays(renderer)
+        lut = vtk.vtkColorTransferFunction()
+        lut.AddRGBPoint(0.0, 0, 0, 0)
+        lut.AddRGBPoint(100.0, 1, 1, 1)
+        overlays.set_legend_channels([("ch0", lut)])
+        overlays.apply(Overlays(color_legend=True, scale_bar=True))
+        window.Render()
+        [legend] = overlays.legends
+        shares.append(legend.GetMaximumWidthInPixels() / width)
+        font = legend.GetLabelTextProperty().GetFontSize()
+        assert font == max(6, round(12 * overlay_scale(width, height)))
+        overlays.close()
+    assert shares[0] == pytest.approx(shares[1], rel=0.15)
