@@ -122,3 +122,19 @@ def test_no_clipped_or_overlapping_widgets(qapp, qtbot, tmp_path, small_volume_f
     problems += layout_problems(window)
     window.close()
     assert not sorted(set(problems)), "\n".join(sorted(set(problems)))
+
+
+def test_status_bar_leaves_room_for_messages(opened_window):
+    """Issue 25: the data label's long line ran into the frame label and truncated the
+    messages. It asks for at most 420 px and draws the rest as "…"; text() and the tooltip
+    keep it whole."""
+    window = opened_window
+    window.resize(1024, 700)
+    label = window.data_label
+    label.setText("a-very-long-file-name-" * 12 + " — 64×64×64, uint16, voxel 1×1×1 µm")
+    window.statusBar().showMessage("Opened with notes")
+    QWidget.adjustSize(window.statusBar())
+    assert label.sizeHint().width() <= 420
+    assert label.elided_text().endswith("…") and label.text().endswith("µm")
+    window._show_data_info()
+    assert "nuclei.npy" in label.text()

@@ -83,6 +83,7 @@ from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
+from vtkvol.ui.elided_label import ElidedLabel
 from vtkvol.ui.movie_dialog import MovieDialog
 from vtkvol.ui.pyramid_view import (
     BUDGET_CHOICES,
@@ -552,7 +553,7 @@ class MainWindow(QMainWindow):
 
     def _make_status_bar(self) -> None:
         status = self.statusBar()
-        self.data_label = QLabel("No data")
+        self.data_label = ElidedLabel("No data")
         self.data_label.setObjectName("status_data")
         self.frame_label = QLabel("")
         self.frame_label.setObjectName("status_frame")
