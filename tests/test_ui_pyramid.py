@@ -123,7 +123,6 @@ def test_level_shown_refine_and_back(main_window, qtbot, pyramid_path, tmp_path)
     assert model.volume.level == 0 and again.metadata["origin_um"] == pytest.approx(
         [14.0, 4.0, 0.0])
     window.budget_override = BUDGET
-
     with qtbot.waitSignal(window.dataShown, timeout=30_000):
         window.ranges_dock.overview_button.click()
     assert window.data.metadata["level"] == 1 and window.data.array.shape == (1, 16, 32, 32)
@@ -135,6 +134,12 @@ def test_level_shown_refine_and_back(main_window, qtbot, pyramid_path, tmp_path)
     np.testing.assert_allclose(window.model.camera.focal_point, focal_before, atol=1e-9)
     assert window.model.volume.region_um is None
     assert not window.overview_action.isEnabled()
+
+    # A session's level says where it came from.
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_session(saved)
+    assert "finest level (0 of 0–2)" in window.data_label.text()
+    assert ", as saved in the session" in window.data_label.toolTip().split("\n")[0]
     window.budget_override = None
 
 
