@@ -12,7 +12,9 @@ from vtkvol.movie import (
     MovieCancelled,
     even_size,
     existing_outputs,
+    fit_turn,
     movie_kind,
+    turned_camera,
     turntable_frames,
     write_movie,
 )
@@ -358,3 +360,91 @@ def test_cli_names_the_movie_extra_when_the_encoder_is_missing(tmp_path, capsys,
     with pytest.raises(ValueError, match=r"vtkvol\[movie\]"):
         write_movie(iter(_frames(2, 4, 4)), tmp_path / "b.mp4", n_frames=2)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_turn_about_the_sample_axis_keeps_a_tilted_view_upright():
+    """Issue 25: the app turned about the tilted view-up, so the box tumbled. About the
+    sample's z axis the camera keeps its height (elevation) at every angle; about the
+    tilted view-up it does not."""
+    position, focal = np.array([0.0, -10.0, 5.0]), np.zeros(3)
+    up = np.array([0.0, 5.0, 10.0]) / np.linalg.norm([0.0, 5.0, 10.0])  # tilted towards +y
+    heights, tumbling = [], []
+    for degrees in (0.0, 45.0, 90.0, 180.0, 270.0):
+        p, u = turned_camera(position, focal, up, (0.0, 0.0, 1.0), degrees)
+        heights.append(p[2])
+        assert np.linalg.norm(p - focal) == pytest.approx(np.linalg.norm(position))
+        assert np.dot(u, p - focal) == pytest.approx(0.0, abs=1e-9)  # still a view-up
+        tumbling.append(turned_camera(position, focal, up, up, degrees)[0][2])
+    np.testing.assert_allclose(heights, 5.0, atol=1e-9)
+    assert np.ptp(tumbling) > 5.0
+
+
+@pytest.mark.parametrize("aspect", [0.5, 1.0, 2.0])
+def test_fit_turn_keeps_every_corner_in_frame_at_every_angle(aspect):
+    """A camera 3 µm from the centre of a 4 µm cube (parts of it outside the frame) is moved
+    back until each corner lies inside both fields of view at every angle of the turn."""
+    import math
+
+    import vtk
+
+    cam = vtk.vtkCamera()
+    cam.SetFocalPoint(0.0, 0.0, 0.0)
+    cam.SetPosition(0.0, -3.0, 1.0)
+    cam.SetViewUp(0.0, 0.0, 1.0)
+    cam.OrthogonalizeViewUp()  # as a renderer's camera is
+    cam.SetViewAngle(30.0)
+    bounds = (-2.0, 2.0, -2.0, 2.0, -2.0, 2.0)
+    fit_turn(cam, bounds, aspect)
+    half_v = math.radians(15.0)
+    half_h = math.atan(math.tan(half_v) * aspect)
+    corners = np.array([[x, y, z] for x in (-2, 2) for y in (-2, 2) for z in (-2, 2)], float)
+    assert np.linalg.norm(cam.GetPosition()) > 3.1
+    for degrees in range(0, 360, 15):
+        p, u = turned_camera(cam.GetPosition(), (0, 0, 0), cam.GetViewUp(), (0, 0, 1), degrees)
+        forward = -p / np.linalg.norm(p)
+        right = np.cross(forward, u)
+        for c in corners:
+            v = c - p
+            depth = float(np.dot(v, forward))
+            assert abs(np.dot(v, u)) / depth <= math.tan(half_v) + 1e-9
+            assert abs(np.dot(v, right)) / depth <= math.tan(half_h) + 1e-9
+    far = cam.GetPosition()
+    fit_turn(cam, bounds, aspect)  # far enough already: it stays
+    assert cam.GetPosition() == pytest.approx(far)
+
+
+def test_turntable_axis_is_checked():
+    with pytest.raises(ValueError, match="axis must be 'sample' or 'view'"):
+        next(turntable_frames(None, frames=2, axis="diagonal"))  # type: ignore[arg-type]
+
+
+def test_overlays_scale_with_the_frame():
+    """Issue 25: the colour legend took a fifth of small movie frames (fixed 12 px text,
+    90 px wide). Its pixel sizes now follow the frame's shorter side, so it takes about the
+    same share of a small frame as of a large one."""
+    import vtk
+
+    from vtkvol.engine.offscreen import make_render_window
+    from vtkvol.engine.overlays import SceneOverlays, overlay_scale
+    from vtkvol.model.scene import Overlays
+
+    assert overlay_scale(1200, 600) == 1.0 and overlay_scale(320, 240) == pytest.approx(0.45)
+    assert overlay_scale(4000, 3000) == 3.0
+    shares = []
+    for width, height in ((320, 240), (960, 720)):
+        window = make_render_window((width, height))
+        renderer = vtk.vtkRenderer()
+        window.AddRenderer(renderer)
+        overlays = SceneOverlays(renderer)
+        lut = vtk.vtkColorTransferFunction()
+        lut.AddRGBPoint(0.0, 0, 0, 0)
+        lut.AddRGBPoint(100.0, 1, 1, 1)
+        overlays.set_legend_channels([("ch0", lut)])
+        overlays.apply(Overlays(color_legend=True, scale_bar=True))
+        window.Render()
+        [legend] = overlays.legends
+        shares.append(legend.GetMaximumWidthInPixels() / width)
+        font = legend.GetLabelTextProperty().GetFontSize()
+        assert font == max(6, round(12 * overlay_scale(width, height)))
+        overlays.close()
+    assert shares[0] == pytest.approx(shares[1], rel=0.15)

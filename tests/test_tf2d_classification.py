@@ -9,6 +9,7 @@ import pytest
 
 from vtkvol.model.classification import (
     MAX_PRIMITIVES,
+    class_colors,
     classes_to_tf,
     feature_sample,
     histogram2d,
@@ -137,3 +138,34 @@ def test_opacity_scale_outside_its_range_is_refused() -> None:
 def test_feature_sample_refuses_non_volumes() -> None:
     with pytest.raises(ValueError, match="3-D volume"):
         feature_sample(np.zeros((4, 4)), (1, 1, 1))
+
+
+def test_one_region_per_class_and_the_background_left_out() -> None:
+    """Issue 25: "Propose classes" gave ~60 small rectangles and a class of background noise
+    (a fog over the volume). One region per class, each the box of its bins; the class of the
+    fullest bin (the background) left out, so its voxels are transparent."""
+    vol, _ = two_spheres(48)
+    sample = feature_sample(vol, (1.0, 1.0, 1.0))
+    classes = spatialized_classes(sample, (0.0, 255.0), (0.0, 60.0))
+    present = [int(k) for k in np.unique(classes.labels[classes.labels >= 0])]
+    runs = classes_to_tf(classes, opacity_scale=2.0)
+    assert len(runs.primitives) > len(present)  # the rectangles per run, as before
+    background = int(classes.labels.flat[int(np.argmax(classes.counts))])
+    assert background >= 0
+    merged = classes_to_tf(classes, opacity_scale=2.0, one_per_class=True, background=False)
+    assert len(merged.primitives) == len(present) - 1
+    ve, ge = classes.value_edges, classes.gradient_edges
+    for k in present:
+        if k == background:
+            continue
+        rows, cols = np.nonzero(classes.labels == k)
+        [box] = [p for p in merged.primitives if p.color == class_colors(classes.n_classes)[k]]
+        assert box.value_range == (ve[cols.min()], ve[cols.max() + 1])
+        assert box.gradient_range == (ge[rows.min()], ge[rows.max() + 1])
+    # The fullest bin (background) is transparent unless another class's box covers it.
+    row, col = np.unravel_index(int(np.argmax(classes.counts)), classes.counts.shape)
+    v, g = 0.5 * (ve[col] + ve[col + 1]), 0.5 * (ge[row] + ge[row + 1])
+    covered = any(p.value_range[0] <= v <= p.value_range[1] and
+                  p.gradient_range[0] <= g <= p.gradient_range[1] for p in merged.primitives)
+    assert covered or merged.evaluate(np.array(v), np.array(g))[3] == 0.0
+    assert runs.evaluate(np.array(v), np.array(g))[3] > 0.0

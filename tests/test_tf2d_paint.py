@@ -250,3 +250,26 @@ def test_painted_blob_adds_opacity_to_its_voxels_and_the_eraser_restores_them() 
         np.testing.assert_array_equal(view.image(), image0)
     finally:
         view.close()
+
+
+def test_paint_from_1d_classifies_as_the_1d_tf():
+    """The layer a channel switching to 2-D starts from (issue 25) evaluates as the 1-D TF at
+    every gradient inside the axis, to 8-bit rounding."""
+    from vtkvol.model.transfer_function import (
+        TransferFunction,
+        TransferFunction2D,
+        paint_from_1d,
+    )
+
+    tf = TransferFunction(colors=[(0.0, 0.0, 0.0, 1.0), (500.0, 1.0, 0.5, 0.0),
+                                  (1000.0, 1.0, 1.0, 1.0)],
+                          opacity=[(100.0, 0.0), (600.0, 0.8), (1000.0, 0.3)],
+                          window=(0.0, 1000.0), window_range=(0.0, 1000.0))
+    layer = paint_from_1d(tf, (0.0, 1000.0), (0.0, 40.0))
+    values = np.linspace(0.0, 1000.0, 301)
+    two_d = TransferFunction2D(paint=layer)
+    for g in (0.0, 7.3, 39.9):
+        rgba = two_d.evaluate(values, np.full_like(values, g))
+        np.testing.assert_allclose(rgba[:, 3], tf.opacity_at(values), atol=0.01)
+        lit = rgba[:, 3] > 0.05  # colour only means something where there is opacity
+        np.testing.assert_allclose(rgba[lit, :3], tf.color_at(values)[lit], atol=0.02)

@@ -252,3 +252,35 @@ def test_refinement_progress_shows_in_the_status_bar(opened_window, qtbot):
                         timeout=30_000)
         window.model.illumination.method = "local"
     assert any(text.startswith("Refining lighting — iteration") for text in seen)
+
+
+def test_missing_voxel_size_shows_a_badge_until_set(main_window, qtbot, small_volume_file,
+                                                      monkeypatch):
+    """A .npy stores no voxel size: a badge in the status bar says so (issue 25: the note in
+    the truncated data label was missed) and opens the voxel-size dialog; it goes once a size
+    is chosen, even the assumed 1 × 1 × 1 µm, and comes back for the next such file; data with
+    a voxel size (the sample) shows none."""
+    window = main_window
+    open_and_wait(window, qtbot, small_volume_file)
+    badge = window.voxel_badge
+    assert not badge.isHidden() and "Voxel size unknown" in badge.text()
+    asked = []
+
+    def ask(parent, current, file_size, from_file):
+        asked.append(tuple(current))
+        return (0.5, 0.5, 2.0)
+
+    monkeypatch.setattr(app_module, "ask_voxel_size", ask)
+    badge.click()
+    assert asked == [(1.0, 1.0, 1.0)]
+    assert tuple(window.data.voxel_size_um) == (0.5, 0.5, 2.0)
+    assert badge.isHidden()
+
+    open_and_wait(window, qtbot, small_volume_file)
+    assert not badge.isHidden()
+    window.set_voxel_size((1.0, 1.0, 1.0))  # the assumed size, confirmed
+    assert badge.isHidden()
+
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_sample()
+    assert badge.isHidden()

@@ -165,3 +165,29 @@ def test_existing_output_is_replaced_only_when_confirmed(dialog, tmp_path, dialo
     assert dlg.export() is None  # the recorded dialog answers "No"
     assert len(dialogs) == 1 and "keep.tif already exist" in dialogs[0].text()
     assert target.read_bytes() == b"keep"
+
+
+def test_turntable_turns_about_the_sample_axis_and_frames_the_turn(dialog, tmp_path,
+                                                                   monkeypatch):
+    """Issue 25: the dialog turned about the tilted view-up and let the object leave the
+    frame. By default it asks for the sample's axis and the whole turn in frame; the other
+    axis stays on offer."""
+    dlg = dialog
+    dlg.tabs.setCurrentIndex(0)
+    dlg.frames.setValue(2)
+    asked = []
+    real = movie.turntable_frames
+
+    def record(data, **kwargs):
+        asked.append(kwargs)
+        return real(data, **kwargs)
+
+    monkeypatch.setattr(movie, "turntable_frames", record)
+    dlg.output.setText(str(tmp_path / "turn.tif"))
+    assert dlg.export()
+    assert asked[-1]["axis"] == "sample" and asked[-1]["frame_all"] is True
+    dlg.turn_axis.setCurrentIndex(dlg.turn_axis.findData("view"))
+    dlg.frame_all.setChecked(False)
+    dlg.output.setText(str(tmp_path / "turn2.tif"))
+    assert dlg.export()
+    assert asked[-1]["axis"] == "view" and asked[-1]["frame_all"] is False

@@ -14,10 +14,13 @@ zarr = pytest.importorskip("zarr")
 writer = pytest.importorskip("ome_zarr.writer")
 ome_format = pytest.importorskip("ome_zarr.format")
 
-from vtkvol.io.pyramid import DEFAULT_GPU_BUDGET_BYTES  # noqa: E402
+from vtkvol.io.pyramid import DEFAULT_GPU_BUDGET_BYTES, parse_bytes  # noqa: E402
+from vtkvol.io.volume_data import format_bytes  # noqa: E402
 from vtkvol.model.session import load_session_with_data  # noqa: E402
 from vtkvol.ui.pyramid_view import (  # noqa: E402
+    BUDGET_CHOICES,
     GPU_BUDGET_KEY,
+    level_words,
     read_budget,
     restrict_weights,
 )
@@ -71,9 +74,10 @@ def test_level_shown_refine_and_back(main_window, qtbot, pyramid_path, tmp_path)
     open_and_wait(window, qtbot, pyramid_path)
     data = window.data
     assert data.metadata["level"] == 1 and data.array.shape == (1, 16, 32, 32)
-    assert "level 1 of 3" in window.data_label.text()
-    assert window.data_label.toolTip().startswith("Level 1 of 3, 32×32×16, finest that fits "
-                                                  "40.0 KiB")
+    # Level 1 of three is the middle one; "level 1 of 3" read as the first (issue 25).
+    assert "level 1 of 0–2 (0 = finest)" in window.data_label.text()
+    assert window.data_label.toolTip().startswith(
+        "Level 1 of 0–2 (0 = finest), 32×32×16, finest that fits 40 KiB\n")
     assert window.model.volume.level == 1
     assert window.refine_action.isEnabled() and not window.overview_action.isEnabled()
     assert window.ranges_dock.refine_button.isVisible()
@@ -119,14 +123,23 @@ def test_level_shown_refine_and_back(main_window, qtbot, pyramid_path, tmp_path)
     assert model.volume.level == 0 and again.metadata["origin_um"] == pytest.approx(
         [14.0, 4.0, 0.0])
     window.budget_override = BUDGET
-
     with qtbot.waitSignal(window.dataShown, timeout=30_000):
         window.ranges_dock.overview_button.click()
     assert window.data.metadata["level"] == 1 and window.data.array.shape == (1, 16, 32, 32)
+    # No session was involved: the overview says where it came from, not "as saved in the
+    # session" (issue 25).
+    assert window.data_label.toolTip().startswith(
+        "Level 1 of 0–2 (0 = finest), 32×32×16, the overview shown before Refine selection\n")
     assert window.model.crop.x == (14.0, 26.0) and window.model.crop.y == (4.0, 16.0)
     np.testing.assert_allclose(window.model.camera.focal_point, focal_before, atol=1e-9)
     assert window.model.volume.region_um is None
     assert not window.overview_action.isEnabled()
+
+    # A session's level says where it came from.
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_session(saved)
+    assert "finest level (0 of 0–2)" in window.data_label.text()
+    assert ", as saved in the session" in window.data_label.toolTip().split("\n")[0]
     window.budget_override = None
 
 
@@ -154,7 +167,7 @@ def test_budget_setting_is_kept_and_survives_damage(main_window, tmp_path):
     window.set_gpu_budget(512 << 20)
     assert window.gpu_budget() == 512 << 20
     assert read_budget(window.settings) == 512 << 20
-    assert "512.0 MiB" in window.statusBar().currentMessage()
+    assert "GPU memory budget 512 MiB:" in window.statusBar().currentMessage()
 
 
 def test_restricted_slice_weights():
@@ -201,3 +214,20 @@ def test_time_points_of_a_pyramid_are_read_at_the_level_and_region_shown(main_wi
     assert window.data.array.shape == refined.array.shape
     assert window.data.metadata["region_um"] == refined.metadata["region_um"]
     assert window.data.array.max() < refined.array.max()
+
+
+def test_level_words_name_the_finest_and_coarsest():
+    """Level 0 is the finest; the words say so rather than "level 1 of 2" for the coarse one."""
+    assert level_words(0, 2) == "finest level (0 of 0–1)"
+    assert level_words(1, 2) == "coarsest level (1 of 0–1)"
+    assert level_words(1, 3) == "level 1 of 0–2 (0 = finest)"
+    assert level_words(0, 1) == "the only level"
+
+
+def test_budget_sizes_read_as_the_choices():
+    """The budget dialog lists the current size beside the choices only when it differs: a
+    1 GiB budget is written "1 GiB", not "1.0 GiB" next to "1 GiB" (issue 25)."""
+    for choice in BUDGET_CHOICES:
+        assert format_bytes(parse_bytes(choice)) == choice
+    assert format_bytes(1536) == "1.5 KiB" and format_bytes(1000) == "1000 B"
+    assert format_bytes(DEFAULT_GPU_BUDGET_BYTES) == "1 GiB"

@@ -61,8 +61,19 @@ def test_widget_to_model_to_pixels_and_undo(window, qtbot) -> None:
     assert channel.tf_mode == "2d" and dock.pages.currentIndex() == 1
     assert not dock.mode_points.isVisible()  # the 1-D controls make way
     assert dock.editor_2d._histogram is not None
+    # Issue 25: the channel used to vanish until a region was added. It starts from the
+    # 1-D TF's equivalent (a painted layer constant along the gradient axis) instead.
+    assert channel.tf2d.paint is not None and not channel.tf2d.paint.empty
+    assert not channel.tf2d.primitives
+    same = shot(window)
+    assert np.abs(same - before).mean() < 2.0, np.abs(same - before).mean()
+    window.undo_action.trigger()  # one step: back to 1-D, with no paint
+    assert channel.tf_mode == "1d" and channel.tf2d.paint is None
+    window.redo_action.trigger()
+    assert channel.tf_mode == "2d" and channel.tf2d.paint is not None
+    dock.clear_paint.click()
     empty = shot(window)
-    assert drawn(empty, window) < 0.002  # no region yet: nothing is classified visible
+    assert drawn(empty, window) < 0.002  # no region, no paint: nothing is classified visible
 
     dock.add_rectangle.click()
     prim = channel.tf2d.primitives[0]
@@ -152,6 +163,7 @@ def test_colour_delete_and_proposed_classes_are_undoable(window, monkeypatch) ->
     dock.propose_button.click()
     proposed = channel.tf2d.primitives
     assert len(proposed) > 0 and len({p.color for p in proposed}) >= 2
+    assert len(proposed) == len({p.color for p in proposed})  # one region per class
     assert max(p.opacity for p in proposed) > min(p.opacity for p in proposed)
     assert drawn(shot(window), window) > 0.01
     assert window.recorder.stack.count() == count + 1
@@ -162,6 +174,7 @@ def test_colour_delete_and_proposed_classes_are_undoable(window, monkeypatch) ->
 def test_paint_stroke_to_model_to_pixels_erase_and_undo(window, qtbot, monkeypatch) -> None:
     dock, channel = window.tf_dock, window.model.channels[0]
     dock.dimension_combo.setCurrentIndex(1)
+    dock.clear_paint.click()  # the 1-D TF's equivalent it starts from
     empty = shot(window)
     assert drawn(empty, window) < 0.002
     editor = dock.editor_2d

@@ -51,6 +51,7 @@ from PySide6.QtWidgets import (
     QMainWindow,
     QMessageBox,
     QProgressDialog,
+    QPushButton,
     QScrollArea,
     QToolBar,
     QWidget,
@@ -85,14 +86,17 @@ from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
+from vtkvol.ui.elided_label import ElidedLabel
 from vtkvol.ui.movie_dialog import MovieDialog
 from vtkvol.ui.pyramid_view import (
     BUDGET_CHOICES,
     GPU_BUDGET_KEY,
+    LEVEL_WHY_KEY,
     crop_region_um,
     data_centre,
     is_pyramid,
     level_text,
+    level_words,
     offset_between,
     read_budget,
     restrict_weights,
@@ -292,6 +296,9 @@ class MainWindow(QMainWindow):
         #: The file's own voxel size (x, y, z µm) and whether the file stored it; None when
         #: the data was opened with a voxel size given (the file's is then not known).
         self._file_voxel: tuple[Spacing, bool] | None = None
+        #: The user chose a voxel size for the data on screen (Edit → Voxel size…), possibly
+        #: the assumed 1 × 1 × 1 µm: the missing-voxel-size badge then goes away.
+        self._voxel_size_chosen = False
         #: The data as read (before a voxel size set in the app), its notes and metadata whole.
         self._as_read: VolumeData | None = None
         #: Changes the undo history does not hold (a new voxel size) since the last save.
@@ -552,7 +559,7 @@ class MainWindow(QMainWindow):
 
     def _make_status_bar(self) -> None:
         status = self.statusBar()
-        self.data_label = QLabel("No data")
+        self.data_label = ElidedLabel("No data")
         self.data_label.setObjectName("status_data")
         self.frame_label = QLabel("")
         self.frame_label.setObjectName("status_frame")
@@ -580,6 +587,19 @@ class MainWindow(QMainWindow):
         self.viewport.probed.connect(self.probe_label.setText)
         status.addWidget(self.probe_label)
         status.addPermanentWidget(self.quality_label)
+        # A file without a voxel size is shown at 1 × 1 × 1 µm, which distorts anisotropic
+        # stacks; a note in the (truncated) data label was easy to miss (issue 25), so a
+        # badge stays until a voxel size is chosen.
+        self.voxel_badge = QPushButton("⚠ Voxel size unknown — set…")
+        self.voxel_badge.setObjectName("status_voxel_badge")
+        self.voxel_badge.setFlat(True)
+        self.voxel_badge.setStyleSheet("color: #b35c00; font-weight: bold;")
+        self.voxel_badge.setToolTip("The file stores no voxel size: it is shown as 1 × 1 × 1 µm "
+                                    "voxels, so lengths and the z/xy aspect may be wrong. "
+                                    "Click to set the voxel size (Edit → Voxel size…).")
+        self.voxel_badge.clicked.connect(self.choose_voxel_size)
+        self.voxel_badge.hide()
+        status.addPermanentWidget(self.voxel_badge)
         status.addPermanentWidget(self.refine_label)
         status.addPermanentWidget(self.data_label)
         status.addPermanentWidget(self.frame_label)
@@ -703,6 +723,7 @@ class MainWindow(QMainWindow):
 
     def _show_data_info(self) -> None:
         data = self.data
+        self.voxel_badge.setVisible(self.voxel_size_missing())
         if data is None:
             self.data_label.setText("No data")
             return
@@ -713,13 +734,21 @@ class MainWindow(QMainWindow):
         if self.time_player.is_series:
             channels += f", time point {self.time_player.shown_index} of {self.time_player.count}"
         level = level_text(data)
-        where = f" · level {data.metadata['level']} of {len(data.metadata['levels'])}" + (
+        where = " · " + level_words(int(data.metadata["level"]),
+                                    len(data.metadata["levels"])) + (
             " (refined region)" if data.metadata.get("region_um") else "") if level else ""
         self.data_label.setText(
             f"{name} — {x}×{y}×{z}{channels}, {data.array.dtype}, voxel {sx:.3g}×{sy:.3g}×"
             f"{sz:.3g} µm, {format_bytes(data.nbytes)}{where}")
         tip = user_note(data.describe())
         self.data_label.setToolTip(f"{level[:1].upper()}{level[1:]}\n\n{tip}" if level else tip)
+
+    def voxel_size_missing(self) -> bool:
+        """Whether the data on screen uses the assumed 1 × 1 × 1 µm voxel size: the file had
+        none, none was given on opening (or in the session), and none was chosen since."""
+        return (self.data is not None and self._file_voxel is not None
+                and not self._file_voxel[1] and self.model.volume.voxel_size_um is None
+                and not self._voxel_size_chosen)
 
     def _data_name(self) -> str:
         if self.data is None:
@@ -870,6 +899,7 @@ class MainWindow(QMainWindow):
         fresh.volume.time_index = time_index
         self._file_voxel = (None if voxel_size is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
+        self._voxel_size_chosen = False
         self._as_read = data
         self._overview = None
         fresh.volume.level = data.metadata.get("level") if is_pyramid(data) else None
@@ -987,6 +1017,8 @@ class MainWindow(QMainWindow):
         self._overview = None if model.volume.region_um is None else {
             "level": None, "crop": CropBox().model_dump(),
             "slice_weights": SliceWeights().model_dump()}
+        if data.metadata.get("level_reason") == "level chosen by the caller":
+            data.metadata[LEVEL_WHY_KEY] = "as saved in the session"
         with self.model.batch():
             apply_state(self.model, model.model_dump())
             self.time_player.data_opened(data, model.volume.time_index,
@@ -994,6 +1026,7 @@ class MainWindow(QMainWindow):
             self._set_data(data, reset_channels=False, sample_args=sample_args)
         self._file_voxel = (None if model.volume.voxel_size_um is not None
                             else (data.voxel_size_um, data.voxel_size_from_metadata))
+        self._voxel_size_chosen = False
         self._as_read = data
         self.session_path = Path(path)
         self._restore_window(window)
@@ -1233,7 +1266,9 @@ class MainWindow(QMainWindow):
         if data is None:
             return
         new = Spacing(*(float(v) for v in size))
+        self._voxel_size_chosen = True  # even when it is the assumed one: the user saw it
         if tuple(new) == tuple(data.voxel_size_um):
+            self._show_data_info()
             return
         old = data.voxel_size_um
         file_size = self._file_voxel[0] if self._file_voxel is not None else None
@@ -1355,6 +1390,8 @@ class MainWindow(QMainWindow):
 
         def success(new: VolumeData) -> None:
             self._overview = None
+            if overview["level"] is not None:  # else the budget chose it, and says so
+                new.metadata[LEVEL_WHY_KEY] = "the overview shown before Refine selection"
             self._show_pyramid_data(new, crop=overview["crop"],
                                     slice_weights=overview["slice_weights"])
 

@@ -18,6 +18,7 @@ from PySide6.QtCore import Qt, Signal
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QApplication,
+    QCheckBox,
     QComboBox,
     QDialog,
     QDialogButtonBox,
@@ -153,16 +154,29 @@ class MovieDialog(QDialog):
         self.degrees.setRange(-3600.0, 3600.0)
         self.degrees.setValue(360.0)
         self.degrees.setSuffix("°")
-        self.degrees.setToolTip("How far the view turns about the vertical axis (360: a loop "
+        self.degrees.setToolTip("How far the view turns about the chosen axis (360: a loop "
                                 "without a repeated frame)")
         self.frames = QSpinBox()
         self.frames.setRange(1, MAX_FRAMES)
         self.frames.setValue(120)
         for spin in (self.degrees, self.frames):
             spin.valueChanged.connect(lambda *_: self._update_summary())
+        # The view-up of a tilted view made the box tumble (issue 25): the sample's own z axis
+        # comes first, as `vtkvol render --turntable` turns.
+        self.turn_axis = QComboBox()
+        self.turn_axis.addItem("the sample's z axis (upright turntable)", "sample")
+        self.turn_axis.addItem("the view's vertical (screen up)", "view")
+        self.turn_axis.setToolTip("The sample's axis keeps its tilt as it turns; the view's "
+                                  "vertical turns it about the screen's up direction")
+        self.frame_all = QCheckBox("Keep the whole sample in frame")
+        self.frame_all.setChecked(True)
+        self.frame_all.setToolTip("Move the camera back where needed so that no part of the "
+                                  "volume leaves the frame at any angle of the turn")
         form.addRow("Turn by", self.degrees)
         form.addRow("Frames", self.frames)
-        note = QLabel("The current view turns about its view-up axis through the focal point; "
+        form.addRow("Turn about", self.turn_axis)
+        form.addRow(self.frame_all)
+        note = QLabel("The current view turns about the chosen axis through the focal point; "
                       "360° loops without a repeated frame.")
         note.setWordWrap(True)
         form.addRow(note)
@@ -486,7 +500,9 @@ class MovieDialog(QDialog):
         messages = self._notes = []
         if animation is None:
             return movie.turntable_frames(data, frames=n, degrees=self.degrees.value(),
-                                          model=model, size=size, on_error=messages.append)
+                                          model=model, size=size, on_error=messages.append,
+                                          axis=self.turn_axis.currentData(),
+                                          frame_all=self.frame_all.isChecked())
         current = int(model.volume.time_index)
         source = data.source if window._sample_args is None else None
         time_points = None

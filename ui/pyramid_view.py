@@ -22,7 +22,7 @@ from vtkvol.io.volume_data import format_bytes
 from vtkvol.model.scene import SceneModel
 
 __all__ = [
-    "BUDGET_CHOICES", "GPU_BUDGET_KEY", "crop_region_um", "is_pyramid", "level_text",
+    "BUDGET_CHOICES", "GPU_BUDGET_KEY", "crop_region_um", "is_pyramid", "level_text", "level_words",
     "read_budget", "restrict_weights", "shifted_view",
 ]
 
@@ -50,22 +50,44 @@ def is_pyramid(data: VolumeData | None) -> bool:
                                                                  list)
 
 
+#: Metadata key the window sets on data it read at a level it chose itself (a session's
+#: level, the overview shown before Refine selection): why that level is shown, in words.
+LEVEL_WHY_KEY = "level_why"
+
+
+def level_words(level: int, count: int) -> str:
+    """Which of ``count`` pyramid levels ``level`` (0 = finest) is, in words that cannot be
+    read as counted from the coarse end: ``"finest level (0 of 0–2)"``, ``"level 1 of 0–2
+    (0 = finest)"``, ``"coarsest level (2 of 0–2)"``."""
+    span = f"of 0–{count - 1}"
+    if count <= 1:
+        return "the only level"
+    if level == 0:
+        return f"finest level (0 {span})"
+    if level == count - 1:
+        return f"coarsest level ({level} {span})"
+    return f"level {level} {span} (0 = finest)"
+
+
 def level_text(data: VolumeData) -> str:
-    """``"level 2 of 5, 512×512×128, finest that fits 1 GiB"`` (plus the region when one was
-    read); empty for data that is not a pyramid level."""
+    """``"level 2 of 0–4 (0 = finest), 512×512×128, finest that fits 1 GiB"`` (plus the
+    region when one was read); empty for data that is not a pyramid level."""
     if not is_pyramid(data):
         return ""
     meta = data.metadata
     _, z, y, x = data.array.shape
     budget = meta.get("budget_bytes")
     reason = str(meta.get("level_reason", ""))
-    if reason == "level chosen by the caller":
-        why = "as saved in the session"
+    if meta.get(LEVEL_WHY_KEY):
+        why = str(meta[LEVEL_WHY_KEY])
+    elif reason == "level chosen by the caller":
+        # Read at the level already on screen (another time point of it).
+        why = "the level already shown"
     elif isinstance(budget, int):
         why = f"finest that fits {format_bytes(budget)}"
     else:
         why = reason
-    text = f"level {meta['level']} of {len(meta['levels'])}, {x}×{y}×{z}, {why}"
+    text = f"{level_words(int(meta['level']), len(meta['levels']))}, {x}×{y}×{z}, {why}"
     region = meta.get("region_um")
     if region:
         text += ", region " + " × ".join(

@@ -20,10 +20,14 @@ Every output is written atomically: into a temporary file (or folder) beside the
 into place when the last frame is done, and removed on error or cancel. An existing output is
 replaced only with ``overwrite=True``.
 
-The turntable turns the camera around the vertical axis through the focal point: the data's z
-axis for the default view (z up, the elevation stays constant: a real turntable), the view-up of
-a session's camera otherwise. ``degrees / frames`` separate two frames, so a 360° turn loops
-without a repeated frame.
+The turntable turns the camera around a vertical axis through the focal point. ``axis="sample"``
+(the default for the default view, and what the app offers first): the data's z axis, so the
+elevation stays constant and the sample turns like on a real turntable even when the view is
+tilted. ``axis="view"``: the camera's view-up (the default for a session's camera, as before;
+a tilted view then tumbles the box). ``frame_all=True`` moves the camera back, where needed,
+until the sphere about the focal point that holds the whole volume fits the frame: the data
+stays in every frame of the turn. ``degrees / frames`` separate two frames, so a 360° turn
+loops without a repeated frame.
 
 A keyframe animation of ``T`` seconds at ``fps`` has ``round(T · fps) + 1`` frames, frame ``i``
 at ``i / fps`` s (both the first and the last keyframe are shown). Time points other than the
@@ -40,7 +44,7 @@ import re
 import shutil
 import tempfile
 from collections import OrderedDict
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -164,30 +168,39 @@ def turntable_frames(
     parameters: dict[str, Any] | None = None,
     max_seconds: float | None = 60.0,
     on_error: Callable[[str], None] | None = None,
+    axis: str | None = None,
+    frame_all: bool = False,
 ) -> Iterator[np.ndarray]:
-    """Yield ``frames`` images ``(h, w, 3)`` uint8 of a turn by ``degrees`` (see the module
-    docstring for the axis). Arguments as :func:`vtkvol.engine.api.render_image`;
-    ``max_seconds`` bounds the refinement of each frame of a progressive technique.
+    """Yield ``frames`` images ``(h, w, 3)`` uint8 of a turn by ``degrees`` about ``axis``
+    (``"sample"``: the data's z axis, ``"view"``: the camera's view-up, ``None``: z for the
+    default view, view-up for a given camera; see the module docstring). ``frame_all``: move
+    back so the whole volume stays in frame at every angle. Other arguments as
+    :func:`vtkvol.engine.api.render_image`; ``max_seconds`` bounds the refinement of each
+    frame of a progressive technique.
     """
-    import vtk
-
     _check_frame_count(frames, "frames")
     if not math.isfinite(degrees):
         raise ValueError(f"degrees must be a finite number, got {degrees}")
+    if axis not in (None, "sample", "view"):
+        raise ValueError(f"axis must be 'sample' or 'view', got {axis!r}")
     start: dict[str, Any] = {}
+    aspect = size[0] / max(1, size[1])
 
     def turn(scene: VolumeScene, i: int, has_camera: bool) -> None:
         cam = scene.renderer.GetActiveCamera()
         if i == 0:
+            if frame_all:
+                fit_turn(cam, scene.renderer.ComputeVisiblePropBounds(), aspect)
             start.update(focal=np.array(cam.GetFocalPoint()),
                          position=np.array(cam.GetPosition()), up=np.array(cam.GetViewUp()))
-            start["axis"] = start["up"] if has_camera else np.array([0.0, 0.0, 1.0])
+            by_view = axis == "view" or (axis is None and has_camera)
+            start["axis"] = start["up"] if by_view else np.array([0.0, 0.0, 1.0])
+            scene.renderer.ResetCameraClippingRange()
             return
-        rotation = vtk.vtkTransform()
-        rotation.RotateWXYZ(i * float(degrees) / frames, *start["axis"])
-        offset = rotation.TransformVector(*(start["position"] - start["focal"]))
-        cam.SetPosition(*(start["focal"] + np.array(offset)))
-        cam.SetViewUp(*rotation.TransformVector(*start["up"]))
+        position, up = turned_camera(start["position"], start["focal"], start["up"],
+                                     start["axis"], i * float(degrees) / frames)
+        cam.SetPosition(*position)
+        cam.SetViewUp(*up)
         scene.renderer.ResetCameraClippingRange()
         scene.sync_camera_to_model()  # lights that follow the camera follow it here too
 
@@ -195,6 +208,45 @@ def turntable_frames(
         data, frames, turn, model=model, size=size, method=method, preset=preset,
         azimuth=azimuth, elevation=elevation, parameters=parameters, max_seconds=max_seconds,
         on_error=on_error)
+
+
+def turned_camera(position: Sequence[float], focal: Sequence[float], up: Sequence[float],
+                  axis: Sequence[float], degrees: float,
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Camera position and view-up (world µm, unit vector) after turning by ``degrees``
+    (right-handed) about ``axis`` through ``focal``: the turntable's motion."""
+    import vtk
+
+    rotation = vtk.vtkTransform()
+    rotation.RotateWXYZ(float(degrees), *(float(v) for v in axis))
+    offset = rotation.TransformVector(*(np.asarray(position, float) - np.asarray(focal, float)))
+    return (np.asarray(focal, float) + np.array(offset),
+            np.array(rotation.TransformVector(*(float(v) for v in up))))
+
+
+def fit_turn(camera: Any, bounds: Sequence[float], aspect: float) -> None:
+    """Move ``camera`` (a ``vtkCamera``) back along its view direction, or widen its parallel
+    scale, until the sphere about its focal point holding the box ``bounds`` (x0, x1, y0, y1,
+    z0, z1, world µm) fits the frame (width/height ``aspect``): whatever the turn's angle,
+    the box then stays inside every frame. A camera already far enough stays where it is."""
+    focal = np.array(camera.GetFocalPoint())
+    corners = np.array([[x, y, z] for x in bounds[0:2] for y in bounds[2:4]
+                        for z in bounds[4:6]], float)
+    if not np.all(np.isfinite(corners)) or bounds[0] > bounds[1]:
+        return  # nothing visible: nothing to frame
+    radius = float(np.linalg.norm(corners - focal, axis=1).max())
+    # The narrower of the two fields of view bounds the sphere.
+    narrow = min(1.0, aspect)
+    if camera.GetParallelProjection():
+        camera.SetParallelScale(max(camera.GetParallelScale(), radius / narrow))
+        return
+    half = math.radians(camera.GetViewAngle()) / 2.0
+    half = min(half, math.atan(math.tan(half) * aspect))
+    needed = radius / math.sin(half)
+    direction = np.array(camera.GetPosition()) - focal
+    distance = float(np.linalg.norm(direction))
+    if distance < needed:
+        camera.SetPosition(*(focal + direction / distance * needed))
 
 
 def keyframe_frames(

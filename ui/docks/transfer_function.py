@@ -70,6 +70,7 @@ from vtkvol.model.transfer_function import (
     TransferFunction,
     TransferFunction2D,
     above,
+    paint_from_1d,
 )
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
@@ -483,14 +484,20 @@ class TransferFunctionDock(ModelDock):
         self.clear_paint = push_button(
             "Clear paint", "tf2d_clear_paint",
             "Remove the painted layer; the next stroke starts a new one over the axes shown")
-        tools.addWidget(QLabel("size"))
-        tools.addWidget(self.brush_size)
-        tools.addWidget(self.brush_color)
-        tools.addWidget(QLabel("α"))
-        tools.addWidget(self.brush_opacity)
+        # Two controls rows per line, not four: one line of them all made the dock at least
+        # 818 px wide, a horizontal scroll bar in a 1024 × 700 window (issue 25).
         tools.addWidget(self.clear_paint)
         tools.addStretch(1)
         layout.addLayout(tools)
+        brush = QHBoxLayout()
+        brush.setSpacing(4)
+        brush.addWidget(QLabel("brush size"))
+        brush.addWidget(self.brush_size)
+        brush.addWidget(self.brush_color)
+        brush.addWidget(QLabel("α"))
+        brush.addWidget(self.brush_opacity)
+        brush.addStretch(1)
+        layout.addLayout(brush)
         row = QHBoxLayout()
         row.setSpacing(4)
         self.add_rectangle = push_button(
@@ -511,7 +518,11 @@ class TransferFunctionDock(ModelDock):
                     "opacity fades to 0 at the border (0 = hard edge)")
         for widget in (self.add_rectangle, self.add_triangle, self.delete_primitive):
             row.addWidget(widget)
-        row.addSpacing(6)
+        row.addStretch(1)
+        layout.addLayout(row)
+        row = QHBoxLayout()
+        row.setSpacing(4)
+        row.addWidget(QLabel("region colour"))
         row.addWidget(self.primitive_color)
         row.addWidget(QLabel("α"))
         row.addWidget(self.primitive_opacity)
@@ -550,7 +561,10 @@ class TransferFunctionDock(ModelDock):
         stf.addWidget(self.stf_radius)
         stf.addWidget(QLabel("c_α"))
         stf.addWidget(self.stf_opacity)
-        stf.addSpacing(10)
+        stf.addStretch(1)
+        layout.addLayout(stf)
+        stf = QHBoxLayout()
+        stf.setSpacing(4)
         stf.addWidget(QLabel("|∇I| axis"))
         stf.addWidget(self.gradient_top)
         stf.addWidget(self.gradient_full)
@@ -785,7 +799,18 @@ class TransferFunctionDock(ModelDock):
             self.current_tf2d().paint = None
 
     def _on_dimension(self, index: int) -> None:
-        self.current_channel().tf_mode = _DIMENSIONS[index][0]
+        channel = self.current_channel()
+        mode = _DIMENSIONS[index][0]
+        tf2d = channel.tf2d
+        if mode == "2d" and not tf2d.primitives and (tf2d.paint is None or tf2d.paint.empty):
+            # An empty 2-D TF shows nothing: start from the 1-D TF's equivalent, painted over
+            # the editor's axes (Clear paint empties it), in the same undo step.
+            values, gradients = self.axes_2d()
+            with self._step():
+                tf2d.paint = paint_from_1d(self.current_tf(), values, gradients)
+                channel.tf_mode = mode
+            return
+        channel.tf_mode = mode
 
     def add_primitive(self, kind: str) -> None:
         """Add a rectangle or triangle in the middle of the editor's axes and select it."""
@@ -857,7 +882,10 @@ class TransferFunctionDock(ModelDock):
         try:
             classes = spatialized_classes(self._features.sample(self.data, index), values,
                                           gradients, radius=self.stf_radius.value())
-            proposed = classes_to_tf(classes, opacity_scale=self.stf_opacity.value())
+            # One region per class, the background class left out (issue 25: ~60 small
+            # rectangles, and a blue fog of background noise over the volume).
+            proposed = classes_to_tf(classes, opacity_scale=self.stf_opacity.value(),
+                                     one_per_class=True, background=False)
         except ValueError as exc:
             errors.show_error(self, exc, action="Could not propose classes")
             return

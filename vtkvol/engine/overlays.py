@@ -39,8 +39,26 @@ SCALE_BAR_SHARE = 0.2
 AXES_VIEWPORT = (0.0, 0.0, 0.2, 0.2)
 #: Margin of the scale bar from the view's lower-right corner, pixels.
 MARGIN_PX = 14
-#: Font size of the scale bar's label, pixels.
+#: Font size of the scale bar's label, pixels (at :data:`REFERENCE_PX`).
 FONT_PX = 14
+#: Font size of the colour legends' titles and labels, pixels (at :data:`REFERENCE_PX`).
+LEGEND_FONT_PX = 12
+#: Widest colour legend, pixels (at :data:`REFERENCE_PX`).
+LEGEND_MAX_WIDTH_PX = 90
+#: Shorter side of the frame (pixels) at which the pixel sizes above hold; other frames scale
+#: them by :func:`overlay_scale`, so a legend takes the same share of a 320 × 240 movie frame
+#: as of the app's view (it took a fifth of small frames, issue 25).
+REFERENCE_PX = 600
+#: Bounds of :func:`overlay_scale` (text below ~6 px is unreadable; above 3× is a poster).
+OVERLAY_SCALE_RANGE = (0.45, 3.0)
+
+
+def overlay_scale(width: int, height: int) -> float:
+    """Factor of the overlays' pixel sizes (fonts, legend width, margin) for a frame of
+    ``width`` × ``height`` pixels: the shorter side over :data:`REFERENCE_PX`, clamped to
+    :data:`OVERLAY_SCALE_RANGE`."""
+    lo, hi = OVERLAY_SCALE_RANGE
+    return min(hi, max(lo, min(width, height) / REFERENCE_PX))
 
 
 def round_length(length: float) -> float:
@@ -75,6 +93,8 @@ class SceneOverlays:
         self.renderer = renderer
         self._state = Overlays()
         self._ink: RGB = (0.92, 0.92, 0.92)
+        #: :func:`overlay_scale` of the last frame.
+        self._scale = 1.0
 
         self._outline = vtk.vtkOutlineSource()
         mapper = vtk.vtkPolyDataMapper()
@@ -234,7 +254,7 @@ class SceneOverlays:
             legend.SetNumberOfLabels(3)
             legend.SetLabelFormat("%.4g")
             legend.SetTextPositionToPrecedeScalarBar()  # labels left of the bar: on screen
-            legend.SetMaximumWidthInPixels(90)
+            legend.SetMaximumWidthInPixels(LEGEND_MAX_WIDTH_PX)
             legend.SetBarRatio(0.3)
             legend.UnconstrainedFontSizeOn()
             legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
@@ -243,7 +263,7 @@ class SceneOverlays:
             legend.SetHeight(band - 0.04)
             for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
                 prop.SetColor(*self._ink)
-                prop.SetFontSize(12)
+                prop.SetFontSize(LEGEND_FONT_PX)
                 prop.ShadowOff()
                 prop.BoldOff()
                 prop.ItalicOff()
@@ -265,10 +285,24 @@ class SceneOverlays:
     def _before_frame(self, *_: object) -> None:
         if self._hold:
             return
+        self._scale_to_frame()
         if self._state.orientation_axes:
             self._orient_axes()
         if self._state.scale_bar:
             self._place_scale_bar()
+
+    def _scale_to_frame(self) -> None:
+        """Fonts, legend width and margin in proportion to the frame (:func:`overlay_scale`)."""
+        width, height = self.renderer.GetSize()
+        if width < 2 or height < 2:
+            return
+        scale = overlay_scale(width, height)
+        self._scale = scale
+        self.bar_text.GetTextProperty().SetFontSize(max(6, round(FONT_PX * scale)))
+        for legend in self.legends:
+            legend.SetMaximumWidthInPixels(max(20, round(LEGEND_MAX_WIDTH_PX * scale)))
+            for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
+                prop.SetFontSize(max(6, round(LEGEND_FONT_PX * scale)))
 
     def _orient_axes(self) -> None:
         main = self.renderer.GetActiveCamera()
@@ -296,9 +330,10 @@ class SceneOverlays:
             return
         length = round_length(SCALE_BAR_SHARE * width * um_per_px)
         pixels = length / um_per_px
-        x1 = width - MARGIN_PX
+        margin = MARGIN_PX * self._scale
+        x1 = width - margin
         x0 = x1 - pixels
-        y = MARGIN_PX
+        y = margin
         # Normalised viewport coordinates: what tiled screenshots place and scale correctly.
         self.bar_actor.GetPositionCoordinate().SetValue(x0 / width, y / height, 0.0)
         self.bar_actor.GetPosition2Coordinate().SetValue(x1 / width, y / height, 0.0)

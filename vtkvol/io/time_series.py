@@ -171,7 +171,7 @@ class TimePointCache:
             self._bytes -= int(dropped.nbytes)
 
     def describe(self) -> str:
-        """E.g. ``"5 time points, 2.4 MiB of 512.0 MiB"``."""
+        """E.g. ``"5 time points, 2.4 MiB of 512 MiB"``."""
         n = len(self._items)
         return (f"{n} time point{'s' if n != 1 else ''}, {format_bytes(self._bytes)} of "
                 f"{format_bytes(self._max)}")

@@ -85,11 +85,13 @@ def default_channel_names(n: int) -> list[str]:
 
 
 def format_bytes(n: float) -> str:
-    """``1536 -> "1.5 KiB"``: binary units, as memory is counted."""
+    """``1536 -> "1.5 KiB"``, ``2**30 -> "1 GiB"``: binary units, as memory is counted; one
+    decimal, dropped when it is 0 so that a size reads the same as the choices a user typed."""
     value = float(n)
     for unit in ("B", "KiB", "MiB", "GiB", "TiB"):
         if abs(value) < 1024 or unit == "TiB":
-            return f"{value:.0f} {unit}" if unit == "B" else f"{value:.1f} {unit}"
+            text = f"{value:.0f}" if unit == "B" else f"{value:.1f}".removesuffix(".0")
+            return f"{text} {unit}"
         value /= 1024
     raise AssertionError("unreachable")
 

@@ -204,12 +204,18 @@ def _hsv_to_rgb(h: float, s: float, v: float) -> tuple[float, float, float]:
 
 def classes_to_tf(classes: SpatializedClasses, *, opacity_scale: float = DEFAULT_OPACITY_SCALE,
                   colors: list[tuple[float, float, float]] | None = None,
-                  soft_edge: float = 0.0) -> TransferFunction2D:
+                  soft_edge: float = 0.0, one_per_class: bool = False,
+                  background: bool = True) -> TransferFunction2D:
     """The classes as an editable 2-D TF: per class and gradient row, one rectangle per run
     of bins, in the class's colour, with opacity = min(1, c_α · g/g_max) at the row's centre
     gradient (seed 001 eq. 2.46, read as a scale; the row's rectangle carries it). Rows of a
     class with the same run merge (their opacity averaged) when the primitive count would
-    pass :data:`MAX_PRIMITIVES`."""
+    pass :data:`MAX_PRIMITIVES`.
+
+    ``one_per_class``: one rectangle per class instead, the box of its bins, its opacity at
+    the box's centre gradient: a few regions a user can edit (the runs made ~60 small ones,
+    issue 25). ``background=False`` leaves out the class of the histogram's fullest bin, in
+    microscopy the background and its noise (which showed as a fog over the volume)."""
     lo, hi = OPACITY_SCALE_RANGE
     if not (math.isfinite(opacity_scale) and lo <= opacity_scale <= hi):
         raise ValueError(f"opacity scale c_α {opacity_scale} must lie in {lo}…{hi}")
@@ -217,13 +223,31 @@ def classes_to_tf(classes: SpatializedClasses, *, opacity_scale: float = DEFAULT
     colors = colors if colors is not None else class_colors(n)
     ve, ge = classes.value_edges, classes.gradient_edges
     gmax = float(ge[-1]) or 1.0
+    skip = -1
+    if not background and n > 0 and classes.counts.size:
+        skip = int(classes.labels.flat[int(np.argmax(classes.counts))])
+    if one_per_class:
+        boxes = []
+        for k in range(n):
+            rows, cols = np.nonzero(classes.labels == k)
+            if k == skip or rows.size == 0:
+                continue
+            r0, r1 = int(rows.min()), int(rows.max()) + 1
+            a, b = int(cols.min()), int(cols.max()) + 1
+            g_mid = 0.5 * (ge[r0] + ge[r1])
+            boxes.append(TFPrimitive(
+                value_range=(float(ve[a]), float(ve[b])),
+                gradient_range=(float(ge[r0]), float(ge[r1])),
+                color=colors[k], opacity=float(min(1.0, opacity_scale * g_mid / gmax)),
+                soft_edge=soft_edge))
+        return TransferFunction2D(primitives=boxes)
     runs: list[tuple[int, int, int, int]] = []  # (class, row, first bin, last bin + 1)
     for row in range(classes.labels.shape[0]):
         line = classes.labels[row]
         start = 0
         for i in range(1, len(line) + 1):
             if i == len(line) or line[i] != line[start]:
-                if line[start] >= 0:
+                if line[start] >= 0 and line[start] != skip:
                     runs.append((int(line[start]), row, start, i))
                 start = i
     # Merge vertically while over the limit: identical runs of one class in adjacent rows.

@@ -375,6 +375,27 @@ def table_from_1d(tf: TransferFunction, value_range: tuple[float, float],
     return np.ascontiguousarray(np.broadcast_to(row, (height, width, 4)), np.float32)
 
 
+#: Layer shape (gradient rows, value columns) of :func:`paint_from_1d`: the 1-D TF sampled at
+#: 256 values, constant over the rows (a brush still has rows to paint in).
+PAINT_FROM_1D_SHAPE = (64, 256)
+
+
+def paint_from_1d(tf: TransferFunction, value_range: tuple[float, float],
+                  gradient_range: tuple[float, float],
+                  shape: tuple[int, int] = PAINT_FROM_1D_SHAPE) -> TFPaintLayer:
+    """A painted layer over ``value_range`` (data units) × ``gradient_range`` (data units per
+    µm) that classifies as the 1-D TF ``tf`` does, whatever the gradient: the 2-D TF a
+    channel starts from when it switches to 2-D (it showed nothing until a region was added,
+    issue 25). Exact at the layer's pixel centres up to 8-bit rounding (colour and opacity
+    within 1/510), linear between them."""
+    values, _ = table_axes(value_range, gradient_range, shape)
+    row = np.concatenate([tf.color_at(values), tf.opacity_at(values)[:, None]], axis=1)
+    pixels = np.broadcast_to(np.clip(np.rint(row * 255.0), 0, 255).astype(np.uint8),
+                             (shape[0], shape[1], 4))
+    return TFPaintLayer.blank(value_range, gradient_range, shape).with_pixels(
+        np.ascontiguousarray(pixels))
+
+
 def _check_table_shape(shape: tuple[int, int]) -> tuple[int, int]:
     try:
         height, width = (int(s) for s in shape)
