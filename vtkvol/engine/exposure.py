@@ -19,6 +19,7 @@ lit ones: the exposure is one factor for the whole frame.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,9 +79,11 @@ def factor_from_frames(method: np.ndarray, local: np.ndarray,
 def measure_auto_exposure(renderer: vtk.vtkRenderer, volume: vtk.vtkVolume,
                           illuminator) -> ExposureMeasurement:
     """Render the two coarse frames of :func:`factor_from_frames` in ``renderer``'s window and
-    measure. Other props (overlays, geometry) are hidden meanwhile and the frames are not shown
-    (buffers are not swapped); the mapper's image sample distance, the props' visibility and
-    the illuminator's exposure are restored afterwards. ``illuminator``: the volume's
+    measure. A progressive technique is held still (:meth:`Illuminator.holding_still`), so
+    measuring is none of its iterations: call it once its light is up to date. Other props
+    (overlays, geometry) are hidden meanwhile and the frames are not shown (buffers are not
+    swapped); the mapper's image sample distance, the props' visibility and the
+    illuminator's exposure are restored afterwards. ``illuminator``: the volume's
     :class:`~vtkvol.engine.illuminator.Illuminator`."""
     rw = renderer.GetRenderWindow()
     mapper = volume.GetMapper()
@@ -100,7 +103,12 @@ def measure_auto_exposure(renderer: vtk.vtkRenderer, volume: vtk.vtkVolume,
         rw.SwapBuffersOff()
         mapper.SetImageSampleDistance(max(1.0, max(w, h) / PROBE_EDGE))
         illuminator.set_exposure(1.0)
-        method = grab(rw)
+        # The method's frame brings the light up to date (what the next frame would do
+        # anyway), except for a progressive technique: measuring must not count as one of its
+        # iterations, so its frame holds it still.
+        progressive = illuminator.spec.has("progressive")
+        with illuminator.holding_still() if progressive else contextlib.nullcontext():
+            method = grab(rw)
         with illuminator.lit_as_local():
             local = grab(rw)
     finally:
