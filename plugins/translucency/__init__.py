@@ -110,7 +110,7 @@ TECHNIQUE = TechniqueSpec(
     ),
     parameters=PARAMETERS,
     lighting="surface",
-    capabilities={"cpu_path", "rgb"},
+    capabilities={"cpu_path", "rgb", "adds_light"},
     # The default look, the same light volume at half resolution, and the direct term alone
     # under the host's shading rule (which must measure like shadow_volume "T full").
     bench=(

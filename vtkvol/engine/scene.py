@@ -500,12 +500,15 @@ class VolumeScene:
         self._exposure_stale = False
         method = self.model.illumination.method
         if (method == "local" or not render.shade or render.blend_mode != "composite"
-                or get_spec(method).lighting != "surface" or render.renderer != "raycast"):
+                or get_spec(method).lighting != "surface" or get_spec(method).has("adds_light")
+                or render.renderer != "raycast"):
             # Nothing takes light away (local shading's own brightness; unshaded or a MIP is
             # not lit), or a medium technique: its light is its physics (scattering returns
             # what attenuation takes; measured 0.89–0.99 of local shading's mean brightness,
             # docs/architecture.md), and its unobstructed medium is no local-shading reference.
             # The renderers beside the ray caster light as local shading or as the medium.
+            # A method that adds light (translucency's indirect light) is not darker than local
+            # shading, and its unobstructed frame (its own shading rule) is brighter still.
             measurement = None
             factor = 1.0
         else:

@@ -60,7 +60,11 @@ LIGHTING_MODELS: tuple[str, ...] = ("surface", "medium")
 #: * ``rgb``: provides coloured light transmittance (``vv_light_transmittance_rgb``);
 #: * ``cpu_path``: has a numpy path that computes the same per-voxel light as its GPU path
 #:   (fallback without compute shaders, and the oracle its tests compare against).
-CAPABILITIES: frozenset[str] = frozenset({"progressive", "view_dependent", "rgb", "cpu_path"})
+#: ``adds_light``: the technique's lighting adds light that local shading does not have
+#: (indirect, in-scattered), so it is not darker than local shading and the automatic exposure
+#: (vtkvol/engine/exposure.py) leaves it at 1.
+CAPABILITIES: frozenset[str] = frozenset({"progressive", "view_dependent", "rgb", "cpu_path",
+                                          "adds_light"})
 
 
 @dataclass(frozen=True)
