@@ -20,7 +20,7 @@ colour, size, falloff_distance)`` as :class:`vtkvol.engine.illuminator.LightSpec
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 import numpy as np
@@ -79,15 +79,13 @@ class _Medium:
         t1 = np.nan_to_num(np.maximum(ta, tb), nan=np.inf).min(axis=1)
         return np.maximum(t0, 0.0), t1
 
-    def delta_track(self, rng: np.random.Generator, o: np.ndarray, d: np.ndarray,
-                    t: np.ndarray, t_max: np.ndarray) -> np.ndarray:
-        """Distance of the next real collision, or -1 where the ray leaves [t, t_max]."""
-        t = t.copy()
-        out = np.full(len(t), -1.0)
-        live = t < t_max
+    def _tentative_collisions(self, rng: np.random.Generator, o: np.ndarray, d: np.ndarray,
+                              t: np.ndarray, t_max: np.ndarray, live: np.ndarray
+                              ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        """Free flights against the majorant: yields ``(idx, sigma)`` of the rays still live
+        after each flight (``t`` advanced in place; rays past ``t_max`` leave ``live``). The
+        caller decides what a tentative collision does and may take rays out of ``live``."""
         mu = self.majorant
-        if mu <= 0:
-            return out
         while live.any():
             idx = np.nonzero(live)[0]
             t[idx] += -np.log(1.0 - rng.random(len(idx))) / mu
@@ -95,9 +93,19 @@ class _Medium:
             live[idx[~inside]] = False
             idx = idx[inside]
             if len(idx) == 0:
-                break
-            s = self.sigma(o[idx] + t[idx, None] * d[idx])
-            real = rng.random(len(idx)) * mu < s
+                return
+            yield idx, self.sigma(o[idx] + t[idx, None] * d[idx])
+
+    def delta_track(self, rng: np.random.Generator, o: np.ndarray, d: np.ndarray,
+                    t: np.ndarray, t_max: np.ndarray) -> np.ndarray:
+        """Distance of the next real collision, or -1 where the ray leaves [t, t_max]."""
+        t = t.copy()
+        out = np.full(len(t), -1.0)
+        live = t < t_max
+        if self.majorant <= 0:
+            return out
+        for idx, s in self._tentative_collisions(rng, o, d, t, t_max, live):
+            real = rng.random(len(idx)) * self.majorant < s
             out[idx[real]] = t[idx[real]]
             live[idx[real]] = False
         return out
@@ -107,19 +115,10 @@ class _Medium:
         T = np.ones(len(o))
         t = np.zeros(len(o))
         live = t < t_max
-        mu = self.majorant
-        if mu <= 0:
+        if self.majorant <= 0:
             return T
-        while live.any():
-            idx = np.nonzero(live)[0]
-            t[idx] += -np.log(1.0 - rng.random(len(idx))) / mu
-            inside = t[idx] < t_max[idx]
-            live[idx[~inside]] = False
-            idx = idx[inside]
-            if len(idx) == 0:
-                break
-            s = self.sigma(o[idx] + t[idx, None] * d[idx])
-            T[idx] *= 1.0 - np.minimum(s / mu, 1.0)
+        for idx, s in self._tentative_collisions(rng, o, d, t, t_max, live):
+            T[idx] *= 1.0 - np.minimum(s / self.majorant, 1.0)
             live[idx[T[idx] <= 1e-6]] = False
         return T
 
