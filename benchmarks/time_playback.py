@@ -66,7 +66,7 @@ def play_row(app, window, *, cold: bool, read_ahead: bool) -> dict[str, float]:
     wait(app, lambda: player.shown_index == 0 and not player.pending)
     if cold:
         player.cache.clear()
-        player.cache.put(0, window._as_read)
+        player.cache.put(0, window.document.as_read)
     player.read_ahead = read_ahead
     player.loop = False
     player.fps = FPS
@@ -148,7 +148,7 @@ def main() -> int:
                       f"{row['read_ms']:.0f} | {row['frame_ms']:.0f} |")
             player = window.time_player
             player.cache.clear()
-            player.cache.put(player.shown_index, window._as_read)
+            player.cache.put(player.shown_index, window.document.as_read)
             cold_ms = step_ms(app, window, (player.shown_index + 1) % N_TIME)
             back_ms = step_ms(app, window, (player.shown_index - 1) % N_TIME)
             steps.append((shape, method, cold_ms, back_ms))

@@ -44,7 +44,7 @@ def window(opened_window, pristine):
     QApplication.processEvents()
     apply_state(opened_window.model, pristine)
     opened_window.recorder.reset()
-    opened_window._unsaved_data_edit = False
+    opened_window.document.unsaved_data_edit = False
 
 
 def handle_point(viewport) -> QPoint:

@@ -39,7 +39,7 @@ def window(opened_window, pristine, qtbot):
     QApplication.processEvents()
     apply_state(opened_window.model, pristine)
     opened_window.recorder.reset()
-    opened_window._unsaved_data_edit = False
+    opened_window.document.unsaved_data_edit = False
     settle(opened_window, qtbot)
 
 

@@ -63,6 +63,7 @@ from vtkvol.io.pyramid import parse_bytes
 from vtkvol.io.remote import is_remote
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
+from vtkvol.model.document import SAMPLE_KEY, Document, sample_kwargs
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
 from vtkvol.model.session import (
     SUFFIX as SESSION_SUFFIX,
@@ -119,8 +120,6 @@ SCREENSHOT_SCALES = (1, 2, 4)
 SCREENSHOT_SHORTCUT = "Ctrl+Alt+S"
 #: Progress dialogs appear only for reads longer than this (ms): quick opens do not flash.
 PROGRESS_DELAY_MS = 400
-#: ``window["sample"]`` in a session marks the built-in sample (it has no file to point to).
-SAMPLE_KEY = "sample"
 
 
 def configure_gl_platform(app: QApplication) -> None:
@@ -287,27 +286,12 @@ class MainWindow(QMainWindow):
                  parent: QWidget | None = None) -> None:
         super().__init__(parent)
         self.settings = settings if settings is not None else QSettings(APP_NAME, APP_NAME)
-        self.model = SceneModel()
-        self.data: VolumeData | None = None
-        self.session_path: Path | None = None
-        self._sample_args: dict[str, Any] | None = None
+        #: The open document: the scene model, the data on screen, its provenance, session
+        #: path, GPU budget and pyramid overview (Qt-free; the window observes it).
+        self.document = Document()
+        self.model = self.document.scene
         self._task: BackgroundTask | None = None
         self._closing = False
-        #: The file's own voxel size (x, y, z µm) and whether the file stored it; None when
-        #: the data was opened with a voxel size given (the file's is then not known).
-        self._file_voxel: tuple[Spacing, bool] | None = None
-        #: The user chose a voxel size for the data on screen (Edit → Voxel size…), possibly
-        #: the assumed 1 × 1 × 1 µm: the missing-voxel-size badge then goes away.
-        self._voxel_size_chosen = False
-        #: The data as read (before a voxel size set in the app), its notes and metadata whole.
-        self._as_read: VolumeData | None = None
-        #: Changes the undo history does not hold (a new voxel size) since the last save.
-        self._unsaved_data_edit = False
-        #: GPU-memory budget given on the command line (this run only); None: the setting.
-        self.budget_override: int | None = None
-        #: What "Back to overview" returns to while a refined region is shown: the overview's
-        #: level, crop and slice weights; None when the overview (or no pyramid) is shown.
-        self._overview: dict[str, Any] | None = None
         self._confirmed_close = False
         self.setWindowTitle(APP_NAME)
         self.setAcceptDrops(True)
@@ -335,8 +319,42 @@ class MainWindow(QMainWindow):
         if app is not None:
             app.installEventFilter(self.edit_watcher)
         self._make_auto_quality()
+        self.document.changed.connect(self._on_document_changed)
         self.resize(1280, 820)
         self._refresh_recent()
+
+    # -- the document's state, as the window's attributes of old ---------------------------------
+    @property
+    def data(self) -> VolumeData | None:
+        """The data on screen (``document.data``)."""
+        return self.document.data
+
+    @property
+    def session_path(self) -> Path | None:
+        """The session file opened or last saved (``document.session_path``)."""
+        return self.document.session_path
+
+    @session_path.setter
+    def session_path(self, value: Path | None) -> None:
+        self.document.session_path = value
+
+    @property
+    def budget_override(self) -> int | None:
+        """This run's GPU-memory budget in bytes (``document.budget_override``)."""
+        return self.document.budget_override
+
+    @budget_override.setter
+    def budget_override(self, value: int | None) -> None:
+        self.document.budget_override = value
+
+    def _on_document_changed(self, names: frozenset[str]) -> None:
+        """Status bar, title and menu states follow the document."""
+        if names & {"data", "file_voxel", "voxel_size_chosen", "sample_args"}:
+            self._show_data_info()
+        if names & {"data", "session_path", "sample_args"}:
+            self._update_title()
+        if names & {"data", "overview"}:
+            self._update_file_actions()
 
     def showEvent(self, event: QShowEvent) -> None:
         super().showEvent(event)
@@ -683,8 +701,7 @@ class MainWindow(QMainWindow):
         size set in the app applies to it too. ``ValueError`` when it does not fit the view."""
         data = with_voxel_size(read, self.model.volume.voxel_size_um)
         self.viewport.show_voxels(data)
-        self._as_read = read
-        self.data = data
+        self.document.time_point_shown(read, data)
         for dock in self.docks:
             dock.set_voxels(data)
 
@@ -744,18 +761,12 @@ class MainWindow(QMainWindow):
         self.data_label.setToolTip(f"{level[:1].upper()}{level[1:]}\n\n{tip}" if level else tip)
 
     def voxel_size_missing(self) -> bool:
-        """Whether the data on screen uses the assumed 1 × 1 × 1 µm voxel size: the file had
-        none, none was given on opening (or in the session), and none was chosen since."""
-        return (self.data is not None and self._file_voxel is not None
-                and not self._file_voxel[1] and self.model.volume.voxel_size_um is None
-                and not self._voxel_size_chosen)
+        """Whether the data on screen uses the assumed 1 × 1 × 1 µm voxel size (see
+        :meth:`Document.voxel_size_missing`)."""
+        return self.document.voxel_size_missing()
 
     def _data_name(self) -> str:
-        if self.data is None:
-            return ""
-        if self.data.source:
-            return Path(self.data.source).name
-        return "sample" if self._sample_args is not None else "in-memory volume"
+        return self.document.data_name()
 
     def _update_title(self) -> None:
         parts = [APP_NAME]
@@ -772,10 +783,11 @@ class MainWindow(QMainWindow):
         self.screenshot_menu.setEnabled(has_data)
         self.movie_action.setEnabled(has_data)
         self.voxel_size_action.setEnabled(has_data)
-        can_refine = is_pyramid(self.data) and self.model.volume.voxel_size_um is None
+        can_refine = self.document.can_refine()
+        has_overview = self.document.overview is not None
         self.refine_action.setEnabled(can_refine)
-        self.overview_action.setEnabled(self._overview is not None)
-        self.ranges_dock.set_pyramid_actions(can_refine, self._overview is not None)
+        self.overview_action.setEnabled(has_overview)
+        self.ranges_dock.set_pyramid_actions(can_refine, has_overview)
 
     def _on_reduce_toggled(self, on: bool) -> None:
         self.viewport.reduce_while_moving = on
@@ -897,13 +909,8 @@ class MainWindow(QMainWindow):
         fresh = scene_for(data)
         fresh.volume.voxel_size_um = voxel_size
         fresh.volume.time_index = time_index
-        self._file_voxel = (None if voxel_size is not None
-                            else (data.voxel_size_um, data.voxel_size_from_metadata))
-        self._voxel_size_chosen = False
-        self._as_read = data
-        self._overview = None
         fresh.volume.level = data.metadata.get("level") if is_pyramid(data) else None
-        with self.model.batch():
+        with self.document.batch(), self.model.batch():
             apply_state(self.model, {
                 "volume": fresh.volume.model_dump(),
                 "channels": [c.model_dump() for c in fresh.channels],
@@ -915,27 +922,25 @@ class MainWindow(QMainWindow):
             # Before the batch's event: the player must not take time point 0 for a request.
             self.time_player.data_opened(data, time_index,
                                          memory_budget_bytes=self.gpu_budget())
-            self._set_data(data, reset_channels=False, sample_args=sample_args)
-        self.session_path = None
+            self.document.opened(data, voxel_size_given=voxel_size is not None,
+                                 sample_args=sample_args)
+            self._show_data(data, reset_channels=False)
         self._after_open()
 
-    def _set_data(self, data: VolumeData, *, reset_channels: bool,
-                  sample_args: dict[str, Any] | None = None) -> None:
-        """Give the viewport and the docks ``data`` (inside the caller's model batch)."""
-        self._sample_args = sample_args
-        self.data = data
+    def _show_data(self, data: VolumeData, *, reset_channels: bool) -> None:
+        """Give the viewport and the docks ``data`` (inside the caller's model batch; the
+        caller records it in the document)."""
         self.viewport.show_data(data, reset_channels=reset_channels)
         for dock in self.docks:
             dock.set_data(data)
 
     def _after_open(self) -> None:
         self.recorder.reset()
-        self._unsaved_data_edit = False
         # Next event-loop pass: new channel rows are shown (and measurable) only then.
         QTimer.singleShot(0, self.fit_channels_dock)
+        # The document's event updated the data label, title and menus; the time series'
+        # state is the player's.
         self._show_data_info()
-        self._update_title()
-        self._update_file_actions()
         self._update_time_bar()
         self.auto_quality.request(delay_ms=0)  # new data: Auto (when on) chooses for it
         if self.data is not None and self.data.notes:
@@ -974,7 +979,7 @@ class MainWindow(QMainWindow):
 
             def sample_job(progress, cancel):
                 progress(0.0, "generating the sample")
-                return session.model, confocal_phantom(**_sample_kwargs(sample_args))
+                return session.model, confocal_phantom(**sample_kwargs(sample_args))
 
             self._run("Generating the sample…", sample_job,
                       lambda result: self._apply_session(session.path, *result, window,
@@ -1014,21 +1019,19 @@ class MainWindow(QMainWindow):
                        sample_args: dict[str, Any] | None = None) -> None:
         # A refined region saved in the session has no overview state to go back to; "Back
         # to overview" then shows the level the budget chooses, uncropped.
-        self._overview = None if model.volume.region_um is None else {
+        overview = None if model.volume.region_um is None else {
             "level": None, "crop": CropBox().model_dump(),
             "slice_weights": SliceWeights().model_dump()}
         if data.metadata.get("level_reason") == "level chosen by the caller":
             data.metadata[LEVEL_WHY_KEY] = "as saved in the session"
-        with self.model.batch():
-            apply_state(self.model, model.model_dump())
-            self.time_player.data_opened(data, model.volume.time_index,
-                                         memory_budget_bytes=self.gpu_budget())
-            self._set_data(data, reset_channels=False, sample_args=sample_args)
-        self._file_voxel = (None if model.volume.voxel_size_um is not None
-                            else (data.voxel_size_um, data.voxel_size_from_metadata))
-        self._voxel_size_chosen = False
-        self._as_read = data
-        self.session_path = Path(path)
+        with self.document.batch():
+            with self.model.batch():
+                apply_state(self.model, model.model_dump())
+                self.time_player.data_opened(data, model.volume.time_index,
+                                             memory_budget_bytes=self.gpu_budget())
+                self._show_data(data, reset_channels=False)
+            self.document.opened(data, voxel_size_given=model.volume.voxel_size_um is not None,
+                                 sample_args=sample_args, session_path=path, overview=overview)
         self._restore_window(window)
         self._add_recent(str(path))
         self._after_open()
@@ -1039,9 +1042,7 @@ class MainWindow(QMainWindow):
             "geometry": base64.b64encode(bytes(self.saveGeometry().data())).decode("ascii"),
             "state": base64.b64encode(bytes(self.saveState().data())).decode("ascii"),
         }
-        if self._sample_args is not None:
-            state[SAMPLE_KEY] = {k: list(v) if isinstance(v, tuple) else v
-                                 for k, v in self._sample_args.items()}
+        state.update(self.document.window_extras())
         return state
 
     def _restore_window(self, window: dict[str, Any]) -> None:
@@ -1063,7 +1064,7 @@ class MainWindow(QMainWindow):
                                                     f"vtkvol session (*{SESSION_SUFFIX})")
             if not chosen:
                 return
-            target = _session_target(Path(chosen))
+            target = session_target(Path(chosen))
             if target != Path(chosen) and target.exists() and not self._confirm_overwrite(target):
                 return
             path = target
@@ -1076,11 +1077,9 @@ class MainWindow(QMainWindow):
         except SessionError as exc:
             errors.show_error(self, exc, action="Could not save the session")
             return None
-        self.session_path = written
+        self.document.saved(written)
         self.recorder.stack.setClean()
-        self._unsaved_data_edit = False
         self._add_recent(str(written))
-        self._update_title()
         self.statusBar().showMessage(f"Saved {written}", 6000)
         return written
 
@@ -1247,7 +1246,8 @@ class MainWindow(QMainWindow):
         """Edit → Voxel size…: ask for (x, y, z) in µm and apply it."""
         if self.data is None:
             return
-        file_size, from_file = self._file_voxel if self._file_voxel is not None else (None, False)
+        file_voxel = self.document.file_voxel
+        file_size, from_file = file_voxel if file_voxel is not None else (None, False)
         size = ask_voxel_size(self, self.data.voxel_size_um, file_size, from_file)
         if size is not None:
             self.set_voxel_size(size)
@@ -1266,31 +1266,32 @@ class MainWindow(QMainWindow):
         if data is None:
             return
         new = Spacing(*(float(v) for v in size))
-        self._voxel_size_chosen = True  # even when it is the assumed one: the user saw it
         if tuple(new) == tuple(data.voxel_size_um):
-            self._show_data_info()
+            # Chosen even when it is the assumed one: the user saw it (the badge goes).
+            self.document.voxel_size_set(None)
             return
         old = data.voxel_size_um
-        file_size = self._file_voxel[0] if self._file_voxel is not None else None
+        file_voxel = self.document.file_voxel
+        file_size = file_voxel[0] if file_voxel is not None else None
         override = None if file_size is not None and tuple(file_size) == tuple(new) else tuple(new)
         crop = {axis: None if (r := getattr(self.model.crop, axis)) is None else
                 (r[0] * new[i] / old[i], r[1] * new[i] / old[i])
                 for i, axis in enumerate("xyz")}
-        read = self._as_read if self._as_read is not None else data
+        read = self.document.as_read if self.document.as_read is not None else data
         # None (the file's own value): the data exactly as read.
         resized = with_voxel_size(read, override)
         cursor = self.model.cursor
-        with self.model.batch():
-            self.model.volume.voxel_size_um = override
-            self.model.crop.update(crop)
-            if cursor is not None:  # the same voxel under the slice views' cursor
-                self.model.cursor = tuple(cursor[i] * new[i] / old[i] for i in range(3))
-            self.model.camera.update(Camera().model_dump())  # framed again for the new shape
-            self._set_data(resized, reset_channels=False, sample_args=self._sample_args)
+        with self.document.batch():
+            with self.model.batch():
+                self.model.volume.voxel_size_um = override
+                self.model.crop.update(crop)
+                if cursor is not None:  # the same voxel under the slice views' cursor
+                    self.model.cursor = tuple(cursor[i] * new[i] / old[i] for i in range(3))
+                self.model.camera.update(Camera().model_dump())  # framed for the new shape
+                self._show_data(resized, reset_channels=False)
+            self.document.voxel_size_set(resized)
         # The old steps would restore crop ranges in the old µm on the new data.
         self.recorder.reset()
-        self._unsaved_data_edit = True
-        self._show_data_info()
         self.statusBar().showMessage(f"Voxel size {new.x:.4g} × {new.y:.4g} × {new.z:.4g} µm",
                                      6000)
 
@@ -1298,13 +1299,12 @@ class MainWindow(QMainWindow):
     def gpu_budget(self) -> int:
         """The GPU-memory budget in bytes: the command line's for this run, else the setting
         (Edit → GPU memory budget…), else :data:`~vtkvol.io.pyramid.DEFAULT_GPU_BUDGET_BYTES`."""
-        return self.budget_override if self.budget_override is not None else read_budget(
-            self.settings)
+        return self.document.gpu_budget(read_budget(self.settings))
 
     def set_gpu_budget(self, nbytes: int) -> None:
         """Store the budget (QSettings, kept across runs); it applies from the next open or
         refine. A command-line budget of this run gives way to it."""
-        self.budget_override = None
+        self.document.budget_override = None
         self.settings.setValue(GPU_BUDGET_KEY, int(nbytes))
         self.statusBar().showMessage(
             f"GPU memory budget {format_bytes(int(nbytes))}: pyramids open at the finest level "
@@ -1364,20 +1364,22 @@ class MainWindow(QMainWindow):
                     f"this region fits {format_bytes(budget)}; crop a smaller region or raise "
                     "the GPU memory budget", 10000)
                 return
-            if self._overview is None:
-                self._overview = {"level": current, "crop": self.model.crop.model_dump(),
-                                  "slice_weights": self.model.slice_weights.model_dump()}
+            overview = self.document.overview
+            if overview is None:
+                overview = {"level": current, "crop": self.model.crop.model_dump(),
+                            "slice_weights": self.model.slice_weights.model_dump()}
             fractions = weight_fractions(data, new.metadata["region_um"])
             weights = {axis: restrict_weights(getattr(self.model.slice_weights, axis), lo, hi)
                        for axis, (lo, hi) in zip("xyz", fractions, strict=True)}
-            self._show_pyramid_data(new, crop=CropBox().model_dump(), slice_weights=weights)
+            self._show_pyramid_data(new, crop=CropBox().model_dump(), slice_weights=weights,
+                                    overview=overview)
 
         self._run("Refining the selection…", job, success,
                   lambda exc: self._open_failed(exc, "Could not refine the selection"))
 
     def back_to_overview(self) -> None:
         """Show the overview level again, whole, with the crop and slice weights it had."""
-        data, overview = self.data, self._overview
+        data, overview = self.data, self.document.overview
         if data is None or overview is None or self._task is not None:
             return
         budget = self.gpu_budget()
@@ -1389,38 +1391,36 @@ class MainWindow(QMainWindow):
                                memory_budget_bytes=budget, progress=progress, cancel=cancel)
 
         def success(new: VolumeData) -> None:
-            self._overview = None
             if overview["level"] is not None:  # else the budget chose it, and says so
                 new.metadata[LEVEL_WHY_KEY] = "the overview shown before Refine selection"
             self._show_pyramid_data(new, crop=overview["crop"],
-                                    slice_weights=overview["slice_weights"])
+                                    slice_weights=overview["slice_weights"], overview=None)
 
         self._run("Reading the overview…", job, success,
                   lambda exc: self._open_failed(exc, "Could not show the overview"))
 
     def _show_pyramid_data(self, new: VolumeData, *, crop: dict[str, Any],
-                           slice_weights: dict[str, Any]) -> None:
+                           slice_weights: dict[str, Any],
+                           overview: dict[str, Any] | None) -> None:
         """Show another level or region of the same pyramid, keeping what is on screen in
         place (see :mod:`vtkvol.ui.pyramid_view`); a fresh undo history, like a new voxel
-        size (the old steps hold crop ranges in the other level's µm)."""
+        size (the old steps hold crop ranges in the other level's µm). ``overview``: what
+        "Back to overview" returns to afterwards (None: this is the overview)."""
         old = self.data
         assert old is not None
         shift = shifted_view(self.model, offset_between(old, new), data_centre(old))
-        with self.model.batch():
-            self.model.update(shift)
-            self.model.volume.update({"level": int(new.metadata["level"]),
-                                      "region_um": new.metadata.get("region_um")})
-            self.model.crop.update(crop)
-            self.model.slice_weights.update(slice_weights)
-            self._set_data(new, reset_channels=False)
-            self.time_player.data_opened(new, self.model.volume.time_index,
-                                         memory_budget_bytes=self.gpu_budget())
-        self._as_read = new
-        self._file_voxel = (new.voxel_size_um, new.voxel_size_from_metadata)
+        with self.document.batch():
+            with self.model.batch():
+                self.model.update(shift)
+                self.model.volume.update({"level": int(new.metadata["level"]),
+                                          "region_um": new.metadata.get("region_um")})
+                self.model.crop.update(crop)
+                self.model.slice_weights.update(slice_weights)
+                self._show_data(new, reset_channels=False)
+                self.time_player.data_opened(new, self.model.volume.time_index,
+                                             memory_budget_bytes=self.gpu_budget())
+            self.document.level_shown(new, overview=overview)
         self.recorder.reset()
-        self._unsaved_data_edit = True
-        self._show_data_info()
-        self._update_file_actions()
         self.statusBar().showMessage(f"Showing {level_text(new)}", 15000)
         self.dataShown.emit()
 
@@ -1428,7 +1428,7 @@ class MainWindow(QMainWindow):
     def has_unsaved_changes(self) -> bool:
         """Whether the view changed since it was opened or saved (camera moves aside)."""
         return self.data is not None and (
-            not self.recorder.stack.isClean() or self._unsaved_data_edit)
+            not self.recorder.stack.isClean() or self.document.unsaved_data_edit)
 
     def request_quit(self) -> None:
         """File → Quit: ask about unsaved changes, then close."""
@@ -1475,17 +1475,6 @@ class MainWindow(QMainWindow):
         self.recorder.close()
         self.viewport.close()  # GL resources go while the context is still current
         super().closeEvent(event)
-
-
-def _session_target(path: Path) -> Path:
-    """The file ``save_session`` will really write for ``path`` (it appends the suffix)."""
-    return session_target(path)
-
-
-def _sample_kwargs(stored: dict[str, Any]) -> dict[str, Any]:
-    """Arguments of ``confocal_phantom`` from a session's ``window["sample"]`` (JSON lists)."""
-    allowed = {"shape_zyx", "voxel_size_um", "seed"}
-    return {k: tuple(v) if isinstance(v, list) else v for k, v in stored.items() if k in allowed}
 
 
 def with_voxel_size(read: VolumeData, size: tuple[float, float, float] | None) -> VolumeData:

@@ -504,7 +504,7 @@ class MovieDialog(QDialog):
                                           axis=self.turn_axis.currentData(),
                                           frame_all=self.frame_all.isChecked())
         current = int(model.volume.time_index)
-        source = data.source if window._sample_args is None else None
+        source = data.source if window.document.sample_args is None else None
         time_points = None
         if source and animation.animates_time:
             time_points = movie.TimePointCache.for_file(

@@ -19,6 +19,7 @@ from PySide6.QtCore import QSettings
 from vtkvol.io import VolumeData
 from vtkvol.io.pyramid import DEFAULT_GPU_BUDGET_BYTES, Region, parse_bytes
 from vtkvol.io.volume_data import format_bytes
+from vtkvol.model.document import is_pyramid
 from vtkvol.model.scene import SceneModel
 
 __all__ = [
@@ -42,12 +43,6 @@ def read_budget(settings: QSettings) -> int:
         return parse_bytes(str(value))
     except ValueError:
         return DEFAULT_GPU_BUDGET_BYTES
-
-
-def is_pyramid(data: VolumeData | None) -> bool:
-    """Whether ``data`` is one level of a multiscale file (it can be refined)."""
-    return data is not None and bool(data.source) and isinstance(data.metadata.get("levels"),
-                                                                 list)
 
 
 #: Metadata key the window sets on data it read at a level it chose itself (a session's
