@@ -26,34 +26,17 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from pydantic import ValidationError
-from PySide6.QtCore import Qt
-from PySide6.QtGui import QColor
 from PySide6.QtWidgets import (
-    QButtonGroup,
-    QCheckBox,
-    QComboBox,
     QFileDialog,
-    QGridLayout,
     QHBoxLayout,
     QInputDialog,
-    QLabel,
-    QMenu,
-    QRadioButton,
-    QSizePolicy,
     QStackedWidget,
-    QToolButton,
-    QVBoxLayout,
     QWidget,
 )
-from superqt import QDoubleRangeSlider
 
 from vtkvol.io.atomic import write_atomic
 from vtkvol.model import strict_json
 from vtkvol.model.classification import (
-    DEFAULT_OPACITY_SCALE,
-    DEFAULT_RADIUS,
-    OPACITY_SCALE_RANGE,
-    RADIUS_RANGE,
     FeatureSample,
     classes_to_tf,
     feature_sample,
@@ -62,9 +45,9 @@ from vtkvol.model.classification import (
 )
 from vtkvol.model.evented import touches
 from vtkvol.model.gradient import gradient_axis_max
-from vtkvol.model.presets import apply_preset, is_preset, preset_label, preset_names
+from vtkvol.model.presets import apply_preset
 from vtkvol.model.scene import SceneModel
-from vtkvol.model.tf_paint import MAX_BRUSH_RADIUS, TFPaintLayer, apply_stroke, stroke_mask
+from vtkvol.model.tf_paint import TFPaintLayer, apply_stroke, stroke_mask
 from vtkvol.model.transfer_function import (
     TFPrimitive,
     TransferFunction,
@@ -75,9 +58,11 @@ from vtkvol.model.transfer_function import (
 from vtkvol.ui import errors
 from vtkvol.ui.binding import signals_blocked
 from vtkvol.ui.docks import base as dock_base
-from vtkvol.ui.docks.base import ColorButton, ModelDock, hint_label, number_box, push_button
-from vtkvol.ui.docks.function_editor import ColorBar, Curve, FunctionEditor, format_value
-from vtkvol.ui.docks.tf2d_editor import TF2DEditor
+from vtkvol.ui.docks.base import ModelDock
+from vtkvol.ui.docks.function_editor import format_value
+from vtkvol.ui.docks.tf_1d_page import CURVES, TF1DPage
+from vtkvol.ui.docks.tf_2d_page import TF2DPage
+from vtkvol.ui.docks.tf_controls import ASK_COLORMAP, DIMENSIONS, TFControls
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -88,12 +73,6 @@ TF_FILE_FILTER = "Transfer function (*.tf.json);;JSON (*.json)"
 HISTOGRAM_BINS = 256
 HISTOGRAM_SAMPLE = 1_000_000  #: voxels per channel the histogram is computed from (strided)
 HISTOGRAM_2D_BINS = (96, 192)  #: gradient × value bins of the 2-D editor's histogram
-_DIMENSIONS = (("1d", "Value (1-D)"), ("2d", "Value × gradient (2-D)"))
-COLORMAPS = ("gray", "viridis", "magma", "inferno", "plasma", "cividis", "turbo", "hot",
-             "bone", "copper", "cubehelix")
-_ASK_COLORMAP = "\0ask"  #: menu data of "By name…" (not a valid preset or colormap name)
-_CURVES = (("opacity", "Opacity", (235, 235, 235)), ("red", "Red", (235, 80, 80)),
-           ("green", "Green", (80, 210, 90)), ("blue", "Blue", (90, 140, 255)))
 
 
 # -- pure helpers (unit-tested) ------------------------------------------------------------------
@@ -247,155 +226,49 @@ class TransferFunctionDock(ModelDock):
         body = QWidget()
         outer = QHBoxLayout(body)
         outer.setContentsMargins(6, 4, 6, 6)
-
-        left = QVBoxLayout()
-        left.setSpacing(2)
-        self.editor = FunctionEditor()
-        self.editor.setObjectName("tf_editor")
-        self.editor.set_curves([Curve(n, label, QColor(*c), log_axis=(n == "opacity"))
-                                for n, label, c in _CURVES])
-        self.editor.set_y_title("opacity / colour")
-        left.addWidget(self.editor, 1)
-        self.colorbar = ColorBar()
-        self.colorbar.setObjectName("tf_colorbar")
-        left.addWidget(self.colorbar)
-
-        window_row = QHBoxLayout()
-        window_row.addWidget(QLabel("Displayed values"))
-        self.window_min = number_box(minimum=0, maximum=1, decimals=0, object_name="tf_window_min",
-                                     tooltip="Lowest data value shown in the editor")
-        self.window_slider = QDoubleRangeSlider(Qt.Orientation.Horizontal)
-        self.window_slider.setObjectName("tf_window_slider")
-        self.window_slider.setToolTip(
-            "Zoom the editor into part of the data range: set a rough function over the whole "
-            "range, then refine it part by part.")
-        self.window_slider.setSizePolicy(QSizePolicy.Policy.Expanding, QSizePolicy.Policy.Fixed)
-        self.window_max = number_box(minimum=0, maximum=1, decimals=0, object_name="tf_window_max",
-                                     tooltip="Highest data value shown in the editor")
-        for box in (self.window_min, self.window_max):
-            box.setMinimumWidth(80)
-            box.setSizePolicy(QSizePolicy.Policy.Fixed, QSizePolicy.Policy.Fixed)
-        self.window_full = push_button(
-            "Full range", "tf_window_full", "Show the data's whole value range")
-        window_row.addWidget(self.window_min)
-        window_row.addWidget(self.window_slider, 1)
-        window_row.addWidget(self.window_max)
-        window_row.addWidget(self.window_full)
-        left.addLayout(window_row)
-        page_1d = QWidget()
-        page_1d.setLayout(left)
-        left.setContentsMargins(0, 0, 0, 0)
+        self.page_1d = TF1DPage()
+        self.page_2d = TF2DPage()
         self.pages = QStackedWidget()
         self.pages.setObjectName("tf_pages")
-        self.pages.addWidget(page_1d)
-        self.pages.addWidget(self._build_2d_page())
+        self.pages.addWidget(self.page_1d)
+        self.pages.addWidget(self.page_2d)
         outer.addWidget(self.pages, 1)
-
-        side = QWidget()
-        side.setFixedWidth(228)
-        grid = QGridLayout(side)
-        grid.setContentsMargins(6, 0, 0, 0)
-        grid.setVerticalSpacing(4)
-        row = 0
-        grid.addWidget(QLabel("Channel"), row, 0)
-        self.channel_combo = QComboBox()
-        self.channel_combo.setObjectName("tf_channel")
-        self.channel_combo.setToolTip("The channel whose transfer function is edited")
-        grid.addWidget(self.channel_combo, row, 1, 1, 3)
-        row += 1
-        self.link_label = hint_label("")
-        self.link_label.setVisible(False)
-        grid.addWidget(self.link_label, row, 0, 1, 4)
-        row += 1
-        grid.addWidget(QLabel("Classify"), row, 0)
-        self.dimension_combo = QComboBox()
-        self.dimension_combo.setObjectName("tf_dimension")
-        for _, label in _DIMENSIONS:
-            self.dimension_combo.addItem(label)
-        self.dimension_combo.setToolTip(
-            "Classify the channel by its values (1-D transfer function) or by value and "
-            "gradient magnitude (2-D): boundaries between materials have large gradients. "
-            "Switching keeps both functions.")
-        grid.addWidget(self.dimension_combo, row, 1, 1, 3)
-        row += 1
-        first_1d_row = row
-        grid.addWidget(QLabel("Edit"), row, 0)
-        self.curve_group = QButtonGroup(self)
-        self.curve_buttons: dict[str, QToolButton] = {}
-        curve_row = QHBoxLayout()
-        curve_row.setSpacing(2)
-        for i, (name, label, color) in enumerate(_CURVES):
-            button = QToolButton()
-            button.setText(label if name == "opacity" else label[0])
-            button.setCheckable(True)
-            button.setObjectName(f"tf_curve_{name}")
-            button.setToolTip(f"Edit the {label.lower()} curve")
-            button.setStyleSheet(
-                f"QToolButton:checked {{ border-bottom: 3px solid rgb{color}; "
-                "font-weight: bold; }")
-            self.curve_group.addButton(button, i)
-            self.curve_buttons[name] = button
-            curve_row.addWidget(button)
-        self.curve_buttons["opacity"].setChecked(True)
-        grid.addLayout(curve_row, row, 1, 1, 3)
-        row += 1
-        grid.addWidget(QLabel("Mode"), row, 0)
-        self.mode_points = QRadioButton("Points")
-        self.mode_points.setObjectName("tf_mode_points")
-        self.mode_points.setToolTip("Add, drag and delete nodes (right-click deletes)")
-        self.mode_curve = QRadioButton("Curve")
-        self.mode_curve.setObjectName("tf_mode_curve")
-        self.mode_curve.setToolTip("Draw the curve freehand")
-        self.mode_points.setChecked(True)
-        grid.addWidget(self.mode_points, row, 1)
-        grid.addWidget(self.mode_curve, row, 2, 1, 2)
-        row += 1
-        self.log_opacity = QCheckBox("Log opacity axis")
-        self.log_opacity.setObjectName("tf_log_opacity")
-        self.log_opacity.setToolTip(
-            "Spread low opacities (0.001–0.05) over most of the editor's height "
-            "(Potts & Möller's logarithmic scale, seed 002 §5.1.3)")
-        grid.addWidget(self.log_opacity, row, 0, 1, 4)
-        row += 1
-        self.histogram_log = QCheckBox("Log histogram counts")
-        self.histogram_log.setObjectName("tf_histogram_log")
-        self.histogram_log.setChecked(True)
-        self.histogram_log.setToolTip("Show the histogram's counts on a log scale, so rare "
-                                      "bright values are visible next to the background peak")
-        grid.addWidget(self.histogram_log, row, 0, 1, 4)
-        row += 1
-        self.preset_button = QToolButton()
-        self.preset_button.setObjectName("tf_presets")
-        self.preset_button.setText("Preset")
-        self.preset_button.setToolTip("Replace this channel's transfer function by a preset, "
-                                      "stretched over its current value span")
-        self.preset_button.setPopupMode(QToolButton.ToolButtonPopupMode.InstantPopup)
-        self.preset_button.setToolButtonStyle(Qt.ToolButtonStyle.ToolButtonTextOnly)
-        self.preset_menu = self._preset_menu()
-        self.preset_button.setMenu(self.preset_menu)
-        self.load_button = push_button(
-            "Load…", "tf_load", "Load a transfer function saved with Save…")
-        self.save_button = push_button(
-            "Save…", "tf_save", "Save this channel's transfer function to a file")
-        buttons = QHBoxLayout()
-        buttons.setSpacing(4)
-        buttons.addWidget(self.preset_button)
-        buttons.addWidget(self.load_button)
-        buttons.addWidget(self.save_button)
-        grid.addLayout(buttons, row, 0, 1, 4)
-        row += 1
-        # The 1-D editor's controls: hidden while the channel is classified in 2-D.
-        self._controls_1d = [
-            item.widget() for r in range(first_1d_row, row) for c in range(4)
-            if (item := grid.itemAtPosition(r, c)) is not None and item.widget() is not None
-        ] + [*self.curve_buttons.values(), self.preset_button, self.load_button,
-             self.save_button]
-        grid.setRowStretch(row, 1)
-        grid.setColumnStretch(3, 1)
-        outer.addWidget(side)
+        self.controls = TFControls()
+        outer.addWidget(self.controls)
         self.set_body(body)
+        self._name_widgets()
+        self._bind()
 
+    def _name_widgets(self) -> None:
+        """The pages' and controls' widgets under the dock's own names (its methods and the
+        tests use these)."""
+        one, two, side = self.page_1d, self.page_2d, self.controls
+        self.editor, self.colorbar = one.editor, one.colorbar
+        self.window_min, self.window_slider, self.window_max, self.window_full = (
+            one.window_min, one.window_slider, one.window_max, one.window_full)
+        self.channel_combo, self.link_label, self.dimension_combo = (
+            side.channel_combo, side.link_label, side.dimension_combo)
+        self.curve_group, self.curve_buttons = side.curve_group, side.curve_buttons
+        self.mode_points, self.mode_curve = side.mode_points, side.mode_curve
+        self.log_opacity, self.histogram_log = side.log_opacity, side.histogram_log
+        self.preset_button, self.preset_menu = side.preset_button, side.preset_menu
+        self.load_button, self.save_button = side.load_button, side.save_button
+        self._controls_1d = side.controls_1d
+        self.editor_2d, self.tool_group = two.editor_2d, two.tool_group
+        self.brush_size, self.brush_color, self.brush_opacity, self.clear_paint = (
+            two.brush_size, two.brush_color, two.brush_opacity, two.clear_paint)
+        self.add_rectangle, self.add_triangle, self.delete_primitive = (
+            two.add_rectangle, two.add_triangle, two.delete_primitive)
+        self.primitive_color, self.primitive_opacity, self.primitive_soft = (
+            two.primitive_color, two.primitive_opacity, two.primitive_soft)
+        self.propose_button, self.stf_radius, self.stf_opacity = (
+            two.propose_button, two.stf_radius, two.stf_opacity)
+        self.gradient_top, self.gradient_full = two.gradient_top, two.gradient_full
+
+    def _bind(self) -> None:
+        """Widgets → model (the model → widgets direction is :meth:`refresh`)."""
         b = self.bindings
+        b.connect_qt(self.preset_menu.triggered, self._on_preset_action)
         b.connect_qt(self.channel_combo.currentIndexChanged, self._on_channel_chosen)
         b.connect_qt(self.curve_group.idClicked, self._on_curve_chosen)
         b.connect_qt(self.mode_points.toggled, self._on_mode)
@@ -435,166 +308,9 @@ class TransferFunctionDock(ModelDock):
         b.connect_qt(self.gradient_top.valueChanged, self._on_gradient_top)
         b.connect_qt(self.gradient_full.clicked, self._on_gradient_full)
 
-    def _build_2d_page(self) -> QWidget:
-        page = QWidget()
-        layout = QVBoxLayout(page)
-        layout.setContentsMargins(0, 0, 0, 0)
-        layout.setSpacing(2)
-        self.editor_2d = TF2DEditor()
-        self.editor_2d.setObjectName("tf2d_editor")
-        self.editor_2d.setToolTip(
-            "Value × gradient-magnitude histogram (log counts) with the 2-D transfer "
-            "function over it. Regions tool: press inside a region to select and move it; "
-            "drag a corner handle of the selected region to resize it. Paint / Erase: drag "
-            "to brush into the painted layer (dotted box).")
-        layout.addWidget(self.editor_2d, 1)
-        tools = QHBoxLayout()
-        tools.setSpacing(4)
-        self.tool_group = QButtonGroup(page)
-        self.tool_group.setExclusive(True)
-        tips = {
-            "regions": "Select, move and resize rectangles and triangles",
-            "paint": "Paint into the channel's painted layer (128 × 128 pixels over the axes "
-                     "shown when you first paint) with the brush's colour and opacity",
-            "erase": "Erase the painted layer (the regions are not affected)",
-        }
-        for i, tool in enumerate(("regions", "paint", "erase")):
-            button = QToolButton()
-            button.setText(tool.capitalize())
-            button.setCheckable(True)
-            button.setChecked(i == 0)
-            button.setObjectName(f"tf2d_tool_{tool}")
-            button.setToolTip(tips[tool])
-            self.tool_group.addButton(button, i)
-            tools.addWidget(button)
-        tools.addSpacing(6)
-        self.brush_size = number_box(
-            minimum=0.5, maximum=MAX_BRUSH_RADIUS, decimals=1, step=0.5,
-            object_name="tf2d_brush_size",
-            tooltip="Brush radius in pixels of the painted layer (128 across each axis)")
-        self.brush_size.setValue(4.0)
-        self.brush_color = ColorButton("Brush colour")
-        self.brush_color.setObjectName("tf2d_brush_color")
-        self.brush_color.set_rgb((1.0, 1.0, 1.0))
-        self.brush_opacity = number_box(
-            minimum=0.0, maximum=1.0, decimals=3, step=0.05, object_name="tf2d_brush_opacity",
-            tooltip="Opacity the brush paints (per opacity unit distance); a stroke moves "
-                    "each pixel to it, it does not pile up")
-        self.brush_opacity.setValue(0.5)
-        self.clear_paint = push_button(
-            "Clear paint", "tf2d_clear_paint",
-            "Remove the painted layer; the next stroke starts a new one over the axes shown")
-        # Two controls rows per line, not four: one line of them all made the dock at least
-        # 818 px wide, a horizontal scroll bar in a 1024 × 700 window (issue 25).
-        tools.addWidget(self.clear_paint)
-        tools.addStretch(1)
-        layout.addLayout(tools)
-        brush = QHBoxLayout()
-        brush.setSpacing(4)
-        brush.addWidget(QLabel("brush size"))
-        brush.addWidget(self.brush_size)
-        brush.addWidget(self.brush_color)
-        brush.addWidget(QLabel("α"))
-        brush.addWidget(self.brush_opacity)
-        brush.addStretch(1)
-        layout.addLayout(brush)
-        row = QHBoxLayout()
-        row.setSpacing(4)
-        self.add_rectangle = push_button(
-            "+ Rectangle", "tf2d_add_rectangle", "Add a rectangle: a range of values and gradients")
-        self.add_triangle = push_button(
-            "+ Triangle", "tf2d_add_triangle",
-            "Add a triangle rising from |∇I| = 0: Kniss's widget for the boundary arcs "
-            "between two materials")
-        self.delete_primitive = push_button("Delete", "tf2d_delete", "Remove the selected region")
-        self.primitive_color = ColorButton("Region colour")
-        self.primitive_color.setObjectName("tf2d_color")
-        self.primitive_opacity = number_box(
-            minimum=0.0, maximum=1.0, decimals=3, step=0.01, object_name="tf2d_opacity",
-            tooltip="Opacity of the selected region (per opacity unit distance)")
-        self.primitive_soft = number_box(
-            minimum=0.0, maximum=1.0, decimals=2, step=0.05, object_name="tf2d_soft_edge",
-            tooltip="Soft edge: the fraction of the region's half-size over which its "
-                    "opacity fades to 0 at the border (0 = hard edge)")
-        for widget in (self.add_rectangle, self.add_triangle, self.delete_primitive):
-            row.addWidget(widget)
-        row.addStretch(1)
-        layout.addLayout(row)
-        row = QHBoxLayout()
-        row.setSpacing(4)
-        row.addWidget(QLabel("region colour"))
-        row.addWidget(self.primitive_color)
-        row.addWidget(QLabel("α"))
-        row.addWidget(self.primitive_opacity)
-        row.addWidget(QLabel("soft"))
-        row.addWidget(self.primitive_soft)
-        row.addStretch(1)
-        layout.addLayout(row)
-        stf = QHBoxLayout()
-        stf.setSpacing(4)
-        self.propose_button = push_button(
-            "Propose classes", "tf2d_propose",
-            "Spatialized transfer function (Roettger et al.): group histogram bins whose "
-            "voxels lie in the same place, colour each group, opacity growing with the "
-            "gradient. Replaces this channel's regions; edit the result.")
-        self.stf_radius = number_box(
-            minimum=RADIUS_RANGE[0], maximum=RADIUS_RANGE[1], decimals=2, step=0.01,
-            object_name="tf2d_stf_radius",
-            tooltip="r: how far apart (barycentre distance + spread difference, in units of "
-                    "the volume's size) two bins may be and still form one class; larger "
-                    "gives fewer classes")
-        self.stf_radius.setValue(DEFAULT_RADIUS)
-        self.stf_opacity = number_box(
-            minimum=OPACITY_SCALE_RANGE[0], maximum=OPACITY_SCALE_RANGE[1], decimals=2,
-            step=0.1, object_name="tf2d_stf_opacity",
-            tooltip="c_α: opacity = c_α · |∇I| / top of the gradient axis (capped at 1)")
-        self.stf_opacity.setValue(DEFAULT_OPACITY_SCALE)
-        self.gradient_top = number_box(
-            minimum=1e-6, maximum=1e12, decimals=3, object_name="tf2d_gradient_top",
-            tooltip="Top of the editor's gradient axis (data units per µm): zoom into the "
-                    "low gradients where most voxels lie. The renderer's own axis ends at "
-                    "¼ of the value range per mean voxel edge.")
-        self.gradient_full = push_button(
-            "Full", "tf2d_gradient_full", "Show the renderer's whole gradient axis again")
-        stf.addWidget(self.propose_button)
-        stf.addWidget(QLabel("r"))
-        stf.addWidget(self.stf_radius)
-        stf.addWidget(QLabel("c_α"))
-        stf.addWidget(self.stf_opacity)
-        stf.addStretch(1)
-        layout.addLayout(stf)
-        stf = QHBoxLayout()
-        stf.setSpacing(4)
-        stf.addWidget(QLabel("|∇I| axis"))
-        stf.addWidget(self.gradient_top)
-        stf.addWidget(self.gradient_full)
-        stf.addStretch(1)
-        layout.addLayout(stf)
-        return page
-
-    def _preset_menu(self) -> QMenu:
-        menu = QMenu(self)
-        for kind, title in (("fluorescence", "Fluorescence"), ("ct", "CT")):
-            menu.addSection(title)
-            for name in preset_names(kind):
-                action = menu.addAction(preset_label(name))
-                action.setData(name)
-        maps = [name for name in COLORMAPS if is_preset(name)]
-        if maps:
-            sub = menu.addMenu("Colormaps")
-            for name in maps:
-                action = sub.addAction(name)
-                action.setData(name)
-            sub.addSeparator()
-            other = sub.addAction("By name…")
-            other.setToolTip("Any matplotlib colormap, e.g. twilight, Blues, RdPu")
-            other.setData(_ASK_COLORMAP)
-        self.bindings.connect_qt(menu.triggered, self._on_preset_action)
-        return menu
-
     def _on_preset_action(self, action) -> None:
         name = action.data()
-        if name == _ASK_COLORMAP:
+        if name == ASK_COLORMAP:
             name, ok = QInputDialog.getText(self, "Colormap", "Matplotlib colormap name:")
             if not ok or not name.strip():
                 return
@@ -800,7 +516,7 @@ class TransferFunctionDock(ModelDock):
 
     def _on_dimension(self, index: int) -> None:
         channel = self.current_channel()
-        mode = _DIMENSIONS[index][0]
+        mode = DIMENSIONS[index][0]
         tf2d = channel.tf2d
         if mode == "2d" and not tf2d.primitives and (tf2d.paint is None or tf2d.paint.empty):
             # An empty 2-D TF shows nothing: start from the 1-D TF's equivalent, painted over
@@ -900,7 +616,7 @@ class TransferFunctionDock(ModelDock):
             self.refresh()
 
     def _on_curve_chosen(self, button_id: int) -> None:
-        self.editor.set_active(_CURVES[button_id][0])
+        self.editor.set_active(CURVES[button_id][0])
 
     def _on_mode(self, points: bool) -> None:
         self.editor.set_mode("points" if points else "curve")
