@@ -16,6 +16,7 @@ from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.scene import Overlays, SceneModel
 from vtkvol.ui import app as app_module
 from vtkvol.ui import errors
+from vtkvol.ui.menus import file_menu
 from vtkvol.ui.undo import apply_state
 
 pytestmark = pytest.mark.gui
@@ -72,7 +73,7 @@ def test_save_session_as_and_screenshot_have_their_own_shortcuts(window):
                 shortcuts.setdefault(key.toString(), []).append(action.text())
     assert {k: v for k, v in shortcuts.items() if len(v) > 1} == {}
     assert window.save_session_as_action.shortcut().toString() == "Ctrl+Shift+S"
-    assert window.screenshot_actions[1].shortcut().toString() == app_module.SCREENSHOT_SHORTCUT
+    assert window.screenshot_actions[1].shortcut().toString() == file_menu.SCREENSHOT_SHORTCUT
 
 
 def test_save_session_as_shortcut_saves(window, qtbot, monkeypatch, tmp_path):

@@ -46,10 +46,8 @@ from PySide6.QtGui import (
 from PySide6.QtWidgets import (
     QApplication,
     QFileDialog,
-    QInputDialog,
     QLabel,
     QMainWindow,
-    QMessageBox,
     QProgressDialog,
     QPushButton,
     QScrollArea,
@@ -57,17 +55,12 @@ from PySide6.QtWidgets import (
     QWidget,
 )
 
-from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
+from vtkvol.io import ReadCancelled, VolumeData, confocal_phantom, read_volume
 from vtkvol.io.atomic import write_atomic
-from vtkvol.io.pyramid import parse_bytes
-from vtkvol.io.remote import is_remote
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.document import SAMPLE_KEY, Document, sample_kwargs
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
-from vtkvol.model.session import (
-    SUFFIX as SESSION_SUFFIX,
-)
 from vtkvol.model.session import (
     MissingDataError,
     SessionError,
@@ -75,7 +68,6 @@ from vtkvol.model.session import (
     load_session_with_data,
     read_session,
     save_session,
-    session_target,
 )
 from vtkvol.ui import errors
 from vtkvol.ui.auto_quality import AutoOutcome, AutoQuality
@@ -88,9 +80,13 @@ from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.elided_label import ElidedLabel
+from vtkvol.ui.menus.edit_menu import EditMenu
+from vtkvol.ui.menus.file_menu import APP_NAME, FileMenu
+from vtkvol.ui.menus.help_menu import HelpMenu
+from vtkvol.ui.menus.host import make_action
+from vtkvol.ui.menus.view_menu import ViewMenu
 from vtkvol.ui.movie_dialog import MovieDialog
 from vtkvol.ui.pyramid_view import (
-    BUDGET_CHOICES,
     GPU_BUDGET_KEY,
     LEVEL_WHY_KEY,
     crop_region_um,
@@ -110,14 +106,8 @@ from vtkvol.ui.view_actions import ViewActions
 from vtkvol.ui.viewport import ScreenshotCancelled, Viewport
 from vtkvol.ui.voxel_size import ask_voxel_size, is_assumed_size_note, user_note
 
-APP_NAME = "vtkvol"
-MAX_RECENT = 10
-RECENT_KEY = "recentFiles"
 #: Setting: the time-point cache's size in MiB (default: vtkvol.io.time_series's).
 TIME_CACHE_KEY = "timeSeries/cacheMiB"
-SCREENSHOT_SCALES = (1, 2, 4)
-#: Shortcut of File → Save screenshot → 1×.
-SCREENSHOT_SHORTCUT = "Ctrl+Alt+S"
 #: Progress dialogs appear only for reads longer than this (ms): quick opens do not flash.
 PROGRESS_DELAY_MS = 400
 
@@ -306,8 +296,8 @@ class MainWindow(QMainWindow):
         self.view_actions = ViewActions(self.model, self)
         self.time_player = TimeSeriesPlayer(self.model, self._show_time_point, self,
                                             cache_bytes=self._time_cache_setting())
+        self.movie_dialog: MovieDialog | None = None
         self._make_docks()
-        self._make_actions()
         self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
@@ -443,136 +433,29 @@ class MainWindow(QMainWindow):
             self._slice_dragging = False
             self.viewport.end_interaction()
 
-    def _action(self, text: str, slot: Callable[..., Any], shortcut: Any = None,
-                tip: str = "") -> QAction:
-        action = QAction(text, self)
-        if shortcut is not None:
-            action.setShortcut(shortcut)
-        if tip:
-            action.setStatusTip(tip)
-            action.setToolTip(tip)
-        action.triggered.connect(lambda *_: slot())
-        return action
-
-    def _make_actions(self) -> None:
-        self.open_action = self._action("&Open…", self.choose_file, QKeySequence.StandardKey.Open,
-                                        "Open a volume file (TIFF, NumPy, raw, NRRD, VTK…)")
-        self.open_folder_action = self._action("Open &folder…", self.choose_folder, None,
-                                               "Open a folder of single-slice TIFF files")
-        self.open_url_action = self._action("Open &URL…", self.choose_url, None,
-                                            "Open an OME-Zarr image on a web server or in S3")
-        self.open_sample_action = self._action("Open &sample", self.open_sample, None,
-                                               "Open the built-in synthetic confocal stack")
-        self.open_session_action = self._action(
-            "Open s&ession…", self.choose_session, QKeySequence("Ctrl+Shift+O"),
-            "Restore a view saved with Save session")
-        self.save_session_action = self._action(
-            "&Save session", self.save_session_interactive, QKeySequence.StandardKey.Save,
-            "Save the view (settings, camera, window layout) to a session file")
-        self.save_session_as_action = self._action(
-            "Save session &as…", lambda: self.save_session_interactive(choose=True),
-            QKeySequence.StandardKey.SaveAs, "Save the view to a new session file")
-        self.movie_action = self._action(
-            "Export &movie…", self.show_movie_dialog, None,
-            "A turntable or keyframe animation (camera, lights, time point) to MP4, PNG frames "
-            "or a TIFF stack")
-        self.movie_dialog: MovieDialog | None = None
-        self.quit_action = self._action("&Quit", self.request_quit, QKeySequence.StandardKey.Quit)
-        self.undo_action = self.recorder.stack.createUndoAction(self, "&Undo")
-        self.undo_action.setShortcuts([QKeySequence.StandardKey.Undo])
-        self.redo_action = self.recorder.stack.createRedoAction(self, "&Redo")
-        self.redo_action.setShortcuts([QKeySequence("Ctrl+Shift+Z"), QKeySequence("Ctrl+Y")])
-        self.reset_camera_action = self._action(
-            "&Reset view", self.viewport.reset_camera, QKeySequence("Ctrl+R"),
-            "Frame what is visible (voxels the transfer functions do not make transparent) "
-            "from the default angle")
-        self.voxel_size_action = self._action(
-            "&Voxel size…", self.choose_voxel_size, None,
-            "The distance between voxel centres along x, y and z (µm)")
-        self.budget_action = self._action(
-            "GPU memory &budget…", self.choose_gpu_budget, None,
-            "The most voxel data shown at once; pyramids (OME-Zarr, Imaris) open at the finest "
-            "level that fits")
-        self.refine_action = self._action(
-            "Re&fine selection", self.refine_selection, QKeySequence("Ctrl+Shift+R"),
-            "Load the crop region at the finest pyramid level that fits the GPU memory budget")
-        self.overview_action = self._action(
-            "Back to &overview", self.back_to_overview, None,
-            "Show the whole pyramid again at the overview level, with the previous crop")
-        self.gizmo_action = QAction("Light &handle", self)
-        self.gizmo_action.setCheckable(True)
-        self.gizmo_action.setChecked(True)
-        self.gizmo_action.setStatusTip("Show the draggable handle of the selected light")
-        self.gizmo_action.toggled.connect(self.viewport.set_gizmo_visible)
-        self.reduce_action = QAction("Faster while &moving", self)
-        self.reduce_action.setCheckable(True)
-        self.reduce_action.setChecked(True)
-        self.reduce_action.setStatusTip(
-            "Coarser sampling while the camera moves; full quality when it stops")
-        self.reduce_action.toggled.connect(self._on_reduce_toggled)
-        self.about_action = self._action("&About vtkvol", self.show_about)
-        self.controls_action = self._action("&Mouse and keyboard", self.show_controls,
-                                            QKeySequence.StandardKey.HelpContents)
-
     def _make_menus(self) -> None:
-        bar = self.menuBar()
-        file_menu = bar.addMenu("&File")
-        file_menu.addAction(self.open_action)
-        file_menu.addAction(self.open_folder_action)
-        file_menu.addAction(self.open_url_action)
-        self.recent_menu = file_menu.addMenu("Open &recent")
-        file_menu.addAction(self.open_sample_action)
-        file_menu.addSeparator()
-        file_menu.addAction(self.open_session_action)
-        file_menu.addAction(self.save_session_action)
-        file_menu.addAction(self.save_session_as_action)
-        file_menu.addSeparator()
-        self.screenshot_menu = file_menu.addMenu("Save screens&hot")
-        self.screenshot_actions: dict[int, QAction] = {}
-        for scale in SCREENSHOT_SCALES:
-            action = self._action(f"{scale}×", lambda s=scale: self.save_screenshot_interactive(s))
-            self.screenshot_menu.addAction(action)
-            self.screenshot_actions[scale] = action
-        # Not Ctrl+Shift+S: that is Save session as (QKeySequence.SaveAs), and a key bound to
-        # two actions triggers neither.
-        self.screenshot_actions[1].setShortcut(QKeySequence(SCREENSHOT_SHORTCUT))
-        self.screenshot_menu.aboutToShow.connect(self._label_screenshot_actions)
-        file_menu.addAction(self.movie_action)
-        file_menu.addSeparator()
-        file_menu.addAction(self.quit_action)
-        file_menu.aboutToShow.connect(self._refresh_recent)
-        file_menu.aboutToShow.connect(self._update_file_actions)
-
-        edit = bar.addMenu("&Edit")
-        edit.addAction(self.undo_action)
-        edit.addAction(self.redo_action)
-        edit.addSeparator()
-        edit.addAction(self.voxel_size_action)
-
-        view = bar.addMenu("&View")
-        view.addAction(self.reset_camera_action)
-        view.addAction(self.gizmo_action)
-        view.addAction(self.reduce_action)
-        view.addSeparator()
-        for action in self.view_actions.overlay_actions.values():
-            view.addAction(action)
-        view.addAction(self.view_actions.background_action)
-        view.addSeparator()
-        view.addAction(self.view_actions.clip_action)
-        view.addSeparator()
-        for action in (self.time_bar_action, self.time_play_action, self.time_back_action,
-                       self.time_forward_action):
-            view.addAction(action)
-        view.addAction(self.refine_action)
-        view.addAction(self.overview_action)
-        view.addAction(self.budget_action)
-        view.addSeparator()
-        for dock in self.docks:
-            view.addAction(dock.toggleViewAction())
-
-        help_menu = bar.addMenu("&Help")
-        help_menu.addAction(self.controls_action)
-        help_menu.addAction(self.about_action)
+        """The menu bar, one module per menu (:mod:`vtkvol.ui.menus`)."""
+        self.file_menu = FileMenu(self)
+        self.edit_menu = EditMenu(self)
+        self.view_menu = ViewMenu(self)
+        self.help_menu = HelpMenu(self)
+        self.file_menu.menu.aboutToShow.connect(self._update_file_actions)
+        # The actions under the window's own names, as tests, benchmarks and the docs use them.
+        file_menu, edit_menu, view_menu = self.file_menu, self.edit_menu, self.view_menu
+        self.open_action = file_menu.open_action
+        self.open_url_action = file_menu.open_url_action
+        self.save_session_action = file_menu.save_session_action
+        self.save_session_as_action = file_menu.save_session_as_action
+        self.screenshot_actions = file_menu.screenshot_actions
+        self.recent_menu = file_menu.recent_menu
+        self.quit_action = file_menu.quit_action
+        self.undo_action = edit_menu.undo_action
+        self.redo_action = edit_menu.redo_action
+        self.voxel_size_action = edit_menu.voxel_size_action
+        self.reset_camera_action = view_menu.reset_camera_action
+        self.gizmo_action = view_menu.gizmo_action
+        self.refine_action = view_menu.refine_action
+        self.overview_action = view_menu.overview_action
         self._update_file_actions()
 
     def _make_status_bar(self) -> None:
@@ -646,12 +529,15 @@ class MainWindow(QMainWindow):
         self.time_bar_action.setChecked(True)
         self.time_bar_action.setStatusTip("Show the time slider of data with several time points")
         self.time_bar_action.toggled.connect(lambda *_: self._update_time_bar())
-        self.time_play_action = self._action("&Play / pause", player.toggle_playing,
-                                             QKeySequence("P"), "Play or pause the time series")
-        self.time_back_action = self._action("Pre&vious time point", lambda: player.step(-1),
-                                             QKeySequence(","))
-        self.time_forward_action = self._action("&Next time point", lambda: player.step(1),
-                                                QKeySequence("."))
+        self.time_play_action = make_action(self, "&Play / pause", player.toggle_playing,
+                                            QKeySequence("P"), "Play or pause the time series")
+        self.time_back_action = make_action(self, "Pre&vious time point",
+                                            lambda: player.step(-1), QKeySequence(","))
+        self.time_forward_action = make_action(self, "&Next time point", lambda: player.step(1),
+                                               QKeySequence("."))
+        #: The View menu lists them (:mod:`vtkvol.ui.menus.view_menu`).
+        self.time_actions = [self.time_bar_action, self.time_play_action,
+                             self.time_back_action, self.time_forward_action]
         self.time_bar.cache_box.valueChanged.connect(
             lambda mib: self.settings.setValue(TIME_CACHE_KEY, int(mib)))
         self.time_rate_label = QLabel("")
@@ -677,8 +563,7 @@ class MainWindow(QMainWindow):
     def _update_time_bar(self) -> None:
         """The bar is shown for data with more than one time point, unless the user hid it."""
         series = self.time_player.is_series
-        for action in (self.time_bar_action, self.time_play_action, self.time_back_action,
-                       self.time_forward_action):
+        for action in self.time_actions:
             action.setEnabled(series)
         self.time_toolbar.setVisible(series and self.time_bar_action.isChecked())
         self.time_bar.refresh()
@@ -777,65 +662,26 @@ class MainWindow(QMainWindow):
         self.setWindowTitle(" — ".join(parts))
 
     def _update_file_actions(self) -> None:
-        has_data = self.data is not None
-        for action in (self.save_session_action, self.save_session_as_action):
-            action.setEnabled(has_data)
-        self.screenshot_menu.setEnabled(has_data)
-        self.movie_action.setEnabled(has_data)
-        self.voxel_size_action.setEnabled(has_data)
-        can_refine = self.document.can_refine()
-        has_overview = self.document.overview is not None
-        self.refine_action.setEnabled(can_refine)
-        self.overview_action.setEnabled(has_overview)
-        self.ranges_dock.set_pyramid_actions(can_refine, has_overview)
-
-    def _on_reduce_toggled(self, on: bool) -> None:
-        self.viewport.reduce_while_moving = on
+        """Enable what applies to the document (menus and the ranges dock's buttons)."""
+        for menu in (self.file_menu, self.edit_menu, self.view_menu):
+            menu.update_enabled()
+        self.ranges_dock.set_pyramid_actions(self.document.can_refine(),
+                                             self.document.overview is not None)
 
     # -- opening --------------------------------------------------------------------------------
-    def _file_filter(self) -> str:
-        patterns: list[str] = []
-        entries = []
-        try:
-            readers = available_readers()
-        except Exception:  # a broken reader plugin must not take the Open dialog down
-            readers = ()
-        for spec in readers:
-            pats = " ".join(spec.filename_patterns)
-            patterns.extend(spec.filename_patterns)
-            entries.append(f"{spec.label} ({pats})")
-        everything = f"Volumes and sessions ({' '.join(patterns)} *{SESSION_SUFFIX})"
-        return ";;".join([everything, *entries, f"vtkvol session (*{SESSION_SUFFIX})",
-                          "All files (*)"])
+    def recent_files(self) -> list[str]:
+        """File → Open recent's entries, newest first."""
+        return self.file_menu.recent_files()
+
+    def _refresh_recent(self) -> None:
+        self.file_menu.refresh_recent()
+
+    def _add_recent(self, path: str) -> None:
+        self.file_menu.add_recent(path)
 
     def _start_dir(self) -> str:
-        recent = [p for p in self.recent_files() if not is_remote(p)]
-        return str(Path(recent[0]).parent) if recent else str(Path.home())
-
-    def choose_file(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Open volume", self._start_dir(),
-                                              self._file_filter())
-        if path:
-            self.open_path(path)
-
-    def choose_folder(self) -> None:
-        path = QFileDialog.getExistingDirectory(self, "Open folder of slices", self._start_dir())
-        if path:
-            self.open_path(path)
-
-    def choose_url(self) -> None:
-        """File → Open URL…: an OME-Zarr store's address, opened like a file."""
-        from vtkvol.ui.open_url import OpenUrlDialog
-
-        dialog = OpenUrlDialog(self)
-        if dialog.exec():
-            self.open_path(dialog.url())
-
-    def choose_session(self) -> None:
-        path, _ = QFileDialog.getOpenFileName(self, "Open session", self._start_dir(),
-                                              f"vtkvol session (*{SESSION_SUFFIX});;All files (*)")
-        if path:
-            self.open_session(path)
+        """Where file dialogs start (the newest recent file's folder, else home)."""
+        return self.file_menu.start_dir()
 
     def open_path(self, path: str | os.PathLike[str], *,
                   voxel_size: tuple[float, float, float] | None = None,
@@ -1011,7 +857,7 @@ class MainWindow(QMainWindow):
         """Ask for the moved data file (tests replace this)."""
         start = str(exc.data_path.parent) if exc.data_path is not None else self._start_dir()
         path, _ = QFileDialog.getOpenFileName(self, "Locate the data file", start,
-                                              self._file_filter())
+                                              self.file_menu.file_filter())
         return path
 
     def _apply_session(self, path: Path, model: SceneModel, data: VolumeData,
@@ -1053,23 +899,6 @@ class MainWindow(QMainWindow):
                 with contextlib.suppress(ValueError, TypeError):
                     restore(QByteArray(base64.b64decode(text.encode("ascii"), validate=True)))
 
-    def save_session_interactive(self, *, choose: bool = False) -> None:
-        if self.data is None:
-            return
-        path = self.session_path
-        if choose or path is None:
-            suggestion = (self.session_path or Path(self._start_dir()) /
-                          f"{Path(self._data_name()).stem or 'view'}{SESSION_SUFFIX}")
-            chosen, _ = QFileDialog.getSaveFileName(self, "Save session", str(suggestion),
-                                                    f"vtkvol session (*{SESSION_SUFFIX})")
-            if not chosen:
-                return
-            target = session_target(Path(chosen))
-            if target != Path(chosen) and target.exists() and not self._confirm_overwrite(target):
-                return
-            path = target
-        self.save_session(path)
-
     def save_session(self, path: str | os.PathLike[str]) -> Path | None:
         """Write the session (model, data reference, window layout); a dialog on failure."""
         try:
@@ -1083,40 +912,7 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(f"Saved {written}", 6000)
         return written
 
-    def _confirm_overwrite(self, path: Path) -> bool:
-        box = QMessageBox(self)
-        box.setWindowTitle(APP_NAME)
-        box.setIcon(QMessageBox.Icon.Question)
-        box.setText(f"{path.name} already exists.")
-        box.setInformativeText("Do you want to replace it?")
-        box.setStandardButtons(QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No)
-        box.setDefaultButton(QMessageBox.StandardButton.No)
-        return errors.run_dialog(box) == QMessageBox.StandardButton.Yes
-
     # -- screenshots ----------------------------------------------------------------------------
-    def _label_screenshot_actions(self) -> None:
-        w, h = self.viewport.plotter.width(), self.viewport.plotter.height()
-        ratio = self.viewport.plotter.devicePixelRatioF()
-        for scale, action in self.screenshot_actions.items():
-            width, height = round(w * ratio) * scale, round(h * ratio) * scale
-            action.setText(f"{scale}× ({width} × {height} px)…")
-
-    def save_screenshot_interactive(self, scale: int) -> None:
-        if self.data is None:
-            return
-        suggestion = Path(self._start_dir()) / f"{Path(self._data_name()).stem or 'view'}.png"
-        chosen, _ = QFileDialog.getSaveFileName(self, "Save screenshot", str(suggestion),
-                                                "PNG image (*.png)")
-        if not chosen:
-            return
-        target = Path(chosen)
-        if target.suffix.lower() != ".png":
-            target = target.with_name(target.name + ".png")
-            # The dialog confirmed the name without ".png"; confirm the real one ourselves.
-            if target.exists() and not self._confirm_overwrite(target):
-                return
-        self.save_screenshot(target, scale=scale)
-
     def save_screenshot(self, path: str | os.PathLike[str], *, scale: int = 1) -> Path | None:
         """Render the view ``scale`` times larger and write a PNG atomically (never a
         half-written file). Returns the path, or None after showing why it failed."""
@@ -1150,46 +946,6 @@ class MainWindow(QMainWindow):
         self.movie_dialog.activateWindow()
         return self.movie_dialog
 
-    # -- recent files ---------------------------------------------------------------------------
-    def recent_files(self) -> list[str]:
-        value = self.settings.value(RECENT_KEY, [])
-        if isinstance(value, str):  # QSettings returns a lone entry as a plain string
-            value = [value]
-        return [str(v) for v in (value or [])]
-
-    def _add_recent(self, path: str) -> None:
-        # An address (Open URL…) is kept as it is: Path() would fold its "//".
-        absolute = path if is_remote(path) else str(Path(path).absolute())
-        entries = [absolute, *(p for p in self.recent_files() if p != absolute)][:MAX_RECENT]
-        self.settings.setValue(RECENT_KEY, entries)
-        self._refresh_recent()
-
-    def _refresh_recent(self) -> None:
-        """Rebuild Open recent; entries whose file vanished are removed, with a message."""
-        entries = self.recent_files()
-        present = [p for p in entries if is_remote(p) or Path(p).exists()]
-        vanished = [p for p in entries if p not in present]
-        if vanished:
-            self.settings.setValue(RECENT_KEY, present)
-            names = ", ".join(Path(p).name for p in vanished)
-            self.statusBar().showMessage(f"Removed from Open recent (no longer found): {names}",
-                                         8000)
-        menu = self.recent_menu
-        menu.clear()
-        for i, entry in enumerate(present):
-            action = menu.addAction(f"&{(i + 1) % 10} {Path(entry).name}")
-            action.setToolTip(entry)
-            action.setStatusTip(entry)
-            action.triggered.connect(lambda *_, p=entry: self.open_path(p))
-        if present:
-            menu.addSeparator()
-            menu.addAction("Clear list", self._clear_recent)
-        menu.setEnabled(bool(present))
-
-    def _clear_recent(self) -> None:
-        self.settings.setValue(RECENT_KEY, [])
-        self._refresh_recent()
-
     # -- drag and drop --------------------------------------------------------------------------
     @staticmethod
     def _dropped_paths(event: QDragEnterEvent | QDropEvent) -> list[str]:
@@ -1217,29 +973,6 @@ class MainWindow(QMainWindow):
                 6000)
         # After the drop returns: the drag source must not wait for a whole read.
         QTimer.singleShot(0, lambda: self.open_path(paths[0]))
-
-    # -- help -----------------------------------------------------------------------------------
-    def show_about(self) -> None:
-        from vtkvol import __version__
-
-        QMessageBox.about(self, f"About {APP_NAME}",
-                          f"<b>{APP_NAME} {__version__}</b><br>Volume rendering of microscopy "
-                          "data with real illumination, inside VTK's GPU ray caster.")
-
-    def show_controls(self) -> None:
-        QMessageBox.information(
-            self, "Mouse and keyboard",
-            "<b>3-D view</b><br>Left drag: rotate · Shift+left or middle drag: pan · "
-            "Right drag or wheel: zoom · Ctrl+left drag: spin<br>Drag the light's handle to "
-            "move the light selected in the Lights dock.<br><br><b>Slice views</b><br>"
-            "Click or drag: move the cursor · wheel or PageUp/PageDown: next slice<br><br>"
-            "<b>Function editors</b><br>"
-            "Points mode: click to add a node, drag to move, right-click or Delete to remove."
-            "<br>Curve mode: press and drag to draw.<br>Double-click the colour bar to set a "
-            "colour.<br><br><b>Keys</b><br>Ctrl+Z / Ctrl+Shift+Z: undo / redo · Ctrl+R: reset "
-            "view · Ctrl+O: open · Ctrl+S: save session · Ctrl+Shift+S: save session as · "
-            f"{SCREENSHOT_SHORTCUT}: screenshot<br><br><b>Time series</b><br>, / .: previous / "
-            "next time point · P: play or pause")
 
     # -- voxel size -----------------------------------------------------------------------------
     def choose_voxel_size(self) -> None:
@@ -1309,27 +1042,6 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(
             f"GPU memory budget {format_bytes(int(nbytes))}: pyramids open at the finest level "
             "that fits (from the next open or refine)", 8000)
-
-    def choose_gpu_budget(self) -> None:
-        """View → GPU memory budget…: pick or type a size (e.g. 1.5 GiB)."""
-        current = format_bytes(self.gpu_budget())
-        choices = list(BUDGET_CHOICES)
-        if current not in choices:
-            choices.insert(0, current)
-        text, ok = QInputDialog.getItem(
-            self, "GPU memory budget",
-            "The most voxel data shown at once (all channels). Pyramids (OME-Zarr, Imaris)\n"
-            "open at the finest level that fits, and Refine selection loads the crop\n"
-            "region at the finest level where it fits.", choices, choices.index(current), True)
-        if not ok:
-            return
-        try:
-            nbytes = parse_bytes(text)
-        except ValueError as exc:
-            errors.show_message(self, "Not a size", f"{exc}. Enter a size such as 512 MiB or "
-                                                    "2 GiB.")
-            return
-        self.set_gpu_budget(nbytes)
 
     def refine_selection(self) -> None:
         """Load the crop region at the finest pyramid level that fits the budget.
@@ -1446,7 +1158,7 @@ class MainWindow(QMainWindow):
             return True
         answer = errors.ask_unsaved_changes(self, self._data_name())
         if answer == "save":
-            self.save_session_interactive()
+            self.file_menu.save_session_interactive()
             return not self.has_unsaved_changes()
         return answer == "discard"
 
