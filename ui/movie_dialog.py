@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import numpy as np
 from PySide6.QtCore import Qt, Signal
@@ -53,7 +53,31 @@ from vtkvol.model.keyframes import (
 from vtkvol.ui import errors
 
 if TYPE_CHECKING:
-    from vtkvol.ui.app import MainWindow
+    from PySide6.QtWidgets import QStatusBar
+
+    from vtkvol.io import VolumeData
+    from vtkvol.model.document import Document
+    from vtkvol.model.scene import SceneModel
+    from vtkvol.ui.viewport import Viewport
+
+
+class MovieHost(Protocol):
+    """The app window as the movie dialog sees it (:class:`vtkvol.ui.app.MainWindow`, which
+    is not imported here: it imports this module)."""
+
+    document: Document
+    model: SceneModel
+    viewport: Viewport
+
+    @property
+    def data(self) -> VolumeData | None: ...
+
+    # QWidget's: the window itself (the dialog's parent).
+    def window(self) -> QWidget: ...
+
+    def statusBar(self) -> QStatusBar: ...
+
+    def _start_dir(self) -> str: ...
 
 #: Seconds between a new keyframe and the one before it.
 KEYFRAME_STEP_S = 2.0
@@ -86,8 +110,8 @@ class MovieDialog(QDialog):
 
     frameWritten = Signal(int, int)
 
-    def __init__(self, window: MainWindow) -> None:
-        super().__init__(window)
+    def __init__(self, window: MovieHost) -> None:
+        super().__init__(window.window())
         self.window_ = window
         self.setWindowTitle("Export movie")
         self.setMinimumWidth(560)
