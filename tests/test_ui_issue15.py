@@ -9,13 +9,13 @@ from typing import Any
 import numpy as np
 import pytest
 from PySide6.QtCore import QPoint, QPointF, Qt
-from PySide6.QtGui import QCloseEvent, QMouseEvent
-from PySide6.QtWidgets import QApplication, QScrollArea
+from PySide6.QtGui import QAction, QCloseEvent, QMouseEvent
+from PySide6.QtWidgets import QApplication, QProgressDialog, QScrollArea
 
 from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.scene import Overlays, SceneModel
 from vtkvol.ui import app as app_module
-from vtkvol.ui import errors
+from vtkvol.ui import background, errors
 from vtkvol.ui.menus import file_menu
 from vtkvol.ui.undo import apply_state
 
@@ -67,7 +67,7 @@ def mouse(widget, kind, pos: QPoint, button, buttons) -> None:
 # -- bugs -------------------------------------------------------------------------------------
 def test_save_session_as_and_screenshot_have_their_own_shortcuts(window):
     shortcuts: dict[str, list[str]] = {}
-    for action in window.findChildren(app_module.QAction):
+    for action in window.findChildren(QAction):
         for key in action.shortcuts():
             if not key.isEmpty():
                 shortcuts.setdefault(key.toString(), []).append(action.text())
@@ -163,8 +163,8 @@ def test_no_progress_window_after_a_quick_read(main_window, qtbot, small_volume_
     window = main_window
     with qtbot.waitSignal(window.dataShown, timeout=30_000):
         window.open_path(small_volume_file)
-    qtbot.wait(app_module.PROGRESS_DELAY_MS + 300)
-    shown = [d for d in window.findChildren(app_module.QProgressDialog) if d.isVisible()]
+    qtbot.wait(background.PROGRESS_DELAY_MS + 300)
+    shown = [d for d in window.findChildren(QProgressDialog) if d.isVisible()]
     assert shown == []
 
 

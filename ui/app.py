@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import base64
 import contextlib
-import dataclasses
 import os
 import sys
 from collections.abc import Callable
@@ -25,33 +24,23 @@ import numpy as np
 from PySide6.QtCore import (
     QBuffer,
     QByteArray,
-    QEvent,
     QIODevice,
-    QObject,
     QSettings,
     Qt,
-    QThread,
     QTimer,
     Signal,
 )
 from PySide6.QtGui import (
-    QAction,
     QCloseEvent,
     QDragEnterEvent,
     QDropEvent,
     QImage,
-    QKeySequence,
     QShowEvent,
 )
 from PySide6.QtWidgets import (
     QApplication,
     QFileDialog,
-    QLabel,
     QMainWindow,
-    QProgressDialog,
-    QPushButton,
-    QScrollArea,
-    QToolBar,
     QWidget,
 )
 
@@ -69,21 +58,15 @@ from vtkvol.model.session import (
     read_session,
     save_session,
 )
-from vtkvol.ui import errors
+from vtkvol.ui import APP_NAME, errors
 from vtkvol.ui.auto_quality import AutoOutcome, AutoQuality
-from vtkvol.ui.background import Worker
+from vtkvol.ui.background import BackgroundTask
+from vtkvol.ui.dock_layout import DockLayout
 from vtkvol.ui.docks.base import ModelDock
-from vtkvol.ui.docks.channels import ChannelsDock
-from vtkvol.ui.docks.lights import LightsDock
-from vtkvol.ui.docks.ranges import RangesDock
-from vtkvol.ui.docks.slice_views import SliceViewsDock
-from vtkvol.ui.docks.slice_weights import SliceWeightsDock
-from vtkvol.ui.docks.transfer_function import TransferFunctionDock
-from vtkvol.ui.elided_label import ElidedLabel
+from vtkvol.ui.edit_watcher import DockEditWatcher
 from vtkvol.ui.menus.edit_menu import EditMenu
-from vtkvol.ui.menus.file_menu import APP_NAME, FileMenu
+from vtkvol.ui.menus.file_menu import FileMenu
 from vtkvol.ui.menus.help_menu import HelpMenu
-from vtkvol.ui.menus.host import make_action
 from vtkvol.ui.menus.view_menu import ViewMenu
 from vtkvol.ui.movie_dialog import MovieDialog
 from vtkvol.ui.pyramid_view import (
@@ -93,23 +76,19 @@ from vtkvol.ui.pyramid_view import (
     data_centre,
     is_pyramid,
     level_text,
-    level_words,
     offset_between,
     read_budget,
     restrict_weights,
     shifted_view,
     weight_fractions,
 )
-from vtkvol.ui.time_series import MIB, TimeBar, TimeSeriesPlayer
+from vtkvol.ui.status_bar import StatusLabels
+from vtkvol.ui.time_controls import TimeControls, time_cache_setting
+from vtkvol.ui.time_series import TimeSeriesPlayer
 from vtkvol.ui.undo import UndoRecorder, apply_state
 from vtkvol.ui.view_actions import ViewActions
 from vtkvol.ui.viewport import ScreenshotCancelled, Viewport
-from vtkvol.ui.voxel_size import ask_voxel_size, is_assumed_size_note, user_note
-
-#: Setting: the time-point cache's size in MiB (default: vtkvol.io.time_series's).
-TIME_CACHE_KEY = "timeSeries/cacheMiB"
-#: Progress dialogs appear only for reads longer than this (ms): quick opens do not flash.
-PROGRESS_DELAY_MS = 400
+from vtkvol.ui.voxel_size import ask_voxel_size, user_note, with_voxel_size
 
 
 def configure_gl_platform(app: QApplication) -> None:
@@ -124,138 +103,6 @@ def configure_gl_platform(app: QApplication) -> None:
         os.environ["PYOPENGL_PLATFORM"] = "glx"
     elif platform.startswith("wayland"):
         os.environ["PYOPENGL_PLATFORM"] = "egl"
-
-
-# -- background reads ------------------------------------------------------------------------------
-#: The worker of background reads (kept under its old name for code that imports it here).
-_Worker = Worker
-
-
-class BackgroundTask(QObject):
-    """A read in a ``QThread`` with a ``QProgressDialog``; Cancel makes ``cancel()`` True, so
-    the reader raises ``ReadCancelled`` at its next progress call."""
-
-    finished = Signal()
-
-    def __init__(self, parent: QWidget, label: str, job: Callable[..., Any],
-                 on_success: Callable[[Any], None], on_failure: Callable[[BaseException], None]):
-        super().__init__(parent)
-        self._on_success, self._on_failure = on_success, on_failure
-        self.dialog = QProgressDialog(label, "Cancel", 0, 1000, parent)
-        self.dialog.setWindowTitle(APP_NAME)
-        self.dialog.setWindowModality(Qt.WindowModality.WindowModal)
-        self.dialog.setMinimumDuration(PROGRESS_DELAY_MS)
-        self.dialog.setAutoClose(False)
-        self.dialog.setAutoReset(False)
-        self.dialog.setValue(0)
-        self.thread = QThread(self)
-        self.worker = Worker(job)
-        self.worker.moveToThread(self.thread)
-        self.thread.started.connect(self.worker.run)
-        self.worker.progressed.connect(self._on_progress)
-        self.worker.succeeded.connect(self._on_succeeded)
-        self.worker.failed.connect(self._on_failed)
-        # Through this object (GUI thread), not to the worker directly: a queued call into the
-        # worker's thread would wait for the read to finish, which is what Cancel must stop.
-        self.dialog.canceled.connect(self.cancel)
-        self._label = label
-        self._done = False
-
-    def start(self) -> None:
-        self.thread.start()
-
-    def cancel(self) -> None:
-        """Ask the read to stop (thread-safe: sets an event the reader polls)."""
-        self.worker.cancel()
-
-    def _on_progress(self, fraction: float, message: str) -> None:
-        if self._done:
-            return
-        self.dialog.setValue(int(fraction * 1000))
-        if message:
-            self.dialog.setLabelText(f"{self._label}\n{message}")
-
-    def _finish(self) -> None:
-        self._done = True
-        self.thread.quit()
-        self.thread.wait()
-
-    def _close_dialog(self) -> None:
-        # reset() also stops the dialog's show-after-minimumDuration timer.
-        self.dialog.reset()
-        self.dialog.close()
-        self.dialog.deleteLater()
-
-    # ``finished`` goes out before the callback: the window forgets this task first, so a
-    # callback may start the next one (the retry after "Locate…").
-    def _on_succeeded(self, result: Any) -> None:
-        self._finish()
-        if self.dialog.isVisible():
-            # The new view is built on this thread next (seconds for a large stack: its
-            # statistics, textures, first frame). A dialog closed now stays on screen until
-            # the event loop runs again, unpainted: a blank window. So it says what is
-            # happening, painted at once, and closes when the view is there.
-            self.dialog.setCancelButton(None)  # nothing to cancel on this thread
-            self.dialog.setValue(self.dialog.maximum())
-            self.dialog.setLabelText(f"{self._label}\nPreparing the view…")
-            self.dialog.repaint()
-        self.finished.emit()
-        try:
-            self._on_success(result)
-        finally:
-            self._close_dialog()
-
-    def _on_failed(self, exc: BaseException) -> None:
-        self._finish()
-        self._close_dialog()
-        self.finished.emit()
-        self._on_failure(exc)
-
-
-class DockEditWatcher(QObject):
-    """Tells the 3-D view when the user drags something in a dock.
-
-    A mouse press inside a dock (a curve in an editor, a range slider, a parameter slider, a
-    spin box's held arrow) starts an edit, the release ends it
-    (:meth:`Viewport.begin_edit` / :meth:`Viewport.end_edit`); a wheel step over a dock is a
-    short edit of its own. The view renders at the interactive quality meanwhile and at full
-    quality once the edit settles, as for camera moves. An application-wide event filter: it
-    sees widgets the docks create later (the technique parameters) and releases that land
-    elsewhere (a popup, outside the window)."""
-
-    def __init__(self, docks: list[ModelDock], viewport: Viewport,
-                 parent: QObject | None = None) -> None:
-        super().__init__(parent)
-        self._docks = docks
-        self._viewport = viewport
-        self._pressed = False
-
-    def _in_dock(self, obj: QObject) -> bool:
-        widget = obj if isinstance(obj, QWidget) else None
-        while widget is not None:
-            if widget in self._docks:
-                return True
-            widget = widget.parentWidget()
-        return False
-
-    def eventFilter(self, watched: QObject, event: QEvent) -> bool:
-        kind = event.type()
-        if kind == QEvent.Type.MouseButtonPress and not self._pressed:
-            if self._in_dock(watched):
-                self._pressed = True
-                self._viewport.begin_edit()
-        elif kind == QEvent.Type.MouseButtonRelease and self._pressed:
-            self._pressed = False
-            self._viewport.end_edit()
-        elif kind == QEvent.Type.Wheel and not self._pressed and self._in_dock(watched):
-            self._viewport.begin_edit()
-            self._viewport.end_edit()
-        return False
-
-    def release(self) -> None:
-        if self._pressed:
-            self._pressed = False
-            self._viewport.end_edit()
 
 
 class MainWindow(QMainWindow):
@@ -348,68 +195,28 @@ class MainWindow(QMainWindow):
 
     def showEvent(self, event: QShowEvent) -> None:
         super().showEvent(event)
-        if not self._docks_arranged:
-            self._docks_arranged = True
-            self.arrange_docks()
+        if not self.dock_layout.arranged:
+            self.dock_layout.arrange()
             # Keyboard focus starts in the 3-D view: a focused spin box would take Ctrl+Z
             # for its own text instead of the app's undo.
             self.viewport.plotter.setFocus()
 
     def arrange_docks(self) -> None:
-        """The default layout: TF and slice editors tabbed below, channels above tabbed
-        lights and ranges on the right; the slice views (left of the 3-D view) are hidden
-        until View → Slice views shows them. Done once the window is shown: Qt 6.12 leaves a
-        stray tab bar in the middle of the window when docks are tabified before that."""
-        for dock in self.docks:
-            dock.setFloating(False)
-            dock.setVisible(dock is not self.slice_views_dock)
-        self.tabifyDockWidget(self.tf_dock, self.slice_dock)
-        self.tabifyDockWidget(self.lights_dock, self.ranges_dock)
-        self.tf_dock.raise_()
-        self.lights_dock.raise_()
-        self.resizeDocks([self.tf_dock], [270], Qt.Orientation.Vertical)
-        self.resizeDocks([self.channels_dock], [370], Qt.Orientation.Horizontal)
-        self.fit_channels_dock(shrink=True)
+        """The default dock layout (:meth:`DockLayout.arrange`)."""
+        self.dock_layout.arrange()
 
     def fit_channels_dock(self, *, shrink: bool = False) -> None:
-        """Make the channels dock as tall as its rows (the lights dock gives or takes the
-        room). Without ``shrink`` it only grows: the user may have made it taller."""
-        dock = self.channels_dock
-        if dock.isFloating() or not dock.isVisible():
-            return
-        scroll = dock.widget()
-        content = scroll.widget() if isinstance(scroll, QScrollArea) else scroll
-        content.adjustSize()
-        wanted = content.sizeHint().height() + 12  # a little slack: no scroll bar for 2 px
-        have = scroll.viewport().height() if isinstance(scroll, QScrollArea) else dock.height()
-        if wanted > have or (shrink and wanted < have):
-            extra = wanted - have
-            self.resizeDocks([dock, self.lights_dock],
-                             [dock.height() + extra, max(self.lights_dock.height() - extra, 120)],
-                             Qt.Orientation.Vertical)
+        """Make the channels dock as tall as its rows (:meth:`DockLayout.fit_channels`)."""
+        self.dock_layout.fit_channels(shrink=shrink)
 
     # -- construction ---------------------------------------------------------------------------
     def _make_docks(self) -> None:
-        self.tf_dock = TransferFunctionDock(self.model, self)
-        self.slice_dock = SliceWeightsDock(self.model, self)
-        self.channels_dock = ChannelsDock(self.model, self)
-        self.lights_dock = LightsDock(self.model, self)
-        self.ranges_dock = RangesDock(self.model, self)
-        self.slice_views_dock = SliceViewsDock(self.model, self)
-        self.docks: list[ModelDock] = [self.tf_dock, self.slice_dock, self.channels_dock,
-                                       self.lights_dock, self.ranges_dock,
-                                       self.slice_views_dock]
-        bottom = Qt.DockWidgetArea.BottomDockWidgetArea
-        right = Qt.DockWidgetArea.RightDockWidgetArea
-        self.addDockWidget(bottom, self.tf_dock)
-        self.addDockWidget(bottom, self.slice_dock)
-        self.tabifyDockWidget(self.tf_dock, self.slice_dock)
-        self.addDockWidget(right, self.channels_dock)
-        self.addDockWidget(right, self.lights_dock)
-        self.addDockWidget(right, self.ranges_dock)
-        self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.slice_views_dock)
-        self.slice_views_dock.hide()
-        self._docks_arranged = False  # tabs are made when first shown (see showEvent)
+        self.dock_layout = layout = DockLayout(self, self.model)
+        # Under the window's own names, as tests, benchmarks and the movie dialog use them.
+        self.tf_dock, self.slice_dock = layout.tf_dock, layout.slice_dock
+        self.channels_dock, self.lights_dock = layout.channels_dock, layout.lights_dock
+        self.ranges_dock, self.slice_views_dock = layout.ranges_dock, layout.slice_views_dock
+        self.docks: list[ModelDock] = layout.docks
         for dock in self.docks:
             dock.gestureStarted.connect(self.recorder.begin_gesture)
             dock.gestureFinished.connect(self.recorder.end_gesture)
@@ -449,6 +256,7 @@ class MainWindow(QMainWindow):
         self.screenshot_actions = file_menu.screenshot_actions
         self.recent_menu = file_menu.recent_menu
         self.quit_action = file_menu.quit_action
+        self.movie_action = file_menu.movie_action
         self.undo_action = edit_menu.undo_action
         self.redo_action = edit_menu.redo_action
         self.voxel_size_action = edit_menu.voxel_size_action
@@ -459,127 +267,36 @@ class MainWindow(QMainWindow):
         self._update_file_actions()
 
     def _make_status_bar(self) -> None:
-        status = self.statusBar()
-        self.data_label = ElidedLabel("No data")
-        self.data_label.setObjectName("status_data")
-        self.frame_label = QLabel("")
-        self.frame_label.setObjectName("status_frame")
-        self.frame_label.setToolTip("Last frame's render time and the illumination "
-                                    "technique's last precomputation time")
-        # Room for the widest value, so the bar does not re-layout (or clip) every frame.
-        self.frame_label.setMinimumWidth(
-            self.frame_label.fontMetrics().horizontalAdvance("frame 99999 ms · light 99999 ms"))
-        self.frame_label.setAlignment(Qt.AlignmentFlag.AlignRight | Qt.AlignmentFlag.AlignVCenter)
-        self.refine_label = QLabel("")
-        self.refine_label.setObjectName("status_refine")
-        self.refine_label.setToolTip("A progressive illumination method is refining the light; "
-                                     "moving the camera does not restart it")
-        self.quality_label = QLabel("")
-        self.quality_label.setObjectName("status_quality")
-        self.quality_label.setToolTip("This machine renders a full-quality frame slower than the "
-                                      "window may wait: a coarse image is shown first and full "
-                                      "quality is drawn in strips while you are idle")
-        self.viewport.refinementChanged.connect(self.quality_label.setText)
-        self.probe_label = QLabel("")
-        self.probe_label.setObjectName("status_probe")
-        self.probe_label.setToolTip("Intensity probe: the first visible voxel under the mouse "
-                                    "pointer (position in µm, voxel index, every channel's "
-                                    "value)")
-        self.viewport.probed.connect(self.probe_label.setText)
-        status.addWidget(self.probe_label)
-        status.addPermanentWidget(self.quality_label)
-        # A file without a voxel size is shown at 1 × 1 × 1 µm, which distorts anisotropic
-        # stacks; a note in the (truncated) data label was easy to miss (issue 25), so a
-        # badge stays until a voxel size is chosen.
-        self.voxel_badge = QPushButton("⚠ Voxel size unknown — set…")
-        self.voxel_badge.setObjectName("status_voxel_badge")
-        self.voxel_badge.setFlat(True)
-        self.voxel_badge.setStyleSheet("color: #b35c00; font-weight: bold;")
-        self.voxel_badge.setToolTip("The file stores no voxel size: it is shown as 1 × 1 × 1 µm "
-                                    "voxels, so lengths and the z/xy aspect may be wrong. "
-                                    "Click to set the voxel size (Edit → Voxel size…).")
-        self.voxel_badge.clicked.connect(self.choose_voxel_size)
-        self.voxel_badge.hide()
-        status.addPermanentWidget(self.voxel_badge)
-        status.addPermanentWidget(self.refine_label)
-        status.addPermanentWidget(self.data_label)
-        status.addPermanentWidget(self.frame_label)
-        self.viewport.frameRendered.connect(self._on_frame)
-        # Both arrive from inside a frame: queued, so dialogs open after the frame is done.
-        queued = Qt.ConnectionType.QueuedConnection
-        self.viewport.illuminationFailed.connect(self._on_illumination_failed, queued)
-        self.viewport.illuminationProgress.connect(self._on_illumination_progress, queued)
+        """The status bar's labels (:mod:`vtkvol.ui.status_bar`) and the messages it shows."""
+        self.status_labels = labels = StatusLabels(self.statusBar(), self.viewport,
+                                                   self.choose_voxel_size)
+        # Under the window's own names, as tests and benchmarks use them.
+        self.data_label, self.frame_label = labels.data_label, labels.frame_label
+        self.refine_label, self.quality_label = labels.refine_label, labels.quality_label
+        self.probe_label, self.voxel_badge = labels.probe_label, labels.voxel_badge
+        # Arrives from inside a frame: queued, so the dialog opens after the frame is done.
+        self.viewport.illuminationFailed.connect(self._on_illumination_failed,
+                                                 Qt.ConnectionType.QueuedConnection)
         self.viewport.illuminationCancelled.connect(
             lambda message: self.statusBar().showMessage(message, 15000))
 
     def _make_time_bar(self) -> None:
-        """The time series' tool bar (below the docks) and its View-menu actions."""
-        player = self.time_player
-        player.view_ready = lambda: not self.viewport.frame_pending
-        self.time_bar = TimeBar(player, self)
-        self.time_toolbar = QToolBar("Time series", self)
-        self.time_toolbar.setObjectName("time_toolbar")
-        self.time_toolbar.addWidget(self.time_bar)
-        # Shown by the View menu's entry only: the tool-bar menu would show an empty bar
-        # for data with one time point.
-        self.time_toolbar.toggleViewAction().setVisible(False)
-        self.addToolBar(Qt.ToolBarArea.BottomToolBarArea, self.time_toolbar)
-        self.time_bar_action = QAction("&Time slider", self)
-        self.time_bar_action.setCheckable(True)
-        self.time_bar_action.setChecked(True)
-        self.time_bar_action.setStatusTip("Show the time slider of data with several time points")
-        self.time_bar_action.toggled.connect(lambda *_: self._update_time_bar())
-        self.time_play_action = make_action(self, "&Play / pause", player.toggle_playing,
-                                            QKeySequence("P"), "Play or pause the time series")
-        self.time_back_action = make_action(self, "Pre&vious time point",
-                                            lambda: player.step(-1), QKeySequence(","))
-        self.time_forward_action = make_action(self, "&Next time point", lambda: player.step(1),
-                                               QKeySequence("."))
-        #: The View menu lists them (:mod:`vtkvol.ui.menus.view_menu`).
-        self.time_actions = [self.time_bar_action, self.time_play_action,
-                             self.time_back_action, self.time_forward_action]
-        self.time_bar.cache_box.valueChanged.connect(
-            lambda mib: self.settings.setValue(TIME_CACHE_KEY, int(mib)))
-        self.time_rate_label = QLabel("")
-        self.time_rate_label.setObjectName("status_time_rate")
-        self.time_rate_label.setToolTip("Time points shown per second while the time series "
-                                        "plays (fewer than asked when reading or rendering is "
-                                        "slower: points are skipped)")
-        self.statusBar().insertPermanentWidget(0, self.time_rate_label)
-        player.rateChanged.connect(self._on_time_rate)
-        player.playingChanged.connect(self._on_time_playing)
-        player.failed.connect(self._on_time_failed)
-        player.shown.connect(lambda _index: self._show_data_info())
-        self._update_time_bar()
+        """The time series' tool bar, View-menu actions and rate label
+        (:mod:`vtkvol.ui.time_controls`)."""
+        self.time_controls = controls = TimeControls(
+            self, self.time_player, self.settings,
+            view_ready=lambda: not self.viewport.frame_pending, on_shown=self._show_data_info)
+        # Under the window's own names, as the tests use them.
+        self.time_bar, self.time_toolbar = controls.time_bar, controls.toolbar
+        self.time_bar_action, self.time_actions = controls.bar_action, controls.actions
+        self.time_forward_action = controls.forward_action
+        self.time_rate_label = controls.rate_label
 
     def _time_cache_setting(self) -> int | None:
-        value = self.settings.value(TIME_CACHE_KEY)
-        try:
-            mib = int(value) if value is not None else None
-        except (TypeError, ValueError):
-            mib = None  # a damaged setting: the default
-        return None if mib is None or mib < 0 else mib * MIB
+        return time_cache_setting(self.settings)
 
     def _update_time_bar(self) -> None:
-        """The bar is shown for data with more than one time point, unless the user hid it."""
-        series = self.time_player.is_series
-        for action in self.time_actions:
-            action.setEnabled(series)
-        self.time_toolbar.setVisible(series and self.time_bar_action.isChecked())
-        self.time_bar.refresh()
-
-    def _on_time_rate(self, rate: float) -> None:
-        fps = self.time_player.fps
-        skipped = " (time points skipped)" if rate < 0.9 * fps else ""
-        self.time_rate_label.setText(f"playing {rate:.1f} of {fps:g} fps{skipped}")
-
-    def _on_time_playing(self, playing: bool) -> None:
-        if not playing:
-            self.time_rate_label.setText("")
-
-    def _on_time_failed(self, message: str) -> None:
-        self.statusBar().showMessage(message, 15000)
-        errors.show_message(self, "Could not show the time point", message)
+        self.time_controls.update()
 
     def _show_time_point(self, index: int, read: VolumeData) -> None:
         """Put time point ``index`` (as read) on screen: only the voxels change; the voxel
@@ -613,37 +330,13 @@ class MainWindow(QMainWindow):
         self.statusBar().showMessage(message, 15000)
 
     # -- status ---------------------------------------------------------------------------------
-    def _on_frame(self, frame_ms: float, illumination_ms: float) -> None:
-        self.frame_label.setText(f"frame {frame_ms:.0f} ms · light {illumination_ms:.0f} ms")
-
     def _on_illumination_failed(self, message: str) -> None:
         self.statusBar().showMessage(message, 15000)
         errors.show_message(self, "The illumination method failed", message)
 
-    def _on_illumination_progress(self, iteration: int, converged: bool) -> None:
-        self.refine_label.setText("" if converged else f"Refining lighting — iteration {iteration}")
-
     def _show_data_info(self) -> None:
-        data = self.data
-        self.voxel_badge.setVisible(self.voxel_size_missing())
-        if data is None:
-            self.data_label.setText("No data")
-            return
-        c, z, y, x = data.array.shape
-        sx, sy, sz = data.voxel_size_um
-        name = self._data_name()
-        channels = f", {c} channels" if c > 1 else ""
-        if self.time_player.is_series:
-            channels += f", time point {self.time_player.shown_index} of {self.time_player.count}"
-        level = level_text(data)
-        where = " · " + level_words(int(data.metadata["level"]),
-                                    len(data.metadata["levels"])) + (
-            " (refined region)" if data.metadata.get("region_um") else "") if level else ""
-        self.data_label.setText(
-            f"{name} — {x}×{y}×{z}{channels}, {data.array.dtype}, voxel {sx:.3g}×{sy:.3g}×"
-            f"{sz:.3g} µm, {format_bytes(data.nbytes)}{where}")
-        tip = user_note(data.describe())
-        self.data_label.setToolTip(f"{level[:1].upper()}{level[1:]}\n\n{tip}" if level else tip)
+        """The data label and the missing-voxel-size badge (the document, the time point)."""
+        self.status_labels.show_data(self.document, self.time_player)
 
     def voxel_size_missing(self) -> bool:
         """Whether the data on screen uses the assumed 1 × 1 × 1 µm voxel size (see
@@ -1187,18 +880,6 @@ class MainWindow(QMainWindow):
         self.recorder.close()
         self.viewport.close()  # GL resources go while the context is still current
         super().closeEvent(event)
-
-
-def with_voxel_size(read: VolumeData, size: tuple[float, float, float] | None) -> VolumeData:
-    """``read`` (data as read) with voxel size ``size`` (x, y, z µm; None: as read): the same
-    voxels, the size recorded as set in the app, the reader's "assumed 1 µm" note dropped."""
-    if size is None or tuple(float(v) for v in size) == tuple(read.voxel_size_um):
-        return read
-    return dataclasses.replace(
-        read, voxel_size_um=Spacing(*(float(v) for v in size)),
-        metadata={**read.metadata, "voxel_size_source": "set in the app"},
-        # The reader's "assumed 1 µm" note no longer holds once the user set a size.
-        notes=[n for n in read.notes if not is_assumed_size_note(n)])
 
 
 def write_png(image: np.ndarray, path: Path) -> None:

@@ -8,6 +8,7 @@ applies it (:meth:`vtkvol.ui.app.MainWindow.set_voxel_size`).
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from collections.abc import Sequence
 
@@ -20,6 +21,9 @@ from PySide6.QtWidgets import (
     QVBoxLayout,
     QWidget,
 )
+
+from vtkvol.io import VolumeData
+from vtkvol.io.volume_data import Spacing
 
 Size = tuple[float, float, float]
 
@@ -129,3 +133,15 @@ def ask_voxel_size(parent: QWidget, current: Sequence[float], file_size: Sequenc
         return dialog.value() if dialog.exec() == QDialog.DialogCode.Accepted else None
     finally:
         dialog.deleteLater()
+
+
+def with_voxel_size(read: VolumeData, size: tuple[float, float, float] | None) -> VolumeData:
+    """``read`` (data as read) with voxel size ``size`` (x, y, z µm; None: as read): the same
+    voxels, the size recorded as set in the app, the reader's "assumed 1 µm" note dropped."""
+    if size is None or tuple(float(v) for v in size) == tuple(read.voxel_size_um):
+        return read
+    return dataclasses.replace(
+        read, voxel_size_um=Spacing(*(float(v) for v in size)),
+        metadata={**read.metadata, "voxel_size_source": "set in the app"},
+        # The reader's "assumed 1 µm" note no longer holds once the user set a size.
+        notes=[n for n in read.notes if not is_assumed_size_note(n)])

@@ -18,10 +18,9 @@ from vtkvol.io import available_readers
 from vtkvol.io.remote import is_remote
 from vtkvol.model.session import SUFFIX as SESSION_SUFFIX
 from vtkvol.model.session import session_target
-from vtkvol.ui import errors
+from vtkvol.ui import APP_NAME, errors
 from vtkvol.ui.menus.host import MenuHost, make_action
 
-APP_NAME = "vtkvol"
 MAX_RECENT = 10
 RECENT_KEY = "recentFiles"
 SCREENSHOT_SCALES = (1, 2, 4)

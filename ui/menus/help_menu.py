@@ -6,7 +6,8 @@ from PySide6.QtCore import QObject
 from PySide6.QtGui import QKeySequence
 from PySide6.QtWidgets import QMessageBox
 
-from vtkvol.ui.menus.file_menu import APP_NAME, SCREENSHOT_SHORTCUT
+from vtkvol.ui import APP_NAME
+from vtkvol.ui.menus.file_menu import SCREENSHOT_SHORTCUT
 from vtkvol.ui.menus.host import MenuHost, make_action
 
 
