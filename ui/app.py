@@ -69,18 +69,16 @@ from vtkvol.ui.menus.file_menu import FileMenu
 from vtkvol.ui.menus.help_menu import HelpMenu
 from vtkvol.ui.menus.view_menu import ViewMenu
 from vtkvol.ui.movie_dialog import MovieDialog
+from vtkvol.ui.pyramid_navigation import PyramidNavigation
 from vtkvol.ui.pyramid_view import (
     GPU_BUDGET_KEY,
     LEVEL_WHY_KEY,
-    crop_region_um,
     data_centre,
     is_pyramid,
     level_text,
     offset_between,
     read_budget,
-    restrict_weights,
     shifted_view,
-    weight_fractions,
 )
 from vtkvol.ui.status_bar import StatusLabels
 from vtkvol.ui.time_controls import TimeControls, time_cache_setting
@@ -156,6 +154,7 @@ class MainWindow(QMainWindow):
         if app is not None:
             app.installEventFilter(self.edit_watcher)
         self._make_auto_quality()
+        self.pyramid = PyramidNavigation(self)
         self.document.changed.connect(self._on_document_changed)
         self.resize(1280, 820)
         self._refresh_recent()
@@ -399,8 +398,8 @@ class MainWindow(QMainWindow):
             self.show_volume(data, voxel_size=voxel_size, time_index=index)
             self._add_recent(text)
 
-        self._run(f"Reading {name}…", job, success,
-                  lambda exc: self._open_failed(exc, f"Could not open {name}"))
+        self.run_read(f"Reading {name}…", job, success,
+                      lambda exc: self.read_failed(exc, f"Could not open {name}"))
 
     def open_sample(self, **sample_args: Any) -> None:
         """Show the built-in synthetic confocal stack (``confocal_phantom(**sample_args)``)."""
@@ -412,11 +411,14 @@ class MainWindow(QMainWindow):
         def success(data: VolumeData) -> None:
             self.show_volume(data, sample_args=dict(sample_args))
 
-        self._run("Generating the sample…", job, success,
-                  lambda exc: self._open_failed(exc, "Could not generate the sample"))
+        self.run_read("Generating the sample…", job, success,
+                      lambda exc: self.read_failed(exc, "Could not generate the sample"))
 
-    def _run(self, label: str, job: Callable[..., Any], on_success: Callable[[Any], None],
-             on_failure: Callable[[BaseException], None]) -> None:
+    def run_read(self, label: str, job: Callable[..., Any], on_success: Callable[[Any], None],
+                 on_failure: Callable[[BaseException], None]) -> None:
+        """Run ``job(progress, cancel)`` in the background behind a progress dialog (one read
+        at a time: a second is refused with a message), then ``on_success(result)`` or
+        ``on_failure(exc)`` on the GUI thread."""
         if self._task is not None:
             self.statusBar().showMessage("Still opening the previous file…", 4000)
             return
@@ -430,7 +432,9 @@ class MainWindow(QMainWindow):
         if task is not None:
             task.deleteLater()
 
-    def _open_failed(self, exc: BaseException, action: str) -> None:
+    def read_failed(self, exc: BaseException, action: str) -> None:
+        """Say why a read failed (``action``: what was being done), or that it was cancelled;
+        emits ``openFailed``."""
         if isinstance(exc, ReadCancelled):
             self.statusBar().showMessage("Opening cancelled; the previous view is unchanged.", 6000)
             self.openFailed.emit("cancelled")
@@ -508,7 +512,7 @@ class MainWindow(QMainWindow):
         try:
             session = read_session(path)
         except SessionError as exc:
-            self._open_failed(exc, "Could not open the session")
+            self.read_failed(exc, "Could not open the session")
             return
         window = session.window
         notes: list[str] = []
@@ -520,10 +524,10 @@ class MainWindow(QMainWindow):
                 progress(0.0, "generating the sample")
                 return session.model, confocal_phantom(**sample_kwargs(sample_args))
 
-            self._run("Generating the sample…", sample_job,
-                      lambda result: self._apply_session(session.path, *result, window,
-                                                         session.warnings, sample_args),
-                      lambda exc: self._open_failed(exc, "Could not open the session"))
+            self.run_read("Generating the sample…", sample_job,
+                          lambda result: self._apply_session(session.path, *result, window,
+                                                             session.warnings, sample_args),
+                          lambda exc: self.read_failed(exc, "Could not open the session"))
             return
 
         def job(progress, cancel):
@@ -540,11 +544,11 @@ class MainWindow(QMainWindow):
                         return
                 self.openFailed.emit(str(exc))
                 return
-            self._open_failed(exc, "Could not open the session")
+            self.read_failed(exc, "Could not open the session")
 
-        self._run(f"Opening {Path(path).name}…", job,
-                  lambda result: self._apply_session(Path(path), *result, window, notes),
-                  failure)
+        self.run_read(f"Opening {Path(path).name}…", job,
+                      lambda result: self._apply_session(Path(path), *result, window, notes),
+                      failure)
 
     def _locate_data(self, exc: MissingDataError) -> str:
         """Ask for the moved data file (tests replace this)."""
@@ -737,74 +741,19 @@ class MainWindow(QMainWindow):
             "that fits (from the next open or refine)", 8000)
 
     def refine_selection(self) -> None:
-        """Load the crop region at the finest pyramid level that fits the budget.
-
-        The region is the crop box (µm) widened by half a shown voxel on each side. The new
-        data is shown with its first voxel at the world origin and the camera, point lights
-        and clipping plane shifted by the region's offset, so the object stays where it was;
-        TFs, lights, method and camera are kept, the crop becomes the whole (new) extent."""
-        data = self.data
-        if not is_pyramid(data) or self._task is not None:
-            return
-        assert data is not None
-        if self.model.volume.voxel_size_um is not None:
-            self.statusBar().showMessage("Refine selection reads the file's own voxel sizes: "
-                                         "use Edit → Voxel size → Use the file's value first",
-                                         8000)
-            return
-        region = crop_region_um(data, self.model.crop)
-        budget = self.gpu_budget()
-        source = str(data.source)
-        time_index = self.model.volume.time_index
-        current = int(data.metadata["level"])
-
-        def job(progress, cancel):
-            return read_volume(source, time_index=time_index, region_um=region,
-                               memory_budget_bytes=budget, progress=progress, cancel=cancel)
-
-        def success(new: VolumeData) -> None:
-            if int(new.metadata["level"]) >= current:
-                self.statusBar().showMessage(
-                    f"Refine selection: level {current} is already the finest level at which "
-                    f"this region fits {format_bytes(budget)}; crop a smaller region or raise "
-                    "the GPU memory budget", 10000)
-                return
-            overview = self.document.overview
-            if overview is None:
-                overview = {"level": current, "crop": self.model.crop.model_dump(),
-                            "slice_weights": self.model.slice_weights.model_dump()}
-            fractions = weight_fractions(data, new.metadata["region_um"])
-            weights = {axis: restrict_weights(getattr(self.model.slice_weights, axis), lo, hi)
-                       for axis, (lo, hi) in zip("xyz", fractions, strict=True)}
-            self._show_pyramid_data(new, crop=CropBox().model_dump(), slice_weights=weights,
-                                    overview=overview)
-
-        self._run("Refining the selection…", job, success,
-                  lambda exc: self._open_failed(exc, "Could not refine the selection"))
+        """View → Refine selection (:meth:`PyramidNavigation.refine_selection`)."""
+        self.pyramid.refine_selection()
 
     def back_to_overview(self) -> None:
-        """Show the overview level again, whole, with the crop and slice weights it had."""
-        data, overview = self.data, self.document.overview
-        if data is None or overview is None or self._task is not None:
-            return
-        budget = self.gpu_budget()
-        source = str(data.source)
-        time_index = self.model.volume.time_index
+        """View → Back to overview (:meth:`PyramidNavigation.back_to_overview`)."""
+        self.pyramid.back_to_overview()
 
-        def job(progress, cancel):
-            return read_volume(source, time_index=time_index, level=overview["level"],
-                               memory_budget_bytes=budget, progress=progress, cancel=cancel)
+    @property
+    def reading(self) -> bool:
+        """Whether a background read (open, session, pyramid level) is running."""
+        return self._task is not None
 
-        def success(new: VolumeData) -> None:
-            if overview["level"] is not None:  # else the budget chose it, and says so
-                new.metadata[LEVEL_WHY_KEY] = "the overview shown before Refine selection"
-            self._show_pyramid_data(new, crop=overview["crop"],
-                                    slice_weights=overview["slice_weights"], overview=None)
-
-        self._run("Reading the overview…", job, success,
-                  lambda exc: self._open_failed(exc, "Could not show the overview"))
-
-    def _show_pyramid_data(self, new: VolumeData, *, crop: dict[str, Any],
+    def show_pyramid_level(self, new: VolumeData, *, crop: dict[str, Any],
                            slice_weights: dict[str, Any],
                            overview: dict[str, Any] | None) -> None:
         """Show another level or region of the same pyramid, keeping what is on screen in
