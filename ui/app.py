@@ -165,6 +165,10 @@ class MainWindow(QMainWindow):
         """The data on screen (``document.data``)."""
         return self.document.data
 
+    @data.setter
+    def data(self, value: VolumeData | None) -> None:
+        self.document.data = value
+
     @property
     def session_path(self) -> Path | None:
         """The session file opened or last saved (``document.session_path``)."""
