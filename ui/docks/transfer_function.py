@@ -420,6 +420,7 @@ class TransferFunctionDock(ModelDock):
         b.connect_qt(self.add_rectangle.clicked, lambda: self.add_primitive("rectangle"))
         b.connect_qt(self.add_triangle.clicked, lambda: self.add_primitive("triangle"))
         b.connect_qt(self.delete_primitive.clicked, self._on_delete_primitive)
+        b.connect_qt(self.editor_2d.deleteRequested, self._on_delete_primitive)
         b.connect_qt(self.primitive_color.colorPicked, self._on_primitive_color)
         b.connect_qt(self.primitive_opacity.valueChanged,
                      lambda v: self._set_selected(opacity=float(v)))
@@ -445,8 +446,9 @@ class TransferFunctionDock(ModelDock):
         self.editor_2d.setToolTip(
             "Value × gradient-magnitude histogram (log counts) with the 2-D transfer "
             "function over it. Regions tool: press inside a region to select and move it; "
-            "drag a corner handle of the selected region to resize it. Paint / Erase: drag "
-            "to brush into the painted layer (dotted box).")
+            "drag a corner handle of the selected region to resize it; Shift/Ctrl-click or "
+            "drag a box from empty space to select several, Delete removes them. Paint / "
+            "Erase: drag to brush into the painted layer (dotted box).")
         layout.addWidget(self.editor_2d, 1)
         tools = QHBoxLayout()
         tools.setSpacing(4)
@@ -506,7 +508,8 @@ class TransferFunctionDock(ModelDock):
             "+ Triangle", "tf2d_add_triangle",
             "Add a triangle rising from |∇I| = 0: Kniss's widget for the boundary arcs "
             "between two materials")
-        self.delete_primitive = push_button("Delete", "tf2d_delete", "Remove the selected region")
+        self.delete_primitive = push_button("Delete", "tf2d_delete",
+                                            "Remove the selected regions (Delete key)")
         self.primitive_color = ColorButton("Region colour")
         self.primitive_color.setObjectName("tf2d_color")
         self.primitive_opacity = number_box(
@@ -839,12 +842,13 @@ class TransferFunctionDock(ModelDock):
             self.gestureFinished.emit()
 
     def _on_delete_primitive(self) -> None:
-        index = self.editor_2d.selected
+        """Delete every selected region (one undo step)."""
         tf2d = self.current_tf2d()
-        if 0 <= index < len(tf2d.primitives):
+        doomed = {i for i in self.editor_2d.selected_indices if i < len(tf2d.primitives)}
+        if doomed:
             self.editor_2d.select(-1)
             with self._step():
-                tf2d.primitives = [p for i, p in enumerate(tf2d.primitives) if i != index]
+                tf2d.primitives = [p for i, p in enumerate(tf2d.primitives) if i not in doomed]
 
     def _on_2d_selection(self, _index: int) -> None:
         self._show_selected()
