@@ -87,6 +87,7 @@ from vtkvol.ui.docks.slice_views import SliceViewsDock
 from vtkvol.ui.docks.slice_weights import SliceWeightsDock
 from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 from vtkvol.ui.elided_label import ElidedLabel
+from vtkvol.ui.measure import MeasureTool
 from vtkvol.ui.movie_dialog import MovieDialog
 from vtkvol.ui.pyramid_view import (
     BUDGET_CHOICES,
@@ -327,6 +328,7 @@ class MainWindow(QMainWindow):
         self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
+        self.measure = MeasureTool(self)  # 3-D measurement: its dock, picks and markers
         # The slice views are navigation, not an edit of what the 3-D view shows: they run
         # their own interaction (only while the 3-D view outlines their planes).
         self.edit_watcher = DockEditWatcher(
