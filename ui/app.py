@@ -328,7 +328,8 @@ class MainWindow(QMainWindow):
         self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
-        self.measure = MeasureTool(self)  # 3-D measurement: its dock, picks and markers
+        # 3-D measurement: its dock, picks and markers.
+        self.measure = MeasureTool(self, self.viewport, self.dataShown, self._start_dir)
         # The slice views are navigation, not an edit of what the 3-D view shows: they run
         # their own interaction (only while the 3-D view outlines their planes).
         self.edit_watcher = DockEditWatcher(

@@ -23,20 +23,20 @@ from __future__ import annotations
 import csv
 import io
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 import vtk
-from PySide6.QtCore import QEvent, QObject, Qt
+from PySide6.QtCore import QEvent, QObject, Qt, SignalInstance
 from PySide6.QtWidgets import (
     QAbstractItemView,
     QDockWidget,
     QFileDialog,
     QHBoxLayout,
     QLabel,
+    QMainWindow,
     QMessageBox,
     QPushButton,
     QTableWidget,
@@ -48,9 +48,7 @@ from PySide6.QtWidgets import (
 from vtkvol.engine.probe import ProbeResult
 from vtkvol.io.atomic import write_atomic
 from vtkvol.ui import errors
-
-if TYPE_CHECKING:
-    from vtkvol.ui.app import MainWindow
+from vtkvol.ui.viewport import Viewport
 
 #: A press and release this close (logical px) are a click (a pick), farther apart a drag.
 CLICK_SLOP_PX = 4.0
@@ -212,12 +210,18 @@ class MeasureDock(QDockWidget):
 
 
 class MeasureTool(QObject):
-    """Picks, lists, draws and exports the measured points of one main window."""
+    """Picks, lists, draws and exports the measured points of one main window.
 
-    def __init__(self, window: MainWindow) -> None:
+    ``window`` gets the dock (and its View-menu entry), ``viewport`` is its 3-D view,
+    ``data_shown`` the signal that other data is on screen (the points are cleared), and
+    ``start_dir`` gives the folder the export dialog opens in."""
+
+    def __init__(self, window: QMainWindow, viewport: Viewport, data_shown: SignalInstance,
+                 start_dir: Callable[[], str]) -> None:
         super().__init__(window)
         self.window = window
-        self.viewport = window.viewport
+        self.viewport = viewport
+        self._start_dir = start_dir
         self.points: list[MeasuredPoint] = []
         self._channel_names: list[str] = []
         self._press: tuple[float, float] | None = None
@@ -231,7 +235,7 @@ class MeasureTool(QObject):
         self.dock.export_button.clicked.connect(self.export_interactive)
         self.dock.table.itemSelectionChanged.connect(self._show_distance)
         self.viewport.plotter.installEventFilter(self)
-        window.dataShown.connect(self.clear)
+        data_shown.connect(self.clear)
         self._add_to_view_menu()
         self._refresh()
 
@@ -347,7 +351,7 @@ class MeasureTool(QObject):
     def export_interactive(self) -> None:
         if not self.points:
             return
-        start = Path(self.window._start_dir()) / "points.csv"
+        start = Path(self._start_dir()) / "points.csv"
         chosen, _ = QFileDialog.getSaveFileName(
             self.window, "Export points", str(start), "CSV (*.csv)",
             options=QFileDialog.Option.DontConfirmOverwrite)  # asked below, testably
