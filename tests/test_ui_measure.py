@@ -6,6 +6,7 @@ replaced only when confirmed). Needs X (pytest-xvfb) and GL."""
 from __future__ import annotations
 
 import csv
+import json
 import math
 
 import numpy as np
@@ -164,3 +165,37 @@ def test_the_view_menu_shows_the_measure_dock(tool):
     window = tool.window
     [view] = [a.menu() for a in window.menuBar().actions() if a.text() == "&View"]
     assert tool.dock.toggleViewAction() in view.actions()
+
+
+def test_points_are_kept_in_sessions(tool, qtbot, tmp_path, dialogs):
+    window = tool.window
+    names = list(window.data.channel_names)
+    picked = [MeasuredPoint((1.5, 2.0, 3.25), (3, 4, 1), (17.0,) * len(names)),
+              MeasuredPoint((10.0, 0.5, 7.0), (20, 1, 3), (250.5,) * len(names))]
+    for p in picked:
+        tool.add(p, names)
+    path = tmp_path / "measured.vtkvol.json"
+    assert window.save_session(path) == path
+    stored = json.loads(path.read_text())["window"]["measure_points"]
+    assert stored["channels"] == names
+    assert [e["position_um"] for e in stored["points"]] == [[1.5, 2.0, 3.25], [10.0, 0.5, 7.0]]
+    tool.clear()
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_session(path)
+    assert tool.points == picked
+    assert tool.dock.table.rowCount() == 2 and tool.markers.count == 2
+    assert tool.dock.distance_label.text() == (
+        f"Distance 1 – 2: {math.dist(picked[0].position_um, picked[1].position_um):.4g} µm")
+    # A hand-edited section: entries that are not points are skipped, the others kept.
+    document = json.loads(path.read_text())
+    document["window"]["measure_points"]["points"] += [
+        {"position_um": [1, 2]}, {"position_um": ["x", 0, 0], "index": [0, 0, 0], "values": []},
+        "junk", {"position_um": [None, 0, 0], "index": [0, 0, 0], "values": []}]
+    path.write_text(json.dumps(document))
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_session(path)
+    assert tool.points == picked
+    # Other data opened afterwards starts without points.
+    with qtbot.waitSignal(window.dataShown, timeout=30_000):
+        window.open_path(window.data.source)
+    assert tool.points == []

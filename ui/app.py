@@ -1045,9 +1045,11 @@ class MainWindow(QMainWindow):
         if self._sample_args is not None:
             state[SAMPLE_KEY] = {k: list(v) if isinstance(v, tuple) else v
                                  for k, v in self._sample_args.items()}
+        state.update(self.measure.window_state())  # the measured points (ui/measure.py)
         return state
 
     def _restore_window(self, window: dict[str, Any]) -> None:
+        self.measure.restore(window)  # shown with the session's data
         for key, restore in (("geometry", self.restoreGeometry), ("state", self.restoreState)):
             text = window.get(key)
             if isinstance(text, str):

@@ -11,7 +11,11 @@ between the last two points picked (or the two rows selected) in µm. **Export C
 
 Coordinates: world µm (the data's voxel centres at (i·sx, j·sy, k·sz)), so distances are
 physical whatever the voxel size. The points belong to the data shown: opening other data
-clears them. They are not part of sessions or the undo history.
+clears them. A session keeps them in its app-owned ``window`` section (key
+:data:`SESSION_KEY`, see :meth:`MeasureTool.window_state`), so no session format change is
+needed; entries that are not well-formed points are skipped on reopening, as a damaged window
+layout is. They are not undo steps. A time-lapse keeps them across time points; each point's
+values are those of the time point it was picked at.
 
 Writing the CSV never replaces a file silently: an existing file is replaced only after the
 user confirms, and a file that cannot be written (a missing or read-only folder, a full disk)
@@ -56,6 +60,8 @@ CLICK_SLOP_PX = 4.0
 MARKER_SHARE = 0.012
 #: Colour of the markers and of the line joining them (a yellow that reads on most TFs).
 MARKER_RGB = (1.0, 0.85, 0.1)
+#: Key of the points in a session's ``window`` section.
+SESSION_KEY = "measure_points"
 #: Columns of the point list before the channels' values.
 POSITION_COLUMNS = ("x µm", "y µm", "z µm")
 
@@ -235,7 +241,9 @@ class MeasureTool(QObject):
         self.dock.export_button.clicked.connect(self.export_interactive)
         self.dock.table.itemSelectionChanged.connect(self._show_distance)
         self.viewport.plotter.installEventFilter(self)
-        data_shown.connect(self.clear)
+        #: Points of a session being opened, shown once its data is (window_state/restore).
+        self._pending: tuple[list[MeasuredPoint], list[str]] | None = None
+        data_shown.connect(self._on_data_shown)
         self._add_to_view_menu()
         self._refresh()
 
@@ -347,6 +355,30 @@ class MeasureTool(QObject):
         self.markers.set_points([p.position_um for p in self.points], MARKER_SHARE * diagonal)
         self.viewport.request_render()
 
+    # -- sessions -------------------------------------------------------------------------------
+    def window_state(self) -> dict[str, object]:
+        """The points for a session's ``window`` section: ``{SESSION_KEY: {"channels": [...],
+        "points": [{"position_um": [x, y, z], "index": [i, j, k], "values": [...]}]}}``
+        (µm, voxel index, raw values); empty without points."""
+        if not self.points:
+            return {}
+        return {SESSION_KEY: {
+            "channels": list(self._channel_names),
+            "points": [{"position_um": list(p.position_um), "index": list(p.index),
+                        "values": list(p.values)} for p in self.points]}}
+
+    def restore(self, window: dict[str, object]) -> None:
+        """Keep the points of a session's ``window`` section to show with its data (the data
+        arrives after the window is restored, and new data clears the list)."""
+        self._pending = _read_points(window.get(SESSION_KEY))
+
+    def _on_data_shown(self) -> None:
+        pending, self._pending = self._pending, None
+        self.points = []
+        if pending is not None:
+            self.points, self._channel_names = pending
+        self._refresh()
+
     # -- export ---------------------------------------------------------------------------------
     def export_interactive(self) -> None:
         if not self.points:
@@ -387,3 +419,23 @@ class MeasureTool(QObject):
         box.setStandardButtons(QMessageBox.StandardButton.Yes | QMessageBox.StandardButton.No)
         box.setDefaultButton(QMessageBox.StandardButton.No)
         return errors.run_dialog(box) == QMessageBox.StandardButton.Yes
+
+
+def _read_points(stored: object) -> tuple[list[MeasuredPoint], list[str]] | None:
+    """The points of :meth:`MeasureTool.window_state`'s section; entries that are not three
+    finite coordinates, three integers and numbers are skipped (None: no section)."""
+    if not isinstance(stored, dict):
+        return None
+    names = stored.get("channels")
+    names = [str(n) for n in names] if isinstance(names, list) else []
+    points: list[MeasuredPoint] = []
+    for entry in stored.get("points") or []:
+        try:
+            position = tuple(float(v) for v in entry["position_um"])
+            index = tuple(int(v) for v in entry["index"])
+            values = tuple(float(v) for v in entry["values"])
+        except (KeyError, TypeError, ValueError):
+            continue
+        if len(position) == 3 and len(index) == 3 and all(map(math.isfinite, position)):
+            points.append(MeasuredPoint(position, index, values))  # type: ignore[arg-type]
+    return points, names
