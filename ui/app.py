@@ -64,6 +64,7 @@ from vtkvol.ui.background import BackgroundTask
 from vtkvol.ui.dock_layout import DockLayout
 from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.edit_watcher import DockEditWatcher
+from vtkvol.ui.measure import MeasureTool
 from vtkvol.ui.menus.edit_menu import EditMenu
 from vtkvol.ui.menus.file_menu import FileMenu
 from vtkvol.ui.menus.help_menu import HelpMenu
@@ -146,6 +147,8 @@ class MainWindow(QMainWindow):
         self._make_time_bar()
         self._make_menus()
         self._make_status_bar()
+        # 3-D measurement: its dock, picks and markers.
+        self.measure = MeasureTool(self, self.viewport, self.dataShown, self._start_dir)
         # The slice views are navigation, not an edit of what the 3-D view shows: they run
         # their own interaction (only while the 3-D view outlines their planes).
         self.edit_watcher = DockEditWatcher(
@@ -590,9 +593,11 @@ class MainWindow(QMainWindow):
             "state": base64.b64encode(bytes(self.saveState().data())).decode("ascii"),
         }
         state.update(self.document.window_extras())
+        state.update(self.measure.window_state())  # the measured points (ui/measure.py)
         return state
 
     def _restore_window(self, window: dict[str, Any]) -> None:
+        self.measure.restore(window)  # shown with the session's data
         for key, restore in (("geometry", self.restoreGeometry), ("state", self.restoreState)):
             text = window.get(key)
             if isinstance(text, str):

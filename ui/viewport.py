@@ -60,6 +60,7 @@ from vtkvol.engine.scene import VolumeScene
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import ClipPlane, SceneModel
 from vtkvol.model.techniques import get_spec
+from vtkvol.ui.light_handle import handle_sphere
 from vtkvol.ui.progress import ChunkProgress
 from vtkvol.ui.refine import Frame, Refiner
 
@@ -71,8 +72,6 @@ if TYPE_CHECKING:
 SETTLE_MS = 180
 #: The intensity probe reads the voxel under the pointer once it rests this long (ms).
 PROBE_DELAY_MS = 80
-#: Distance of a directional light's handle from the volume's centre, in bounding-sphere radii.
-GIZMO_RADIUS = 1.05
 
 
 class ScreenshotCancelled(Exception):
@@ -381,6 +380,7 @@ class Viewport(QWidget):
         self._gizmo_light: int | None = 0
         self._gizmo_wanted = True
         self._gizmo_radius = 1.0
+        self._gizmo_centre = np.zeros(3)  # of the handle's sphere, world µm (_update_gizmo)
         model.changed.connect(self._on_model_changed)
 
     # -- setup ----------------------------------------------------------------------------------
@@ -832,10 +832,6 @@ class Viewport(QWidget):
     def gizmo(self) -> LightGizmo:
         return self._gizmo
 
-    def _centre(self) -> np.ndarray:
-        b = self.bounds
-        return np.array([(b[0] + b[1]) / 2, (b[2] + b[3]) / 2, (b[4] + b[5]) / 2])
-
     def _update_gizmo(self) -> None:
         if self._closed or self._gizmo.dragging:
             return
@@ -844,12 +840,10 @@ class Viewport(QWidget):
         show = self._gizmo_wanted and self.scene is not None and i is not None and i < len(lights)
         if show:
             light = lights[i]
-            b = self.bounds
-            centre = self._centre()
-            diagonal = float(np.linalg.norm([b[1] - b[0], b[3] - b[2], b[5] - b[4]]))
-            # Just outside the bounding sphere: clear of the volume, yet inside the view
-            # that reset_camera frames.
-            self._gizmo_radius = max(GIZMO_RADIUS * 0.5 * diagonal, 1e-6)
+            # Around the centre of the current framing, as far out as the view shows whole
+            # (a time-lapse frames a small object in a large box: ui/light_handle.py).
+            centre, self._gizmo_radius = handle_sphere(self.renderer, self.bounds)
+            self._gizmo_centre = centre
             if light.kind == "point":
                 handle = np.array(light.position, dtype=np.float64)
             else:
@@ -913,7 +907,7 @@ class Viewport(QWidget):
         if i is None or i >= len(self.model.lights):
             return
         light = self.model.lights[i]
-        centre = self._centre()
+        centre = self._gizmo_centre  # where _update_gizmo placed the handle's sphere
         if light.kind == "point":
             light.position = tuple(float(v) for v in handle)
         else:
@@ -924,8 +918,8 @@ class Viewport(QWidget):
         self._gizmo.place(centre, handle, light.color, enabled=light.enabled)
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if touches(paths, "lights"):
-            self._update_gizmo()
+        if touches(paths, "lights") or touches(paths, "camera"):
+            self._update_gizmo()  # the handle's sphere follows the framing
         if touches(paths, "clip_plane"):
             self._update_clip_widget()
 

@@ -2,8 +2,9 @@
 3-D view, as Fiji's orthogonal views, napari's and Imaris's slice views show them.
 
 Each view is a plain Qt widget painting a ``QImage``; the pixels come from the library's
-:func:`vtkvol.engine.slices.slice_rgba` (the channels' TF colours, mixed as the 3-D view mixes
-them), so nothing here touches VTK. The cursor is model state (``SceneModel.cursor``, world
+:func:`vtkvol.engine.slices.slice_rgba` (the 3-D view's classification: the channels' 1-D or
+2-D TF colours mixed as the 3-D view mixes them, the slice weights and the clipping plane), so
+nothing here touches VTK. The cursor is model state (``SceneModel.cursor``, world
 µm): a click or a drag in a view moves it (to the nearest voxel centre), the mouse wheel and
 PageUp/PageDown step the view's slice by one voxel, and every view follows the model.
 
@@ -390,7 +391,9 @@ class SliceViewsDock(ModelDock):
         return not (crop.x is None and crop.y is None and crop.z is None)
 
     def _on_model_changed(self, paths: frozenset[str]) -> None:
-        if touches(paths, "channels"):
+        if touches(paths, "channels") or touches(paths, "slice_weights") or touches(
+                paths, "clip_plane"):
+            # The slices show the 3-D view's classification (weights, clipping plane too).
             self._mark(set(PLANES))
         elif touches(paths, "render"):
             names = subfields(paths, "render")

@@ -4,7 +4,11 @@ A view of one :class:`~vtkvol.model.transfer_function.TransferFunction2D`: the c
 histogram (log counts, grey) with the rasterised TF (primitives and painted layer) over it,
 each primitive's outline in its colour and the painted layer's box dotted; the selected
 primitive has four corner handles. With the ``"regions"`` tool, press inside a primitive to
-select and move it, drag a handle of the selected one to resize it. With ``"paint"`` or
+select and move it, drag a handle of the selected one to resize it. Several regions can be
+selected together (issue 25): Shift- or Ctrl-click adds or removes one, a drag from empty
+space selects every region its rubber band touches (with Shift/Ctrl: adds them), and Delete
+or Backspace asks to delete the selection (``deleteRequested``; the dock does it, one undo
+step). With ``"paint"`` or
 ``"erase"``, a drag is a brush stroke (a circle of the brush's size follows the pointer).
 The widget only reports gestures (``selectionChanged``, ``primitiveMoved``, ``strokeMoved``,
 ``editStarted``/``editFinished``); the dock writes the model. Moves and strokes are throttled
@@ -21,6 +25,7 @@ from PySide6.QtCore import QPointF, QRectF, QSize, Qt, QTimer, Signal
 from PySide6.QtGui import (
     QColor,
     QImage,
+    QKeyEvent,
     QMouseEvent,
     QPainter,
     QPaintEvent,
@@ -46,6 +51,8 @@ class TF2DEditor(QWidget):
     """Edits primitives in (value, gradient) space; see the module docstring."""
 
     selectionChanged = Signal(int)  #: index of the selected primitive, −1 for none
+    #: Delete or Backspace with regions selected (the dock deletes ``selected_indices``).
+    deleteRequested = Signal()
     primitiveMoved = Signal(int, object, object)  #: index, value range, gradient range
     #: The stroke so far (paint/erase tools): a list of (value, gradient) points, data units
     #: and data units per µm; emitted throttled during the drag and once at its end.
@@ -64,6 +71,11 @@ class TF2DEditor(QWidget):
         self._histogram: QImage | None = None
         self._overlay: QImage | None = None
         self._selected = -1
+        #: Every selected primitive (``_selected``, the one with handles, among them).
+        self._selection: list[int] = []
+        #: Rubber band in progress: (press point, current point, selection before it), px.
+        self._band: tuple[QPointF, QPointF, list[int]] | None = None
+        self.setFocusPolicy(Qt.FocusPolicy.ClickFocus)  # Delete reaches the editor
         self._drag: tuple[str, int, QPointF, Range, Range] | None = None
         self._pending: tuple[int, Range, Range] | None = None
         self._throttle = QTimer(self)
@@ -87,6 +99,11 @@ class TF2DEditor(QWidget):
     @property
     def selected(self) -> int:
         return self._selected
+
+    @property
+    def selected_indices(self) -> tuple[int, ...]:
+        """Every selected primitive, in ascending order (empty: none)."""
+        return tuple(sorted(self._selection))
 
     @property
     def dragging(self) -> bool:
@@ -156,16 +173,41 @@ class TF2DEditor(QWidget):
         self._tf = tf
         if self._selected >= len(tf.primitives):
             self._selected = -1
+        self._selection = [i for i in self._selection if i < len(tf.primitives)]
         if self._drag is None:
             self._render_overlay()
         self.update()
 
     def select(self, index: int) -> None:
+        """Select primitive ``index`` alone (−1: nothing)."""
         index = index if 0 <= index < len(self._tf.primitives) else -1
-        if index != self._selected:
-            self._selected = index
-            self.selectionChanged.emit(index)
+        self.set_selection([index] if index >= 0 else [])
+
+    def set_selection(self, indices: list[int] | tuple[int, ...], current: int | None = None
+                      ) -> None:
+        """Select ``indices`` (out-of-range ones are ignored); ``current`` (default: the last
+        of them) gets the handles and the dock's colour/opacity controls."""
+        count = len(self._tf.primitives)
+        chosen = list(dict.fromkeys(i for i in indices if 0 <= i < count))
+        if current is None or current not in chosen:
+            current = chosen[-1] if chosen else -1
+        changed = current != self._selected or sorted(chosen) != sorted(self._selection)
+        self._selection = chosen
+        self._selected = current
+        if changed:
+            self.selectionChanged.emit(current)
             self.update()
+
+    def _band_rect(self) -> QRectF:
+        assert self._band is not None
+        a, b = self._band[0], self._band[1]
+        return QRectF(a, b).normalized()
+
+    def _touched_by_band(self) -> list[int]:
+        """The primitives whose outline's box meets the rubber band."""
+        band = self._band_rect()
+        return [i for i, prim in enumerate(self._tf.primitives)
+                if self.primitive_polygon(prim).boundingRect().intersects(band)]
 
     def _render_overlay(self) -> None:
         if not self._tf.primitives and self._tf.paint is None:
@@ -242,8 +284,9 @@ class TF2DEditor(QWidget):
         painter.setClipRect(r)
         for i, prim in enumerate(self._tf.primitives):
             color = QColor.fromRgbF(*prim.color)
-            pen = QPen(color, 2.0 if i == self._selected else 1.2)
-            if i != self._selected:
+            chosen = i in self._selection
+            pen = QPen(color, 2.0 if chosen else 1.2)
+            if not chosen:
                 pen.setStyle(Qt.PenStyle.DashLine)
             painter.setPen(pen)
             painter.setBrush(Qt.BrushStyle.NoBrush)
@@ -260,6 +303,12 @@ class TF2DEditor(QWidget):
             painter.setPen(QPen(QColor(255, 255, 255), 1.0))
             painter.setBrush(Qt.BrushStyle.NoBrush)
             painter.drawEllipse(self._pointer, rx, ry)
+        if self._band is not None:
+            pen = QPen(QColor(255, 255, 255), 1.0)
+            pen.setStyle(Qt.PenStyle.DashLine)
+            painter.setPen(pen)
+            painter.setBrush(QColor(255, 255, 255, 40))
+            painter.drawRect(self._band_rect())
         if 0 <= self._selected < len(self._tf.primitives):
             painter.setPen(QPen(QColor(255, 255, 255), 1.0))
             painter.setBrush(QColor(255, 255, 255, 200))
@@ -304,9 +353,20 @@ class TF2DEditor(QWidget):
             self._flush()  # a click paints one dab at once
             return
         kind, index = self._hit(pos)
-        self.select(index)
-        if index < 0:
+        extend = bool(event.modifiers() & (Qt.KeyboardModifier.ShiftModifier
+                                           | Qt.KeyboardModifier.ControlModifier))
+        if index < 0:  # empty space: a rubber band (adding to the selection with a modifier)
+            before = list(self._selection) if extend else []
+            self._band = (pos, pos, before)
+            self.set_selection(before)
             return
+        if extend:  # add or remove one region; no drag
+            if index in self._selection:
+                self.set_selection([i for i in self._selection if i != index])
+            else:
+                self.set_selection([*self._selection, index], current=index)
+            return
+        self.select(index)
         prim = self._tf.primitives[index]
         self._drag = (kind, index, pos, prim.value_range, prim.gradient_range)
         self.editStarted.emit()
@@ -320,6 +380,12 @@ class TF2DEditor(QWidget):
                 self._stroke_dirty = True
                 if not self._throttle.isActive():
                     self._throttle.start()
+            return
+        if self._band is not None:
+            start, _, before = self._band
+            self._band = (start, event.position(), before)
+            self.set_selection([*before, *self._touched_by_band()])
+            self.update()
             return
         if self._drag is None:
             kind, _ = self._hit(event.position())
@@ -362,6 +428,11 @@ class TF2DEditor(QWidget):
             self._stroke = None
             self.editFinished.emit()
             return
+        if event.button() == Qt.MouseButton.LeftButton and self._band is not None:
+            self.mouseMoveEvent(event)
+            self._band = None
+            self.update()
+            return
         if event.button() != Qt.MouseButton.LeftButton or self._drag is None:
             return
         self.mouseMoveEvent(event)
@@ -371,6 +442,12 @@ class TF2DEditor(QWidget):
         self._render_overlay()
         self.update()
         self.editFinished.emit()
+
+    def keyPressEvent(self, event: QKeyEvent) -> None:
+        if event.key() in (Qt.Key.Key_Delete, Qt.Key.Key_Backspace) and self._selection:
+            self.deleteRequested.emit()
+            return
+        super().keyPressEvent(event)
 
     def _flush(self) -> None:
         if self._stroke is not None and self._stroke_dirty:

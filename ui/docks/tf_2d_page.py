@@ -32,8 +32,9 @@ class TF2DPage(QWidget):
         self.editor_2d.setToolTip(
             "Value × gradient-magnitude histogram (log counts) with the 2-D transfer "
             "function over it. Regions tool: press inside a region to select and move it; "
-            "drag a corner handle of the selected region to resize it. Paint / Erase: drag "
-            "to brush into the painted layer (dotted box).")
+            "drag a corner handle of the selected region to resize it; Shift/Ctrl-click or "
+            "drag a box from empty space to select several, Delete removes them. Paint / "
+            "Erase: drag to brush into the painted layer (dotted box).")
         layout.addWidget(self.editor_2d, 1)
         self._add_paint_tools(layout)
         self._add_region_tools(layout)
@@ -102,7 +103,8 @@ class TF2DPage(QWidget):
             "+ Triangle", "tf2d_add_triangle",
             "Add a triangle rising from |∇I| = 0: Kniss's widget for the boundary arcs "
             "between two materials")
-        self.delete_primitive = push_button("Delete", "tf2d_delete", "Remove the selected region")
+        self.delete_primitive = push_button("Delete", "tf2d_delete",
+                                            "Remove the selected regions (Delete key)")
         self.primitive_color = ColorButton("Region colour")
         self.primitive_color.setObjectName("tf2d_color")
         self.primitive_opacity = number_box(

@@ -293,6 +293,7 @@ class TransferFunctionDock(ModelDock):
         b.connect_qt(self.add_rectangle.clicked, lambda: self.add_primitive("rectangle"))
         b.connect_qt(self.add_triangle.clicked, lambda: self.add_primitive("triangle"))
         b.connect_qt(self.delete_primitive.clicked, self._on_delete_primitive)
+        b.connect_qt(self.editor_2d.deleteRequested, self._on_delete_primitive)
         b.connect_qt(self.primitive_color.colorPicked, self._on_primitive_color)
         b.connect_qt(self.primitive_opacity.valueChanged,
                      lambda v: self._set_selected(opacity=float(v)))
@@ -555,12 +556,13 @@ class TransferFunctionDock(ModelDock):
             self.gestureFinished.emit()
 
     def _on_delete_primitive(self) -> None:
-        index = self.editor_2d.selected
+        """Delete every selected region (one undo step)."""
         tf2d = self.current_tf2d()
-        if 0 <= index < len(tf2d.primitives):
+        doomed = {i for i in self.editor_2d.selected_indices if i < len(tf2d.primitives)}
+        if doomed:
             self.editor_2d.select(-1)
             with self._step():
-                tf2d.primitives = [p for i, p in enumerate(tf2d.primitives) if i != index]
+                tf2d.primitives = [p for i, p in enumerate(tf2d.primitives) if i not in doomed]
 
     def _on_2d_selection(self, _index: int) -> None:
         self._show_selected()

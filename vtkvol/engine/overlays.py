@@ -13,8 +13,10 @@ volume or its illumination.
 * **Scale bar**: a 2-D bar of a round length (1, 2 or 5 × 10ⁿ µm, about a fifth of the
   view's width) measured in the plane through the camera's focal point, with its length
   above it; recomputed before each frame from the camera.
-* **Colour legend**: a ``vtkScalarBarActor`` per visible channel over its colour function's
-  value span (data units), titled with the channel's name.
+* **Colour legend**: a :class:`~vtkvol.engine.legend.ColorLegend` per visible channel (a
+  colour bar over its colour function's value span, data units, titled with the channel's
+  name, three value labels), one above the other along the right edge, laid out every frame
+  so that no title, label or bar overlaps another.
 * **Slice planes**: the outlines of the three orthogonal slice planes through the slice
   views' cursor (world µm), each in its normal axis's colour (x red, y green, z blue, as the
   orientation axes), spanning the data's box.
@@ -30,6 +32,7 @@ from collections.abc import Sequence
 import numpy as np
 import vtk
 
+from vtkvol.engine.legend import ColorLegend
 from vtkvol.engine.slices import PLANE_COLORS
 from vtkvol.model.scene import RGB, Overlays
 
@@ -151,7 +154,7 @@ class SceneOverlays:
         self.planes_actor.GetProperty().LightingOff()
         self._build_planes()
 
-        self.legends: list[vtk.vtkScalarBarActor] = []
+        self.legends: list[ColorLegend] = []
         self._legend_sources: list[tuple[str, vtk.vtkScalarsToColors]] = []
         self._tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._before_frame)
 
@@ -205,8 +208,7 @@ class SceneOverlays:
         self.bar_actor.GetProperty().SetColor(*self._ink)
         self.bar_text.GetTextProperty().SetColor(*self._ink)
         for legend in self.legends:
-            for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
-                prop.SetColor(*self._ink)
+            legend.set_ink(self._ink)
 
     def set_legend_channels(self, channels: Sequence[tuple[str, vtk.vtkScalarsToColors]]) -> None:
         """The visible channels' names and colour functions, in order."""
@@ -240,36 +242,40 @@ class SceneOverlays:
 
     def _build_legends(self) -> None:
         for legend in self.legends:
-            self.renderer.RemoveViewProp(legend)
+            for prop in legend.props:
+                self.renderer.RemoveViewProp(prop)
         self.legends = []
         if not self._state.color_legend:
             return
-        count = len(self._legend_sources)
-        # One above the other along the right edge: side by side, the labels would collide.
-        band = 0.8 / max(count, 1)  # from the top down to above the scale bar
-        for k, (name, lut) in enumerate(self._legend_sources):
-            legend = vtk.vtkScalarBarActor()
-            legend.SetLookupTable(lut)
-            legend.SetTitle(name)
-            legend.SetNumberOfLabels(3)
-            legend.SetLabelFormat("%.4g")
-            legend.SetTextPositionToPrecedeScalarBar()  # labels left of the bar: on screen
-            legend.SetMaximumWidthInPixels(LEGEND_MAX_WIDTH_PX)
-            legend.SetBarRatio(0.3)
-            legend.UnconstrainedFontSizeOn()
-            legend.GetPositionCoordinate().SetCoordinateSystemToNormalizedViewport()
-            legend.SetPosition(0.82, 0.97 - band * (k + 1))
-            legend.SetWidth(0.16)
-            legend.SetHeight(band - 0.04)
-            for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
-                prop.SetColor(*self._ink)
-                prop.SetFontSize(LEGEND_FONT_PX)
-                prop.ShadowOff()
-                prop.BoldOff()
-                prop.ItalicOff()
-            legend.PickableOff()
-            self.renderer.AddViewProp(legend)
+        for name, lut in self._legend_sources:
+            legend = ColorLegend(name, lut)
+            legend.set_ink(self._ink)
+            legend.set_font_size(max(6, round(LEGEND_FONT_PX * self._scale)))
+            for prop in legend.props:
+                self.renderer.AddViewProp(prop)
             self.legends.append(legend)
+        self._place_legends()
+
+    def legend_boxes(self, width: int, height: int) -> list[tuple[float, float, float, float]]:
+        """Each legend's box (left, bottom, right, top) in display pixels of a ``width`` ×
+        ``height`` frame: one above the other along the right edge (side by side, the labels
+        would collide), from near the top down to above the scale bar."""
+        count = max(len(self.legends), 1)
+        margin = MARGIN_PX * self._scale
+        band = 0.8 / count
+        right = width - margin
+        left = right - LEGEND_MAX_WIDTH_PX * self._scale
+        return [(left, height * (0.97 - band * (k + 1) + 0.02), right,
+                 height * (0.97 - band * k)) for k in range(len(self.legends))]
+
+    def _place_legends(self) -> None:
+        width, height = self.renderer.GetSize()
+        if width < 2 or height < 2 or not self.legends:
+            return
+        window = self.renderer.GetRenderWindow()
+        dpi = window.GetDPI() if window is not None else 72
+        for legend, box in zip(self.legends, self.legend_boxes(width, height), strict=True):
+            legend.layout(box, width, height, dpi)
 
     # -- per frame ------------------------------------------------------------------------------
     def magnify(self, scale: int) -> None:
@@ -286,6 +292,7 @@ class SceneOverlays:
         if self._hold:
             return
         self._scale_to_frame()
+        self._place_legends()
         if self._state.orientation_axes:
             self._orient_axes()
         if self._state.scale_bar:
@@ -300,9 +307,7 @@ class SceneOverlays:
         self._scale = scale
         self.bar_text.GetTextProperty().SetFontSize(max(6, round(FONT_PX * scale)))
         for legend in self.legends:
-            legend.SetMaximumWidthInPixels(max(20, round(LEGEND_MAX_WIDTH_PX * scale)))
-            for prop in (legend.GetTitleTextProperty(), legend.GetLabelTextProperty()):
-                prop.SetFontSize(max(6, round(LEGEND_FONT_PX * scale)))
+            legend.set_font_size(max(6, round(LEGEND_FONT_PX * scale)))
 
     def _orient_axes(self) -> None:
         main = self.renderer.GetActiveCamera()
@@ -345,7 +350,8 @@ class SceneOverlays:
         self.renderer.RemoveObserver(self._tag)
         for actor in (self.box_actor, self.planes_actor):
             self.renderer.RemoveActor(actor)
-        for actor in (self.bar_actor, self.bar_text, *self.legends):
+        for actor in (self.bar_actor, self.bar_text,
+                      *(p for legend in self.legends for p in legend.props)):
             self.renderer.RemoveViewProp(actor)
         self.legends = []
         window = self.renderer.GetRenderWindow()

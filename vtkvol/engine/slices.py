@@ -12,6 +12,17 @@ channels then mix as ``RenderSettings.channel_mixing`` says:
 The alpha channel of the result is the channels' combined TF opacity 1 − Π(1 − αᵢ): how
 opaque the 3-D view makes that voxel (one opacity unit distance of it).
 
+A slice shows the 3-D view's classification, so it hides what the 3-D view hides (before
+issue 25 it showed every voxel through the 1-D TF):
+
+* a channel in 2-D mode (``Channel.tf_mode == "2d"``) is coloured by its 2-D TF at the voxel's
+  value and VTK's gradient magnitude there (:mod:`vtkvol.engine.tf2d`: central differences
+  over the neighbouring slices, the edge voxel repeated), over the axes the renderer uses;
+* the slice-contribution weights multiply each channel's colour and opacity by
+  wX(x)·wY(y)·wZ(z) (voxels below the renderer's 1e-10 are dropped);
+* the enabled clipping plane removes the voxels on its cut side (VTK keeps the side its normal
+  points to).
+
 Coordinate spaces (docs/architecture.md):
 
 * **voxel index** (i, j, k) along (x, y, z); arrays are ``[c, z, y, x]``;
@@ -29,9 +40,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vtkvol.model.gradient import gradient_axis_max, normalised_gradient
+
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
-    from vtkvol.model.scene import SceneModel
+    from vtkvol.model.scene import Channel, SceneModel
     from vtkvol.model.transfer_function import TransferFunction
 
 Vec3 = tuple[float, float, float]
@@ -120,6 +133,16 @@ def effective_tf(model: SceneModel, channel: int) -> TransferFunction:
     return channels[channel].tf
 
 
+def effective_channel(model: SceneModel, channel: int) -> Channel:
+    """The channel whose transfer functions (1-D or 2-D, and the mode between them) channel
+    ``channel`` is drawn with: itself, or the channel it is linked to."""
+    channels = model.channels
+    link = channels[channel].tf_linked_to
+    if link is not None and 0 <= link < len(channels) and link != channel:
+        return channels[link]
+    return channels[channel]
+
+
 def slice_values(array: np.ndarray, plane: Plane | str, index: int) -> np.ndarray:
     """The raw values of slice ``index`` (voxels along the plane's normal) of ``array``
     (``[c, z, y, x]``) as ``[c, rows, columns]`` (a view where numpy can make one)."""
@@ -160,16 +183,25 @@ def slice_rgba(data: VolumeData, model: SceneModel, plane: Plane | str,
     mixed by ``model.render.channel_mixing``; see the module docstring) and A, the combined
     TF opacity 1 − Π(1 − αᵢ). A pixel with no visible channel is black with A = 0.
     """
+    plane = PLANES[plane] if isinstance(plane, str) else plane
     values = slice_values(data.array, plane, index)
     rows, columns = values.shape[1:]
     rgb = np.zeros((rows, columns, 3), dtype=np.float32)
     transparency = np.ones((rows, columns), dtype=np.float32)
     composite = model.render.channel_mixing == "composite"
     weight = np.zeros((rows, columns), dtype=np.float32)
+    kept = slice_weight(data, model, plane, index)
     for c, channel in enumerate(model.channels[: values.shape[0]]):
         if not channel.visible:
             continue
-        color, alpha = _tf_lookup(effective_tf(model, c), values[c])
+        source = effective_channel(model, c)
+        if source.tf_mode == "2d":
+            color, alpha = _tf2d_lookup(data, source, c, plane, index, values[c])
+        else:
+            color, alpha = _tf_lookup(source.tf, values[c])
+        if kept is not None:  # the renderer multiplies the sample's RGBA by the weight
+            color = color * kept[..., None]
+            alpha = alpha * kept
         if composite:
             rgb += alpha[..., None] * color
             weight += alpha
@@ -182,6 +214,80 @@ def slice_rgba(data: VolumeData, model: SceneModel, plane: Plane | str,
     np.clip(rgb, 0.0, 1.0, out=out[..., :3])
     out[..., 3] = 1.0 - transparency
     return out
+
+
+#: (gradient rows, value columns) of the 2-D TF table a slice is coloured with: finer than the
+#: 2-D editor's preview, far cheaper to rasterise than the renderer's 1024² table, and the
+#: same function (both sample the primitives at texel centres and interpolate linearly).
+SLICE_TABLE_SHAPE = (256, 256)
+#: The renderer drops samples whose slice weight is below this (host_slice_weights.glsl).
+MIN_WEIGHT = 1e-10
+
+
+def _tf2d_lookup(data: VolumeData, channel: Channel, c: int, plane: Plane, index: int,
+                 values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(RGB, opacity per unit distance) of component ``c``'s slice ``values`` by
+    ``channel.tf2d``, at VTK's gradient of the voxels (axes as the renderer's table:
+    the component's value range, 0 … :func:`gradient_axis_max` per µm)."""
+    lo, hi = data.channel_range(c)
+    value_range = (float(lo), float(hi) if hi > lo else float(lo) + 1.0)
+    spacing = tuple(float(v) for v in data.voxel_size_um)
+    gradient_range = (0.0, gradient_axis_max(value_range, spacing))  # type: ignore[arg-type]
+    table = channel.tf2d.table(value_range, gradient_range, SLICE_TABLE_SHAPE)
+    # The slab of the slice and its two neighbours (fewer at the border, where VTK's clamped
+    # texture repeats the edge voxel, as vtk_gradient's padding does).
+    axis = 3 - plane.normal  # of the [c, z, y, x] array
+    n = data.array.shape[axis]
+    first, last = max(index - 1, 0), min(index + 1, n - 1)
+    slab = np.take(data.array[c], np.arange(first, last + 1), axis=axis - 1)
+    t = normalised_gradient(slab, spacing, value_range)  # type: ignore[arg-type]
+    t_slice = np.take(t, index - first, axis=axis - 1)  # [remaining two, zyx order]
+    remaining = [a for a in (2, 1, 0) if a != plane.normal]
+    if remaining.index(plane.row) != 0:
+        t_slice = t_slice.T
+    span = value_range[1] - value_range[0]
+    s = ((np.asarray(values, dtype=np.float64) - value_range[0]) / span).astype(np.float32)
+    from vtkvol.engine.tf2d import lookup  # imports VTK: only where a 2-D TF is shown
+
+    rgba = lookup(table, s, t_slice)
+    return rgba[..., :3], rgba[..., 3]
+
+
+def slice_weight(data: VolumeData, model: SceneModel, plane: Plane | str,
+                 index: int) -> np.ndarray | None:
+    """The factor ``[rows, columns]`` (0…1) the renderer multiplies each voxel of the slice
+    by: the slice-contribution weights wX·wY·wZ (positions normalised over the data's extent)
+    and 0 on the cut side of the enabled clipping plane (world µm); None when both are off."""
+    plane = PLANES[plane] if isinstance(plane, str) else plane
+    weights = model.slice_weights
+    clip = model.clip_plane
+    if weights.is_identity and not clip.enabled:
+        return None
+    n = _shape_xyz(data.array.shape)
+    spacing = tuple(float(v) for v in data.voxel_size_um)
+    # Per world axis: the voxel indices the slice's rows, columns or single plane cover.
+    ranges = [np.arange(n[a]) if a != plane.normal else np.array([index]) for a in range(3)]
+    row = ranges[plane.row][:, None]
+    column = ranges[plane.column][None, :]
+    factor = np.ones((len(ranges[plane.row]), len(ranges[plane.column])), dtype=np.float64)
+    if not weights.is_identity:
+        for a, points in enumerate((weights.x, weights.y, weights.z)):
+            xs, ws = np.asarray(points, dtype=np.float64).T
+            w = np.interp(ranges[a] / max(n[a] - 1, 1), xs, ws)
+            factor = factor * (w[:, None] if a == plane.row else
+                               w[None, :] if a == plane.column else w[0])
+        factor[factor < MIN_WEIGHT] = 0.0
+    if clip.enabled:
+        low, high = box_um(data.array.shape, spacing)  # type: ignore[arg-type]
+        origin = clip.origin if clip.origin is not None else tuple(
+            (low[a] + high[a]) / 2 for a in range(3))
+        side = np.zeros_like(factor)
+        for a in range(3):
+            offset = ((row if a == plane.row else column if a == plane.column
+                       else ranges[a][0]) * spacing[a] - origin[a]) * clip.normal[a]
+            side = side + offset
+        factor = np.where(side >= 0.0, factor, 0.0)
+    return factor.astype(np.float32)
 
 
 def to_rgba8(rgba: np.ndarray) -> np.ndarray:
