@@ -13,12 +13,8 @@ import tifffile
 
 from vtkvol.cli import main
 from vtkvol.io import VolumeReadError, read_volume
-from vtkvol.io.folder import (
-    SeveralStacksError,
-    folder_stacks,
-    read_folder_as_channels,
-    read_stacks_as_channels,
-)
+from vtkvol.io.folder import SeveralStacksError, folder_stacks
+from vtkvol.io.folder_channels import read_folder_as_channels, read_stacks_as_channels
 
 SHARED = Path(__file__).resolve().parents[1] / ".." / "shared" / "data"
 

@@ -59,7 +59,8 @@ from PySide6.QtWidgets import (
 
 from vtkvol.io import ReadCancelled, VolumeData, available_readers, confocal_phantom, read_volume
 from vtkvol.io.atomic import write_atomic
-from vtkvol.io.folder import SeveralStacksError, read_folder_as_channels
+from vtkvol.io.folder import SeveralStacksError
+from vtkvol.io.folder_channels import read_folder_as_channels
 from vtkvol.io.pyramid import parse_bytes
 from vtkvol.io.remote import is_remote
 from vtkvol.io.volume_data import Spacing, format_bytes
@@ -702,6 +703,10 @@ class MainWindow(QMainWindow):
             lambda: dock.show_auto_status("Choosing the method for this scene…"))
         self.auto_quality.chosen.connect(self._on_auto_chosen)
         self.auto_quality.failed.connect(self._on_auto_failed)
+        # Auto quality quotes this machine's frames (issue 25), not another machine's.
+        self.viewport.frameRendered.connect(
+            lambda _ms, prepare_ms: self.auto_quality.record_frame(
+                self.viewport.full_frame_ms(), prepare_ms))
 
     def _on_auto_chosen(self, outcome: AutoOutcome) -> None:
         self.lights_dock.show_auto_status(outcome.summary, outcome.details,

@@ -25,7 +25,7 @@ def load_input(path: str, voxel_size: Sequence[float] | None, time_index: int = 
     from vtkvol.io.remote import fetch_progress, is_remote
 
     if as_channels:
-        from vtkvol.io.folder import read_folder_as_channels
+        from vtkvol.io.folder_channels import read_folder_as_channels
 
         return read_folder_as_channels(path, voxel_size_um=voxel_size, time_index=time_index,
                                        memory_budget_bytes=budget)
