@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from vtkvol.bench.auto_quality import (
+from vtkvol.engine.auto_quality import (
     TIMINGS_ENV,
     Timings,
     binned_for_prediction,

@@ -122,7 +122,7 @@ def test_the_library_bench_imports_no_concrete_technique():
     import subprocess
     import sys
 
-    code = ("import sys; import vtkvol.bench.runner, vtkvol.bench.auto_quality, "
+    code = ("import sys; import vtkvol.bench.runner, vtkvol.engine.auto_quality, "
             "vtkvol.bench.report, vtkvol.bench.references; "
             "print(sorted(m for m in sys.modules if m.startswith('vtkvol.plugins.') "
             "and m.count('.') > 2))")
@@ -290,7 +290,7 @@ needs_shadow_volume = pytest.mark.skipif(
 def _ladder() -> list:
     """Candidates cheapest first, as a caller without a results file orders them: no shadows,
     then light volumes from coarse to fine."""
-    from vtkvol.bench.auto_quality import Candidate
+    from vtkvol.engine.auto_quality import Candidate
 
     return [Candidate("local")] + [
         Candidate("shadow_volume", {"model": "transmittance", "resolution": r})
@@ -327,7 +327,7 @@ def test_auto_picks_a_full_light_volume_for_thin_structures():
 
 
 def test_auto_uses_measured_costs_for_the_order():
-    from vtkvol.bench.auto_quality import Candidate, measured_costs
+    from vtkvol.engine.auto_quality import Candidate, measured_costs
 
     recs = [
         {"method": "local", "parameters": {}, "frame_ms": 100.0, "recompute_ms": 0.0,
@@ -435,7 +435,7 @@ def test_runner_writes_json_csv_markdown_and_charts(tmp_path):
 
 
 def test_auto_candidates_come_from_the_declarations():
-    from vtkvol.bench.auto_quality import Candidate, spec_candidates
+    from vtkvol.engine.auto_quality import Candidate, spec_candidates
 
     expected = []
     for name, cls in sorted(installed_techniques().items()):
@@ -452,7 +452,7 @@ def test_auto_candidates_come_from_the_declarations():
 @needs_shadow_volume
 def test_auto_ranks_the_declared_settings_by_a_results_file(tmp_path):
     from vtkvol.bench import choose
-    from vtkvol.bench.auto_quality import spec_candidates
+    from vtkvol.engine.auto_quality import spec_candidates
 
     blob = _soft_blob()
     with pytest.raises(ValueError, match=r"pass timings= a benchmarks\.json"):

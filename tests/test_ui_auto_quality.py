@@ -10,7 +10,12 @@ from typing import Any
 import pytest
 from PySide6.QtWidgets import QApplication
 
-from vtkvol.bench.auto_quality import binned_for_prediction, choose_measured, shipped_timings
+from vtkvol.engine.auto_quality import (
+    binned_for_prediction,
+    choose_measured,
+    duration_words,
+    shipped_timings,
+)
 from vtkvol.model.scene import Light
 from vtkvol.ui.auto_quality import MAX_PREDICTION_VOXELS
 from vtkvol.ui.docks.lights import AUTO_CHOICE
@@ -44,14 +49,14 @@ def pick(dock, data: str) -> None:
 
 
 def expected_choice(window):
-    """``choose`` run directly on what the app hands it."""
+    """``choose`` run directly on what the app hands it (this machine's frames included)."""
     opacity, spacing, unit = window.viewport.opacity_snapshot()
     binned, binned_spacing = binned_for_prediction(opacity, spacing, MAX_PREDICTION_VOXELS)
     lights = [light for light in window.model.lights if light.enabled]
     return choose_measured(binned, binned_spacing, lights,
                            budget_ssim=window.model.illumination.auto_budget_ssim,
                            timings=shipped_timings(), unit_distance=unit,
-                           voxels=int(opacity.size))
+                           voxels=int(opacity.size), frames=window.auto_quality.last_frames)
 
 
 def test_choosing_auto_applies_the_pick_and_says_why(window, qtbot):
@@ -72,9 +77,13 @@ def test_choosing_auto_applies_the_pick_and_says_why(window, qtbot):
     text = dock.auto_status.text()
     label = dock.techniques[choice.method].label
     assert text.startswith(f"Auto picked {label}")
-    assert f"predicted SSIM {choice.predicted_ssim:.3f} ≥ 0.98" in text
-    assert "shipped measurements" in text
-    assert "local: predicted SSIM" in dock.auto_status.toolTip()  # every candidate tried
+    assert f"predicted similarity to the reference {choice.predicted_ssim:.3f} (goal 0.98)" \
+        in text
+    # The cost is this machine's frames (issue 25), in words: "about 4 s a frame here".
+    assert outcome.choice.cost_here and "local" in outcome.choice.measured_here
+    assert text.endswith(f"; {duration_words(outcome.choice.cost_ms)} a frame here.")
+    assert "_" not in text.split(":")[0]  # titles and labels, no internal names
+    assert "  Local shading: similarity" in dock.auto_status.toolTip()  # every candidate tried
     assert window.statusBar().currentMessage() == text
     # The combo stays on Auto; the picked method's parameters are shown, read-only.
     assert dock.method.currentData() == AUTO_CHOICE
@@ -115,7 +124,7 @@ def test_model_and_session_with_auto_restore_the_widgets(window, qtbot, tmp_path
     assert dock.method.currentData() == AUTO_CHOICE
     assert dock.auto_budget.value() == pytest.approx(0.9)
     assert dock.auto_box.isVisibleTo(dock) and not dock.reset_params.isEnabled()
-    assert "≥ 0.9;" in dock.auto_status.text()
+    assert "(goal 0.9);" in dock.auto_status.text()
     picked = window.model.illumination.method
 
     path = window.save_session(tmp_path / "auto")
@@ -153,8 +162,8 @@ def test_unreachable_budget_says_so(window, qtbot):
     outcome = blocker.args[0]
     assert not outcome.met
     text = dock.auto_status.text()
-    assert text.startswith("Budget not reachable: no method is predicted to reach SSIM ≥ 1;")
-    assert "using the most accurate" in text
+    assert text.startswith("Goal not reachable: no method is predicted to reach similarity 1 "
+                           "to the reference; using the closest, ")
     best = max(outcome.choice.considered, key=lambda c: c["predicted_ssim"])
     assert outcome.choice.predicted_ssim == best["predicted_ssim"]
     assert window.model.illumination.method == outcome.choice.method

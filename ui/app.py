@@ -46,6 +46,8 @@ from PySide6.QtWidgets import (
 
 from vtkvol.io import ReadCancelled, VolumeData, confocal_phantom, read_volume
 from vtkvol.io.atomic import write_atomic
+from vtkvol.io.folder import SeveralStacksError
+from vtkvol.io.folder_channels import read_folder_as_channels
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.document import SAMPLE_KEY, Document, sample_kwargs
@@ -81,6 +83,7 @@ from vtkvol.ui.pyramid_view import (
     read_budget,
     shifted_view,
 )
+from vtkvol.ui.stack_chooser import offer_stacks
 from vtkvol.ui.status_bar import StatusLabels
 from vtkvol.ui.time_controls import TimeControls, time_cache_setting
 from vtkvol.ui.time_series import TimeSeriesPlayer
@@ -325,6 +328,10 @@ class MainWindow(QMainWindow):
             lambda: dock.show_auto_status("Choosing the method for this scene…"))
         self.auto_quality.chosen.connect(self._on_auto_chosen)
         self.auto_quality.failed.connect(self._on_auto_failed)
+        # Auto quality quotes this machine's frames (issue 25), not another machine's.
+        self.viewport.frameRendered.connect(
+            lambda _ms, prepare_ms: self.auto_quality.record_frame(
+                self.viewport.full_frame_ms(), prepare_ms))
 
     def _on_auto_chosen(self, outcome: AutoOutcome) -> None:
         self.lights_dock.show_auto_status(outcome.summary, outcome.details,
@@ -384,10 +391,11 @@ class MainWindow(QMainWindow):
 
     def open_path(self, path: str | os.PathLike[str], *,
                   voxel_size: tuple[float, float, float] | None = None,
-                  time_index: int | None = None) -> None:
+                  time_index: int | None = None, as_channels: bool = False) -> None:
         """Open a volume file or folder, or a session file (by its suffix), in the background.
         ``time_index`` (0-based) shows that time point of a time series instead of the first
-        (or of the session's)."""
+        (or of the session's). ``as_channels``: ``path`` is a folder of stacks, each read as
+        a channel (a folder of several stacks without it offers a chooser)."""
         text = str(path)
         if is_session_path(text):
             self.open_session(text, time_index=time_index)
@@ -398,8 +406,9 @@ class MainWindow(QMainWindow):
         budget = self.gpu_budget()
 
         def job(progress, cancel):
-            return read_volume(text, voxel_size_um=voxel_size, time_index=index,
-                               progress=progress, cancel=cancel, memory_budget_bytes=budget)
+            read = read_folder_as_channels if as_channels else read_volume
+            return read(text, voxel_size_um=voxel_size, time_index=index,
+                        progress=progress, cancel=cancel, memory_budget_bytes=budget)
 
         def success(data: VolumeData) -> None:
             self.show_volume(data, voxel_size=voxel_size, time_index=index)
@@ -445,6 +454,9 @@ class MainWindow(QMainWindow):
         if isinstance(exc, ReadCancelled):
             self.statusBar().showMessage("Opening cancelled; the previous view is unchanged.", 6000)
             self.openFailed.emit("cancelled")
+            return
+        if isinstance(exc, SeveralStacksError):  # not an error: ask which stack(s) to open
+            offer_stacks(self, exc, self.open_path)
             return
         errors.show_error(self, exc, action=action)
         self.openFailed.emit(str(exc))
@@ -857,13 +869,15 @@ def write_png(image: np.ndarray, path: Path) -> None:
 
 
 def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None,
-            time_index: int | None = None, gpu_budget: int | None = None) -> int:
+            time_index: int | None = None, gpu_budget: int | None = None,
+            as_channels: bool = False) -> int:
     """Start the desktop app (``vtkvol open``); returns the exit status.
 
     ``file`` may be a volume, a folder of slices or a session (``*.vtkvol.json``); without
     one the built-in sample is shown. ``voxel_size`` overrides the file's (x, y, z) in µm;
     ``time_index`` (0-based) opens that time point of a time series.
     ``gpu_budget`` (bytes) the GPU-memory budget setting, for this run only.
+    ``as_channels``: ``file`` is a folder of stacks, each read as a channel.
     """
     app = QApplication.instance() or QApplication(sys.argv)
     configure_gl_platform(app)
@@ -877,7 +891,7 @@ def run_app(file: str | None, *, sample: bool, voxel_size: tuple | None,
     voxel = tuple(float(v) for v in voxel_size) if voxel_size else None
     if file:
         QTimer.singleShot(0, lambda: window.open_path(  # type: ignore[arg-type]
-            file, voxel_size=voxel, time_index=time_index))
+            file, voxel_size=voxel, time_index=time_index, as_channels=as_channels))
     elif sample:
         QTimer.singleShot(0, window.open_sample)
     try:

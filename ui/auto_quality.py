@@ -1,15 +1,21 @@
-"""Auto quality in the app: the illumination method picked by :func:`vtkvol.bench.choose`.
+"""Auto quality in the app: the illumination method picked by
+:func:`vtkvol.engine.auto_quality.choose_measured`.
 
 With ``model.illumination.auto`` on, :class:`AutoQuality` runs
-:func:`vtkvol.bench.auto_quality.choose_measured` for the current opacity (data, TFs, crop,
+:func:`vtkvol.engine.auto_quality.choose_measured` for the current opacity (data, TFs, crop,
 slice weights), voxel size and lights, and writes the pick into ``illumination.method`` and
 its parameters. The choice is CPU work of about a second to a few seconds (one reference
 transmittance plus one CPU light volume per candidate tried), so it runs in a worker thread,
 once the edits have settled (:data:`SETTLE_MS` after the last TF, light, crop or data
 change, never during a drag), and a result that an edit has overtaken is dropped.
 
-Costs come from :func:`~vtkvol.bench.auto_quality.default_timings`: the ``benchmarks.json``
-named by ``$VTKVOL_BENCHMARKS``, else the measurements shipped with vtkvol.
+Costs are this machine's: the window reports every full-quality frame
+(:meth:`AutoQuality.record_frame`, the whole view's time as the progressive refiner measures
+it plus the method's precomputation) into a :class:`~vtkvol.engine.auto_quality.FrameTimes`;
+settings not shown yet are scaled from :func:`~vtkvol.engine.auto_quality.default_timings`
+(``$VTKVOL_BENCHMARKS``, else the measurements shipped with vtkvol) by how this machine
+compares on the settings it did show. Before any frame, the order comes from those figures
+alone and the words say that no frame was measured here yet.
 
 Signals carry the outcome for the view (the Lights dock and the status bar show it):
 ``busy()`` when a choice starts, ``chosen(AutoOutcome)`` when one is applied, ``failed(str)``
@@ -19,6 +25,7 @@ when none can be made (a point light, no light on, no measured method).
 from __future__ import annotations
 
 import contextlib
+import copy
 import math
 import threading
 from collections.abc import Callable
@@ -29,22 +36,26 @@ from typing import Any
 import numpy as np
 from PySide6.QtCore import QObject, QTimer, Signal
 
-from vtkvol.bench.auto_quality import (
+from vtkvol.engine.auto_quality import (
     Choice,
+    FrameTimes,
     Timings,
     binned_for_prediction,
     choose_measured,
     default_timings,
+    duration_words,
+    setting_words,
 )
 from vtkvol.model.evented import touches
 from vtkvol.model.scene import SceneModel
+from vtkvol.model.techniques import get_spec
 
 #: Quiet time (ms) after the last edit before choosing again: a drag sends edits every
 #: ~60 ms, so the choice runs once the user lets go.
 SETTLE_MS = 500
 
 #: Largest volume the prediction runs on (voxels); larger data is averaged in blocks first
-#: (:func:`~vtkvol.bench.auto_quality.binned_for_prediction`), which keeps a choice to a few
+#: (:func:`~vtkvol.engine.auto_quality.binned_for_prediction`), which keeps a choice to a few
 #: seconds on two cores.
 MAX_PREDICTION_VOXELS = 96**3
 
@@ -69,27 +80,37 @@ class AutoOutcome:
     met: bool
 
 
-def describe(choice: Choice, budget_ssim: float, method_label: str) -> AutoOutcome:
-    """The words for ``choice`` (``method_label``: the technique's display name)."""
-    label = choice.label or choice.method
-    overrides = label[len(choice.method) + 2:-1] if label.startswith(f"{choice.method} (") \
-        else ""
-    setting = f"{method_label} ({overrides})" if overrides else method_label
+def _cost_words(cost_ms: float, here: bool) -> str:
+    if here and math.isfinite(cost_ms):
+        return f"{duration_words(cost_ms)} a frame here"
+    return "ranked by another machine's measurements (no frame measured here yet)"
+
+
+def describe(choice: Choice, budget_ssim: float, method_label: str = "") -> AutoOutcome:
+    """The words for ``choice``, as a user reads them: the method's title and its settings'
+    labels (:func:`~vtkvol.engine.auto_quality.setting_words`), the predicted similarity
+    (SSIM) against the goal, and what a frame costs on this machine. ``method_label``
+    replaces the method's title (the dock's name for it)."""
+    setting = setting_words(choice.method, choice.parameters)
+    if method_label:
+        title = setting_words(choice.method, {})
+        setting = method_label + setting[len(title):] if setting.startswith(title) else setting
     met = choice.predicted_ssim >= budget_ssim
+    cost = _cost_words(choice.cost_ms, choice.cost_here)
     if met:
-        summary = (f"Auto picked {setting}: predicted SSIM {choice.predicted_ssim:.3f} "
-                   f"≥ {budget_ssim:g}")
+        summary = (f"Auto picked {setting}: predicted similarity to the reference "
+                   f"{choice.predicted_ssim:.3f} (goal {budget_ssim:g}); {cost}.")
     else:
-        summary = (f"Budget not reachable: no method is predicted to reach SSIM "
-                   f"≥ {budget_ssim:g}; using the most accurate, {setting} (predicted SSIM "
-                   f"{choice.predicted_ssim:.3f})")
-    cost = f", {choice.cost_ms:.0f} ms a frame there" if math.isfinite(choice.cost_ms) else ""
-    summary += f"; cost from {choice.cost_source or 'the given timings'}{cost}."
+        summary = (f"Goal not reachable: no method is predicted to reach similarity "
+                   f"{budget_ssim:g} to the reference; using the closest, {setting} "
+                   f"({choice.predicted_ssim:.3f}); {cost}.")
     tried = "\n".join(
-        f"  {c['label']}: predicted SSIM {c['predicted_ssim']:.3f}"
-        + (f", cost {c['cost_ms']:.0f} ms" if math.isfinite(c["cost_ms"]) else "")
+        f"  {setting_words(c.get('method', c['label']), c.get('parameters', {}))}: "
+        f"similarity {c['predicted_ssim']:.3f}, "
+        f"{_cost_words(c['cost_ms'], choice.cost_here)}"
         for c in choice.considered)
-    details = f"{choice.reason}\n\nTried, cheapest first:\n{tried}"
+    details = (f"{summary}\n\nTried, cheapest first:\n{tried}\n\nCosts: "
+               f"{choice.cost_source or 'the given timings'}.")
     return AutoOutcome(choice, budget_ssim, method_label, summary, details, met)
 
 
@@ -117,6 +138,11 @@ class AutoQuality(QObject):
         self.engine_edit = engine_edit
         self.method_labels = dict(method_labels or {})
         self._timings = timings
+        #: This machine's full-quality frames, per setting (see :meth:`record_frame`).
+        self.frames = FrameTimes()
+        #: The frame times the last applied choice was made with (a copy of :attr:`frames`).
+        self.last_frames: FrameTimes | None = None
+        self._frames_in_use: FrameTimes | None = None
         self._generation = 0
         self._running = False
         self._pending = False
@@ -160,6 +186,18 @@ class AutoQuality(QObject):
         self._generation += 1
         self._timer.start(delay_ms)
 
+    def record_frame(self, frame_ms: float | None, prepare_ms: float = 0.0) -> None:
+        """A full-quality frame of the current method was shown: ``frame_ms`` for the whole
+        view (None: unknown, e.g. an interactive frame), ``prepare_ms`` its precomputation."""
+        if frame_ms is None:
+            return
+        illumination = self.model.illumination
+        try:
+            values = {**get_spec(illumination.method).defaults(), **illumination.values_for()}
+        except (ValueError, KeyError):  # a method whose plugin went away
+            return
+        self.frames.record(illumination.method, values, frame_ms, prepare_ms)
+
     # -- choosing -------------------------------------------------------------------------------
     def _lights(self) -> list[Any]:
         """The lights choose sees; ValueError says why Auto cannot serve them."""
@@ -194,6 +232,8 @@ class AutoQuality(QObject):
         voxels = int(full.size)
         budget = float(self.model.illumination.auto_budget_ssim)
         timings = self._timings
+        frames = copy.deepcopy(self.frames)  # the worker reads its own copy
+        self._frames_in_use = frames
         self._running = True
         self.busy.emit()
 
@@ -201,7 +241,8 @@ class AutoQuality(QObject):
             try:
                 choice = choose_measured(opacity, spacing, lights, budget_ssim=budget,
                                          timings=timings or default_timings(),
-                                         unit_distance=unit_distance, voxels=voxels)
+                                         unit_distance=unit_distance, voxels=voxels,
+                                         frames=frames)
             except Exception as exc:  # reported on the GUI thread as a one-line message
                 result: tuple[Choice | None, str | None] = (None, str(exc) or type(exc).__name__)
             else:
@@ -234,6 +275,7 @@ class AutoQuality(QObject):
             illumination.parameters = parameters
             illumination.method = choice.method
         self.last_outcome = outcome
+        self.last_frames = self._frames_in_use
         self.chosen.emit(outcome)
 
     def _report_failure(self, message: str) -> None:

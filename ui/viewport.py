@@ -499,6 +499,18 @@ class Viewport(QWidget):
         self.plotter.repaint()
 
     # -- progressive refinement (vtkvol.ui.refine) ---------------------------------------------
+    def full_frame_ms(self) -> float | None:
+        """What the last frame says a whole view at full quality costs on this machine (ms):
+        its own duration when it was one, else the refiner's estimate from the strips and
+        coarse frames measured (None before any, and for interactive frames, which sample
+        more coarsely along the ray)."""
+        if self._frame.interactive:
+            return None
+        if self._frame.kind == "full" and self._frame.image_factor == 1.0:
+            return self.last_frame_ms
+        width, height = self._view_px()
+        return self.refiner.predict_ms(False, float(width * height))
+
     def _view_px(self) -> tuple[int, int]:
         width, height = self.render_window.GetSize()
         return (max(1, int(width)), max(1, int(height)))

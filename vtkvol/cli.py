@@ -109,6 +109,8 @@ def _parser() -> argparse.ArgumentParser:
     p_open = sub.add_parser("open", help="start the desktop app (optionally with a file)")
     p_open.add_argument("file", nargs="?", help="volume, folder of slices or session file")
     p_open.add_argument("--sample", action="store_true", help="open the built-in sample volume")
+    p_open.add_argument("--as-channels", action="store_true",
+                        help="FILE is a folder of stacks of one shape: read each as a channel")
     p_open.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"),
                         help="override the voxel size in µm")
     p_open.add_argument("--time", type=int, default=None, metavar="T",
@@ -127,6 +129,8 @@ def _parser() -> argparse.ArgumentParser:
                           help="time point to render (0-based; a session's own otherwise)")
     p_render.add_argument("--gpu-budget", type=_budget, default=None, metavar="SIZE",
                           help=_BUDGET_HELP)
+    p_render.add_argument("--as-channels", action="store_true",
+                          help="FILE is a folder of stacks of one shape: read each as a channel")
     p_render.add_argument("--overwrite", action="store_true",
                           help="replace the output file if it exists")
     p_render.add_argument("--turntable", type=float, default=None, metavar="DEG",
@@ -158,6 +162,8 @@ def _parser() -> argparse.ArgumentParser:
     p_info = sub.add_parser("info", help="describe a volume file")
     p_info.add_argument("file")
     p_info.add_argument("--voxel-size", nargs=3, type=float, metavar=("X", "Y", "Z"))
+    p_info.add_argument("--as-channels", action="store_true",
+                        help="FILE is a folder of stacks of one shape: read each as a channel")
     p_info.add_argument("--gpu-budget", type=_budget, default=None, metavar="SIZE",
                         help=_BUDGET_HELP)
 
@@ -338,7 +344,8 @@ def cmd_render(args: argparse.Namespace) -> int:
         for note in notes:
             print(f"vtkvol: {name}: {note}", file=sys.stderr)
     else:
-        data = _load(args.file, args.voxel_size, args.time or 0, args.gpu_budget)
+        data = _load(args.file, args.voxel_size, args.time or 0, args.gpu_budget,
+                     as_channels=args.as_channels)
     inputs = {Path(p).resolve() for p in (args.file, data.source) if p and p != "sample"}
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
@@ -588,7 +595,8 @@ def _voxel_size_problem(voxel_size: Sequence[float] | None) -> str | None:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
-    data = _load(args.file, args.voxel_size, budget=args.gpu_budget)
+    data = _load(args.file, args.voxel_size, budget=args.gpu_budget,
+                 as_channels=args.as_channels)
     print(data.describe())
     return 0
 
@@ -648,6 +656,10 @@ def cmd_open(args: argparse.Namespace) -> int:
         print("vtkvol: --time does not apply to the built-in sample (it has one time point)",
               file=sys.stderr)
         return 2
+    problem = _folder_problem(args)
+    if problem:
+        print(f"vtkvol: {problem}", file=sys.stderr)
+        return 2
     if no_display_reason() is not None:
         print(f"vtkvol: {no_display_reason()}; the app needs a desktop session. Headless, render "
               f"images instead: vtkvol render {args.file or 'sample'} -o view.png",
@@ -659,7 +671,28 @@ def cmd_open(args: argparse.Namespace) -> int:
         print(f"vtkvol: the desktop app needs the [app] extras ({exc})", file=sys.stderr)
         return 2
     return run_app(args.file, sample=args.sample or args.file is None,
-                   voxel_size=args.voxel_size, time_index=args.time, gpu_budget=args.gpu_budget)
+                   voxel_size=args.voxel_size, time_index=args.time, gpu_budget=args.gpu_budget,
+                   as_channels=args.as_channels)
+
+
+def _folder_problem(args: argparse.Namespace) -> str | None:
+    """`vtkvol open FOLDER` of several stacks: the one line that lists them (before the app
+    starts); `--as-channels` on something that is not a folder of stacks: why not."""
+    from vtkvol.io.folder import SeveralStacksError, folder_stacks
+
+    path = Path(args.file) if args.file else None
+    if args.as_channels and (path is None or not path.is_dir()):
+        return (f"--as-channels needs a folder of stacks; {args.file} is not a folder"
+                if path is not None else "--as-channels needs a folder of stacks")
+    if path is None or not path.is_dir() or args.as_channels:
+        return None
+    try:
+        stacks = folder_stacks(path)
+    except ValueError as exc:
+        return str(exc)
+    if len(stacks) > 1:
+        return str(SeveralStacksError(path, stacks))
+    return None
 
 
 def cmd_bench(args: argparse.Namespace) -> int:

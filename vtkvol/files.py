@@ -15,14 +15,20 @@ if TYPE_CHECKING:
 
 
 def load_input(path: str, voxel_size: Sequence[float] | None, time_index: int = 0,
-               budget: int | None = None) -> VolumeData:
+               budget: int | None = None, *, as_channels: bool = False) -> VolumeData:
     """``"sample"`` (the built-in confocal phantom) or the volume at ``path``, read with
     ``voxel_size`` (µm, x y z; None: the file's own), time point ``time_index`` and a memory
     budget of ``budget`` bytes (None: the reader's default). An address (OME-Zarr over
-    HTTP(S)/S3) reports its fetching progress on stderr."""
+    HTTP(S)/S3) reports its fetching progress on stderr. ``as_channels``: ``path`` is a
+    folder of stacks, read as the channels of one volume (``--as-channels``)."""
     from vtkvol.io import confocal_phantom, read_volume
     from vtkvol.io.remote import fetch_progress, is_remote
 
+    if as_channels:
+        from vtkvol.io.folder_channels import read_folder_as_channels
+
+        return read_folder_as_channels(path, voxel_size_um=voxel_size, time_index=time_index,
+                                       memory_budget_bytes=budget)
     if path == "sample":
         return confocal_phantom()
     return read_volume(path, voxel_size_um=voxel_size, time_index=time_index,

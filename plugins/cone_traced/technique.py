@@ -22,6 +22,7 @@ from vtkvol.plugins.cone_traced.cpu import (
     _FAR,
     MAX_STEPS,
     TAU_EXIT,
+    ambient_occlusion_cpu,
     ao_grid_dims,
     baked_ao_cpu,
     cone_trace_cpu,
@@ -30,7 +31,9 @@ from vtkvol.plugins.cone_traced.cpu import (
     hemisphere_pattern,
     level_shapes,
     mip_level_count,
+    sample_grid,
     source_pyramid,
+    voxel_normals,
     voxel_points,
 )
 from vtkvol.plugins.cone_traced.gpu import GpuAoBaker, GpuFilter
@@ -349,6 +352,46 @@ class ConeTraced(Technique):
         self._release_timers()
 
     # -- verification ---------------------------------------------------------------------------
+    def ambient_visibility_cpu(
+        self, opacity: np.ndarray, spacing: tuple[float, float, float],
+        values: Mapping[str, Any], view_directions: Sequence[Sequence[float]],
+    ) -> list[np.ndarray] | None:
+        """1 − ao_strength·AO per voxel (numpy, the shader's algorithm for each
+        ``ao_mode``): the baked grid sampled trilinearly, the per-sample hemisphere at every
+        voxel with material, or the view cone towards each of ``view_directions``; None when
+        AO is off."""
+        mode = values["ao_mode"]
+        if mode == "off":
+            return None
+        strength = float(values["ao_strength"])
+        max_um = float(values["max_distance"]) * min(spacing)
+        common = dict(sigma=values["sigma"], lod_width=values["lod_width"], h=values["h"],
+                      h0=values["h0"], unit_distance=self.host.unit_distance)
+        if mode == "baked_hemisphere":
+            grid = baked_ao_cpu(opacity, spacing, resolution=values["ao_resolution"],
+                                cones=int(values["ao_cones"]), max_distance_um=max_um,
+                                span=values["span"], **common)
+            ao = sample_grid(grid, opacity.shape[::-1], voxel_points(opacity.shape))
+            visible = (1.0 - strength * ao).reshape(opacity.shape).astype(np.float32)
+            return [visible] * len(view_directions)
+        # Per-sample modes: traced only where there is material (elsewhere nothing is shaded).
+        pyramid = filtered_pyramid_cpu(opacity, values["sigma"], values["span"])
+        where = np.flatnonzero(opacity.ravel() > 1e-3)
+        pts = voxel_points(opacity.shape)[where]
+        normals = voxel_normals(opacity, spacing).reshape(-1, 3)[where]
+
+        def visibility(view: Sequence[float]) -> np.ndarray:
+            out = np.ones(opacity.size, np.float32)
+            ao = ambient_occlusion_cpu(
+                pyramid, spacing, pts, normals, view, mode=mode, cones=int(values["ao_cones"]),
+                ao_angle=values["ao_angle"], max_distance_um=max_um, **common)
+            out[where] = 1.0 - strength * ao
+            return out.reshape(opacity.shape)
+
+        if mode == "hemisphere":  # about the normal: the same for every view
+            return [visibility(view_directions[0])] * len(view_directions)
+        return [visibility(view) for view in view_directions]
+
     def light_visibility_cpu(
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
         values: Mapping[str, Any],

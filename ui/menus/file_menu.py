@@ -41,7 +41,7 @@ class FileMenu(QObject):
         self.open_action = act(window, "&Open…", self.choose_file, QKeySequence.StandardKey.Open,
                                "Open a volume file (TIFF, NumPy, raw, NRRD, VTK…)")
         self.open_folder_action = act(window, "Open &folder…", self.choose_folder, None,
-                                      "Open a folder of single-slice TIFF files")
+                                      "Open a folder of TIFF slices, or a folder's stacks")
         self.open_url_action = act(window, "Open &URL…", self.choose_url, None,
                                    "Open an OME-Zarr image on a web server or in S3")
         self.open_sample_action = act(window, "Open &sample", lambda: host.open_sample(), None,

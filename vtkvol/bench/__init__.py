@@ -9,8 +9,9 @@
 * :mod:`~vtkvol.bench.measure`: offscreen rigs, timing, checks;
 * :mod:`~vtkvol.bench.report`: ``benchmarks.json``, ``.csv``, ``.md`` and charts in the output
   folder;
-* :mod:`~vtkvol.bench.auto_quality`: :func:`choose`, the cheapest method that meets an error
-  budget for a given scene.
+* :func:`choose` (re-exported from the product module :mod:`vtkvol.engine.auto_quality`,
+  which the app's Auto quality uses): the cheapest method that meets an error budget for a
+  given scene.
 
 Importing this package loads neither VTK nor the GL code; the submodules that need them import
 them.
@@ -25,7 +26,7 @@ __all__ = ["Choice", "choose"]
 
 def __getattr__(name: str) -> Any:
     if name in __all__:
-        from vtkvol.bench import auto_quality
+        from vtkvol.engine import auto_quality
 
         return getattr(auto_quality, name)
     raise AttributeError(f"module 'vtkvol.bench' has no attribute {name!r}")

@@ -41,7 +41,7 @@ import importlib
 import logging
 import time
 import warnings
-from collections.abc import Generator, Iterable, Iterator, Mapping
+from collections.abc import Generator, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, ClassVar, Literal, Protocol, runtime_checkable
 
@@ -314,6 +314,17 @@ class Technique:
     ) -> np.ndarray | None:
         """This technique's own CPU path for the per-voxel light visibility (0…1, [z, y, x]),
         or None when the technique has no per-voxel light volume."""
+        return None
+
+    def ambient_visibility_cpu(
+        self, opacity: np.ndarray, spacing: tuple[float, float, float],
+        values: Mapping[str, Any], view_directions: Sequence[Sequence[float]],
+    ) -> list[np.ndarray] | None:
+        """This technique's own CPU path for the ambient light's visibility 1 − strength·AO
+        (0…1, ``[z, y, x]``), one volume per direction towards the viewer in
+        ``view_directions`` (dataset space; the same volume for view-independent AO), or None
+        when the technique does not occlude the ambient light. Auto quality's prediction
+        (:mod:`vtkvol.engine.auto_quality`) compares it with the reference AO."""
         return None
 
     @classmethod

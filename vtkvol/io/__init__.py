@@ -6,6 +6,8 @@ See docs/file-formats.md for the supported formats.
 
 from vtkvol.io.errors import ReadCancelled, VolumeReadError
 from vtkvol.io.fit import FIT_STRATEGIES, FitStrategy, fit_volume
+from vtkvol.io.folder import SeveralStacksError, folder_stacks
+from vtkvol.io.folder_channels import read_folder_as_channels, read_stacks_as_channels
 from vtkvol.io.read import read_volume
 from vtkvol.io.registry import ReaderSpec, available_readers, get_reader, reload_readers
 from vtkvol.io.sample import confocal_phantom
@@ -28,14 +30,18 @@ __all__ = [
     "FitStrategy",
     "ReadCancelled",
     "ReaderSpec",
+    "SeveralStacksError",
     "Spacing",
     "VolumeData",
     "VolumeReadError",
     "available_readers",
     "confocal_phantom",
     "fit_volume",
+    "folder_stacks",
     "from_vtk_image",
     "get_reader",
+    "read_folder_as_channels",
+    "read_stacks_as_channels",
     "read_volume",
     "reload_readers",
 ]

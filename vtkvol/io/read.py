@@ -11,7 +11,7 @@ from vtkvol.io.fit import FIT_STRATEGIES, FitStrategy, fit_volume
 from vtkvol.io.limits import check_path, detach_from_file, file_backed
 from vtkvol.io.progress import CancelCallback, Progress, ProgressCallback
 from vtkvol.io.pyramid import Region
-from vtkvol.io.registry import VoxelSizeArg, available_readers, get_reader
+from vtkvol.io.registry import ReaderSpec, VoxelSizeArg, available_readers, get_reader
 from vtkvol.io.remote import is_remote
 from vtkvol.io.volume_data import VolumeData
 
@@ -44,7 +44,10 @@ def read_volume(
         only the chunks needed are fetched), a file (``.tif``/``.tiff``, ``.raw``,
         ``.nhdr``/``.nrrd``, ``.dat``, ``.npy``/``.npz``,
         ``.vti``/``.vtk``/``.mha``/``.mhd``, or any pattern a ``vtkvol.readers`` plugin
-        declares) or a folder of single-slice TIFFs.
+        declares) or a folder of single-slice TIFFs. A folder holding exactly one stack
+        reads that stack; one holding several raises
+        :class:`~vtkvol.io.folder.SeveralStacksError` (see
+        :func:`~vtkvol.io.folder.read_stacks_as_channels`).
     voxel_size_um
         Overrides the file's voxel size: (x, y, z) in µm, one number for isotropic voxels,
         or a tuple with None entries to keep the file's value on those axes.
@@ -114,6 +117,8 @@ def read_volume(
             raise VolumeReadError(p, f"no such file or folder: {p}")
         check_path(p)
         reader = get_reader(p)
+        if p.is_dir() and (reader is None or reader.name == "tiff"):
+            p, reader = _one_stack_of(p, reader)
         if reader is None:
             raise VolumeReadError(p, _unknown_type(p))
     try:
@@ -149,6 +154,20 @@ def read_volume(
         )
     prog(1.0, f"loaded {p.name}")
     return data
+
+
+def _one_stack_of(folder: Path, reader: ReaderSpec | None) -> tuple[Path, ReaderSpec | None]:
+    """A folder of slices stays as it is; a folder holding exactly one stack reads that file;
+    several stacks raise :class:`~vtkvol.io.folder.SeveralStacksError` (the app offers a
+    choice, the CLI lists them)."""
+    from vtkvol.io.folder import SeveralStacksError, folder_stacks
+
+    stacks = folder_stacks(folder)
+    if len(stacks) > 1:
+        raise SeveralStacksError(folder, stacks)
+    if len(stacks) == 1:
+        return stacks[0], get_reader(stacks[0])
+    return folder, reader
 
 
 def _unknown_type(path: Path) -> str:

@@ -1,11 +1,14 @@
 """``auto`` quality: the cheapest illumination setting that meets an error budget for a scene.
 
+Product code: the app's Auto (``ui/auto_quality.py``) uses it, and it imports nothing of the
+benchmark (``vtkvol.bench`` re-exports :func:`choose` and :class:`Choice`).
+
 "Model no more than a scene needs." :func:`choose` takes the scene's opacity volume, voxel size
 and lights, walks a list of candidate settings from cheapest to most expensive and returns the
 first whose *predicted* image error meets the budget (default SSIM ≥ 0.98 against the
 reference), saying what it picked and why::
 
-    from vtkvol.bench import choose
+    from vtkvol.engine.auto_quality import choose
     choice = choose(illuminator.opacity_volume(), illuminator.spacing,
                     [light.direction for light in lights])
     illuminator.set_method(choice.method, choice.parameters)
@@ -32,8 +35,12 @@ Predicted error comes from cheap CPU measurements on the scene itself, no GPU ne
    (``Technique.light_visibility_cpu``: the same algorithm, resolution and filtering as its
    GPU path; 1 everywhere for techniques without shadows, such as local shading);
 3. a proxy rendering of both on the CPU: front-to-back emission–absorption compositing of
-   ``ka + kd · V · |n·l|`` (the host's shading formula, white albedo, ambient 0.3, diffuse 0.7,
-   normals from the opacity gradient) along each of the three axes, in both directions;
+   ``ka · A + kd · V · |n·l|`` (the host's shading formula, white albedo, ambient 0.3, diffuse
+   0.7, normals from the opacity gradient) along each of the three axes, in both directions,
+   where A is the ambient light's visibility: 1, or for a technique that occludes the ambient
+   light its own CPU twin (``Technique.ambient_visibility_cpu``, per view) against the
+   reference's Monte-Carlo AO (:data:`AO_DISTANCE_VOXELS`, :data:`AO_RAYS`), so that each
+   ambient-occlusion variant gets its own prediction;
 4. predicted SSIM = the worst SSIM of the six candidate/reference proxy image pairs.
 
 Only the candidates up to the first that passes are evaluated, so a smooth scene that a
@@ -46,7 +53,9 @@ times of the project's ``docs/benchmarks.json``, a quick run on llvmpipe). The c
 of the settings is what matters, and it is the same on a GPU for the candidates that matter
 (local < light volume at quarter/half/full resolution < cone tracing), only the gaps differ.
 :func:`choose_measured` then chooses among the declared candidates that have measurements and
-says which it left out.
+says which it left out. With ``frames`` (:class:`FrameTimes`: full-quality frames measured on
+this machine, as the app records them) the costs, and the time :func:`duration_words` quotes,
+are this machine's; the shipped figures then only scale the settings not measured here.
 """
 
 from __future__ import annotations
@@ -66,6 +75,16 @@ import numpy as np
 #: Shading constants of the proxy rendering (the benchmark scenes' vtkVolumeProperty).
 AMBIENT = 0.3
 DIFFUSE = 0.7
+#: Directions towards the viewer of the six proxy views, in :func:`proxy_images`' order.
+PROXY_VIEWS: tuple[tuple[float, float, float], ...] = (
+    (-1.0, 0.0, 0.0), (1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.0, 1.0, 0.0),
+    (0.0, 0.0, -1.0), (0.0, 0.0, 1.0))
+#: Reach of the reference ambient occlusion: absorbers within this many voxels (of the
+#: smallest edge) occlude, as in the benchmark's scenes (``DEFAULT_AO_DISTANCE_VOXELS``).
+AO_DISTANCE_VOXELS = 24.0
+#: Monte-Carlo directions per voxel of the reference AO (standard error ≤ 0.5/√32 ≈ 0.09 per
+#: voxel; the SSIM of whole images averages far below that).
+AO_RAYS = 32
 
 
 @dataclass(frozen=True)
@@ -88,12 +107,12 @@ def spec_candidates() -> list[Candidate]:
     each one's ``bench`` settings marked ``quick`` (its representative subset), or its
     defaults when it declares none. Medium techniques are left out: the proxy rendering
     below is the surface model's shading."""
-    from vtkvol.bench.reference_technique import NAME as REFERENCE
     from vtkvol.engine.technique import installed_techniques
 
     out: list[Candidate] = []
     for name, cls in sorted(installed_techniques().items()):
-        if name == REFERENCE or cls.SPEC.lighting != "surface":
+        # The benchmark's own reference renderers are no setting a user would pick.
+        if cls.SPEC.engine.startswith("vtkvol.bench.") or cls.SPEC.lighting != "surface":
             continue
         chosen = [b for b in cls.SPEC.bench if b.quick]
         out += [Candidate(name, dict(b.values)) for b in chosen] or [Candidate(name)]
@@ -130,6 +149,10 @@ class Choice:
     unmeasured: tuple[str, ...] = ()
     #: The picked candidate's label: the method and the settings it sets itself.
     label: str = ""
+    #: Whether ``cost_ms`` is this machine's (:class:`FrameTimes`), not the shipped figures'.
+    cost_here: bool = False
+    #: Labels of the candidates whose cost was measured here (the others are scaled).
+    measured_here: tuple[str, ...] = ()
 
 
 class _CpuHost:
@@ -173,11 +196,13 @@ def _light_direction(light: Any) -> tuple[float, float, float]:
 
 def proxy_images(opacity: np.ndarray, visibility: Sequence[np.ndarray],
                  lights: Sequence[Sequence[float]], spacing: Sequence[float],
-                 unit_distance: float) -> list[np.ndarray]:
-    """Six orthographic CPU renderings (±x, ±y, ±z views) of the host's shading with the given
-    per-light visibility volumes; float images in [0, 1].
+                 unit_distance: float,
+                 ambient: Sequence[np.ndarray] | None = None) -> list[np.ndarray]:
+    """Six orthographic CPU renderings (views towards :data:`PROXY_VIEWS`) of the host's
+    shading with the given per-light visibility volumes and, optionally, one ambient
+    visibility volume per view (1 − AO; None: unoccluded); float images in [0, 1].
 
-    Per voxel: colour ``AMBIENT + DIFFUSE · Σ_i V_i · |n·l_i|`` (white albedo, two-sided,
+    Per voxel: colour ``AMBIENT · A + DIFFUSE · Σ_i V_i · |n·l_i|`` (white albedo, two-sided,
     n·l := 1 where the opacity gradient vanishes), opacity corrected for the voxel's length
     along the view axis (α' = 1 − (1 − α)^(s/u)), composited front to back.
     """
@@ -190,13 +215,18 @@ def proxy_images(opacity: np.ndarray, visibility: Sequence[np.ndarray],
         ndl = np.abs(g @ np.asarray(light, dtype=np.float64)) / np.where(glen > 1e-12, glen, 1)
         ndl = np.where(glen > 1e-12, ndl, 1.0)
         colour += DIFFUSE * np.asarray(vis, dtype=np.float64) * ndl
-    colour = np.clip(colour, 0.0, 1.0)
+    direct = colour - AMBIENT
     images = []
+    views = iter(range(len(PROXY_VIEWS)))
     for axis, step in ((2, spacing[0]), (1, spacing[1]), (0, spacing[2])):
         a = 1.0 - np.power(1.0 - alpha, step / unit_distance)
         for flip in (False, True):
+            view = next(views)
+            shade = colour if ambient is None else direct + AMBIENT * np.asarray(
+                ambient[view], dtype=np.float64)
+            shade = np.clip(shade, 0.0, 1.0)
             aa = np.flip(a, axis) if flip else a
-            cc = np.flip(colour, axis) if flip else colour
+            cc = np.flip(shade, axis) if flip else shade
             trans = np.cumprod(1.0 - aa, axis=axis)
             before = np.concatenate([np.ones_like(np.take(trans, [0], axis)),
                                      np.take(trans, range(trans.shape[axis] - 1), axis)],
@@ -265,6 +295,7 @@ def choose(
     unit_distance: float | None = None,
     renderer: str | None = None,
     voxels: int | None = None,
+    costs: Mapping[Candidate, float] | None = None,
 ) -> Choice:
     """The cheapest candidate whose predicted SSIM against the reference is ≥ ``budget_ssim``.
 
@@ -301,11 +332,19 @@ def choose(
     voxels
         Voxel count the recompute costs are scaled to; default ``scene_opacity``'s (give the
         full data's when ``scene_opacity`` was binned, see :func:`binned_for_prediction`).
+    costs
+        Cost (ms) per candidate, replacing ``timings`` (e.g. :meth:`FrameTimes.costs`).
     """
-    from vtkvol.bench.references import relevant_mask
+    from scipy.ndimage import binary_dilation
+
     from vtkvol.engine.illuminator import LightSpec
     from vtkvol.engine.technique import installed_techniques
-    from vtkvol.reference import DirectionalLight, extended_transmittance, transmittance
+    from vtkvol.reference import (
+        DirectionalLight,
+        ambient_occlusion_mc,
+        extended_transmittance,
+        transmittance,
+    )
 
     opacity = np.ascontiguousarray(np.clip(scene_opacity, 0.0, 1.0), dtype=np.float32)
     if opacity.ndim != 3:
@@ -322,9 +361,10 @@ def choose(
     cands = [c for c in (candidates or spec_candidates()) if c.method in installed]
     if not cands:
         raise ValueError("none of the candidate techniques is installed")
-    costs = measured_costs(cands, timings, int(voxels or opacity.size), renderer,
-                           {c.method: installed[c.method].defaults() for c in cands})
-    if len(costs) == len(cands):
+    if costs is None:
+        costs = measured_costs(cands, timings, int(voxels or opacity.size), renderer,
+                               {c.method: installed[c.method].defaults() for c in cands})
+    if all(c in costs for c in cands):
         # Costs within ~15 % of each other count as equal (frame times on a shared machine are
         # that noisy): a stable sort on 15 %-wide log buckets keeps the listed order there.
         cands.sort(key=lambda c: round(math.log(max(costs[c], 1e-3)) / math.log(1.15)))
@@ -338,7 +378,8 @@ def choose(
 
     # The scene's one reference: transmittance averaged over each light's extent, evaluated
     # where a visible sample can read it (hard transmittance elsewhere).
-    mask = relevant_mask(opacity)
+    # Voxels a trilinear fetch at a visible sample can touch (the benchmark's relevant_mask).
+    mask = binary_dilation(opacity > 1e-3, structure=np.ones((3, 3, 3), bool))
     pts = np.argwhere(mask)[:, ::-1] * np.asarray(spacing)
     ref_vis = []
     for d, size in zip(directions, sizes, strict=True):
@@ -349,6 +390,24 @@ def choose(
                                                points=pts)
         ref_vis.append(vis)
     ref_images = proxy_images(opacity, ref_vis, directions, spacing, u)
+    ref_ao_images: list[np.ndarray] | None = None  # with the reference AO, made when needed
+
+    def reference_with_ao() -> list[np.ndarray]:
+        """The reference images with the ambient light occluded by Monte-Carlo AO."""
+        nonlocal ref_ao_images
+        if ref_ao_images is None:
+            gz, gy, gx = np.gradient(opacity.astype(np.float64))
+            g = np.stack([gx / spacing[0], gy / spacing[1], gz / spacing[2]], axis=-1)[mask]
+            glen = np.linalg.norm(g, axis=-1, keepdims=True)
+            normals = np.where(glen > 1e-12, -g / np.where(glen > 1e-12, glen, 1.0), 0.0)
+            ambient = np.ones(opacity.shape, np.float32)
+            if len(pts):
+                ambient[mask] = 1.0 - ambient_occlusion_mc(
+                    opacity, spacing, max_distance=AO_DISTANCE_VOXELS * min(spacing),
+                    n_rays=AO_RAYS, unit_distance=u, step=1.0, points=pts, normals=normals)
+            ref_ao_images = proxy_images(opacity, ref_vis, directions, spacing, u,
+                                         [ambient] * len(PROXY_VIEWS))
+        return ref_ao_images
 
     considered: list[dict[str, Any]] = []
     best: tuple[float, Candidate, dict[str, Any]] | None = None
@@ -361,10 +420,14 @@ def choose(
             v = tech.light_visibility_cpu(opacity, spacing, LightSpec("directional", d,
                                                                       (1.0, 1.0, 1.0)), values)
             vis.append(np.ones_like(opacity) if v is None else np.clip(v, 0.0, 1.0))
-        images = proxy_images(opacity, vis, directions, spacing, u)
-        ssim = min(_ssim(a, b) for a, b in zip(images, ref_images, strict=True))
+        # A technique that occludes the ambient light is compared with the reference AO.
+        ambient = tech.ambient_visibility_cpu(opacity, spacing, values, PROXY_VIEWS)
+        images = proxy_images(opacity, vis, directions, spacing, u, ambient)
+        reference = ref_images if ambient is None else reference_with_ao()
+        ssim = min(_ssim(a, b) for a, b in zip(images, reference, strict=True))
         cost = costs.get(cand, math.nan)
-        considered.append({"label": cand.label, "predicted_ssim": ssim, "cost_ms": cost})
+        considered.append({"label": cand.label, "predicted_ssim": ssim, "cost_ms": cost,
+                           "method": cand.method, "parameters": values})
         if best is None or ssim > best[0]:
             best = (ssim, cand, values)
         if ssim >= budget_ssim:
@@ -473,11 +536,14 @@ def choose_measured(
     unit_distance: float | None = None,
     renderer: str | None = None,
     voxels: int | None = None,
+    frames: FrameTimes | None = None,
 ) -> Choice:
     """:func:`choose` over the declared candidates (:func:`spec_candidates`) that ``timings``
     (default :func:`default_timings`) has costs for, cheapest first. Candidates without a
     measurement are left out (a technique newer than the measurements): the choice lists them
-    in ``unmeasured`` and its ``reason`` says so, with the cost source.
+    in ``unmeasured`` and its ``reason`` says so, with the cost source. With ``frames``
+    (this machine's measured frames) the costs are this machine's (:meth:`FrameTimes.costs`):
+    measured settings at their measured time, the others scaled from ``timings``.
 
     Raises
     ------
@@ -498,16 +564,27 @@ def choose_measured(
         raise ValueError(f"none of the installed methods has a measured cost in the "
                          f"{timings.source}: run `vtkvol bench -o DIR` and set {TIMINGS_ENV} "
                          "to DIR/benchmarks.json")
+    defaults = {c.method: installed[c.method].defaults() for c in declared}
+    here, measured_here = (frames.costs(measured, costs, defaults, timings, opacity_size)
+                           if frames is not None else ({}, set()))
     choice = choose(scene_opacity, spacing, lights, budget_ssim=budget_ssim,
                     candidates=measured, timings=list(timings.records),
-                    unit_distance=unit_distance, renderer=renderer, voxels=opacity_size)
-    reason = f"{choice.reason} Costs: {timings.source}."
+                    unit_distance=unit_distance, renderer=renderer, voxels=opacity_size,
+                    costs=here or None)
+    if here:
+        names = ", ".join(c.label for c in measured if c in measured_here)
+        source = (f"frames measured on this machine ({names}; the others scaled by the "
+                  f"{timings.source})")
+    else:
+        source = timings.source
+    reason = f"{choice.reason} Costs: {source}."
     if unmeasured:
         reason += f" Not measured there, so not considered: {', '.join(unmeasured)}."
     if timings.note:
         reason += f" ({timings.note})"
-    return dataclasses.replace(choice, reason=reason, cost_source=timings.source,
-                               unmeasured=unmeasured)
+    return dataclasses.replace(
+        choice, reason=reason, cost_source=source, unmeasured=unmeasured, cost_here=bool(here),
+        measured_here=tuple(c.label for c in measured if c in measured_here))
 
 
 def binned_for_prediction(opacity: np.ndarray, spacing: Sequence[float],
@@ -530,3 +607,120 @@ def binned_for_prediction(opacity: np.ndarray, spacing: Sequence[float],
                                                           strict=True)], mode="edge")
     blocks = padded.reshape(nz // k, k, ny // k, k, nx // k, k).mean(axis=(1, 3, 5))
     return np.ascontiguousarray(blocks, dtype=np.float32), tuple(float(s) * k for s in spacing)
+
+
+# -- this machine's frames and the words for a choice ---------------------------------------------
+#: Frames kept per setting (the median of the most recent ones is its cost).
+KEPT_FRAMES = 9
+
+
+def _setting_key(method: str, parameters: Mapping[str, Any]) -> tuple[str, tuple]:
+    return method, tuple(sorted((k, repr(v)) for k, v in parameters.items()))
+
+
+class FrameTimes:
+    """Frame times measured on this machine, per setting (thread-safe enough for one writer).
+
+    The app records every full-quality frame it shows (:meth:`record`: the whole view's
+    render time, as the progressive refiner predicts it from its strips, plus the method's
+    last precomputation), so Auto quality quotes what a frame costs *here*, not on the
+    machine that made the shipped measurements. :meth:`costs` turns them into a cost per
+    candidate: a measured setting costs the median of its recent frames; any other costs its
+    shipped figure times the median ratio here/shipped of the measured settings (the shipped
+    figures' cost *order* holds across machines, only the scale differs).
+    """
+
+    def __init__(self) -> None:
+        self._frames: dict[tuple[str, tuple], tuple[str, dict[str, Any], list[float]]] = {}
+
+    def record(self, method: str, parameters: Mapping[str, Any], frame_ms: float,
+               prepare_ms: float = 0.0) -> None:
+        """One full-quality frame of ``method`` with full ``parameters``: ``frame_ms`` to
+        render the whole view, ``prepare_ms`` the precomputation before it (ms; 0 when none
+        ran). Non-finite or non-positive times are ignored."""
+        total = float(frame_ms) + max(0.0, float(prepare_ms))
+        if not (math.isfinite(total) and float(frame_ms) > 0):
+            return
+        key = _setting_key(method, parameters)
+        _, _, times = self._frames.setdefault(key, (method, dict(parameters), []))
+        times.append(total)
+        del times[:-KEPT_FRAMES]
+
+    def __len__(self) -> int:
+        return len(self._frames)
+
+    def measured(self) -> list[tuple[str, dict[str, Any], float]]:
+        """(method, parameters, median ms) of every setting measured here."""
+        return [(m, dict(p), statistics.median(t)) for m, p, t in self._frames.values()]
+
+    def costs(self, candidates: Sequence[Candidate], shipped: Mapping[Candidate, float],
+              defaults: Mapping[str, Mapping[str, Any]], timings: Timings,
+              voxels: int) -> tuple[dict[Candidate, float], set[Candidate]]:
+        """(cost in ms per candidate on this machine, the candidates measured here).
+
+        ``shipped``: the candidates' costs in ``timings`` (:func:`measured_costs`);
+        ``defaults``: each method's declared defaults; ``voxels``: the scene's voxel count
+        (scales the shipped recompute times). Empty when nothing was measured here, or no
+        measured setting has a shipped figure to scale the others by."""
+        measured = self.measured()
+        here: dict[Candidate, float] = {}
+        for cand in candidates:
+            wanted = {**defaults.get(cand.method, {}), **cand.parameters}
+            times = [ms for method, params, ms in measured if method == cand.method
+                     and all(params.get(k) == v for k, v in wanted.items())]
+            if times:
+                here[cand] = statistics.median(times)
+        ratios = [here[c] / shipped[c] for c in here if shipped.get(c, 0) > 0]
+        if not ratios:  # a measured setting outside the candidates: its own shipped figure
+            settings = [Candidate(m, p) for m, p, _ in measured]
+            theirs = measured_costs(settings, list(timings.records), voxels)
+            ratios = [ms / theirs[c] for c, (_, _, ms) in zip(settings, measured, strict=True)
+                      if theirs.get(c, 0) > 0]
+        if not ratios:
+            return {}, set()
+        scale = statistics.median(ratios)
+        costs = {c: here.get(c, shipped[c] * scale) for c in candidates
+                 if c in here or c in shipped}
+        return costs, set(here)
+
+
+def duration_words(ms: float) -> str:
+    """``"about 450 ms"``, ``"about 4 s"``, ``"about 1.5 s"``, ``"about 2 min"``."""
+    if not math.isfinite(ms):
+        return "an unknown time"
+    if ms < 950:
+        return f"about {max(10, int(ms / 10 + 0.5) * 10)} ms"  # half up: 445 → 450
+    seconds = ms / 1000.0
+    if seconds < 9.5:
+        text = f"{seconds:.1f}".rstrip("0").rstrip(".")
+        return f"about {text} s"
+    if seconds < 90:
+        return f"about {seconds:.0f} s"
+    return f"about {seconds / 60:.0f} min"
+
+
+def setting_words(method: str, parameters: Mapping[str, Any]) -> str:
+    """A setting as the app names it: the method's title and the labels of the parameters
+    that differ from its defaults, e.g. ``"Cone-traced AO and soft shadows (ambient
+    occlusion: Hemisphere (per sample), AO cones: 12)"``. Unknown methods keep their name."""
+    from vtkvol.model.techniques import get_spec
+
+    try:
+        spec = get_spec(method)
+    except (ValueError, KeyError):
+        return method
+    defaults = spec.defaults()
+    parts = []
+    for param in spec.parameters:
+        if param.name not in parameters or parameters[param.name] == defaults.get(param.name):
+            continue
+        value = parameters[param.name]
+        if param.choices and param.choice_labels and value in param.choices:
+            value = param.choice_labels[param.choices.index(value)]
+        elif isinstance(value, bool):
+            value = "on" if value else "off"
+        elif isinstance(value, float):
+            value = f"{value:g}{(' ' + param.unit) if param.unit else ''}"
+        label = param.label if param.label[:2].isupper() else param.label.lower()
+        parts.append(f"{label}: {value}")
+    return f"{spec.label} ({', '.join(parts)})" if parts else spec.label
