@@ -29,6 +29,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vtkvol.model.gamma import with_gamma
+
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
     from vtkvol.model.scene import SceneModel
@@ -120,6 +122,15 @@ def effective_tf(model: SceneModel, channel: int) -> TransferFunction:
     return channels[channel].tf
 
 
+def shown_tf(model: SceneModel, channel: int) -> TransferFunction:
+    """:func:`effective_tf` with the channel's own gamma baked in (vtkvol.model.gamma): what
+    the 3-D view and the slice views classify channel ``channel``'s values (data units) with.
+    A label channel's colours are categories: gamma does not apply to them."""
+    tf = effective_tf(model, channel)
+    own = model.channels[channel]
+    return tf if own.labels is not None else with_gamma(tf, own.gamma)
+
+
 def slice_values(array: np.ndarray, plane: Plane | str, index: int) -> np.ndarray:
     """The raw values of slice ``index`` (voxels along the plane's normal) of ``array``
     (``[c, z, y, x]``) as ``[c, rows, columns]`` (a view where numpy can make one)."""
@@ -169,7 +180,7 @@ def slice_rgba(data: VolumeData, model: SceneModel, plane: Plane | str,
     for c, channel in enumerate(model.channels[: values.shape[0]]):
         if not channel.visible:
             continue
-        color, alpha = _tf_lookup(effective_tf(model, c), values[c])
+        color, alpha = _tf_lookup(shown_tf(model, c), values[c])
         if composite:
             rgb += alpha[..., None] * color
             weight += alpha

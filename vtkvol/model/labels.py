@@ -15,10 +15,14 @@ ramps the small ids into transparency. Here:
   background and on hidden labels, ``opacity`` elsewhere. Because every illumination technique
   reads opacity through the transfer function, shadows, occlusion and scattering then work on
   the labels' opacity like on any other volume.
-* :func:`apply_labels` puts that transfer function on a channel of a :class:`SceneModel` and
-  switches the model to nearest-voxel interpolation (``render.interpolation = "nearest"``): a
-  trilinear sample between ids 3 and 40 is some id in between, which would paint boundaries in
-  the colours of labels that are not there.
+* :func:`apply_labels` puts that transfer function on a channel of a :class:`SceneModel`,
+  records the display (``Channel.labels``: opacity, hidden ids) and switches the model to
+  nearest-voxel interpolation (``render.interpolation = "nearest"``): a trilinear sample
+  between ids 3 and 40 is some id in between, which would paint boundaries in the colours of
+  labels that are not there. :func:`show_intensities` undoes it for one channel.
+* :func:`label_ids` is the one check that a channel can be shown as labels (integer values,
+  a non-zero id, a span of ids the colour table resolves), used by ``vtkvol render --labels``
+  and by the app alike; its refusal is one sentence naming the data.
 """
 
 from __future__ import annotations
@@ -32,14 +36,20 @@ import numpy as np
 from vtkvol.model.transfer_function import TransferFunction
 
 if TYPE_CHECKING:
+    from vtkvol.io import VolumeData
     from vtkvol.model.scene import SceneModel
 
 __all__ = [
     "LabelDetection",
+    "LabelImageError",
     "apply_labels",
     "detect_labels",
     "label_colors",
+    "label_ids",
     "label_transfer_function",
+    "labelled_channels",
+    "show_detected_labels",
+    "show_intensities",
 ]
 
 #: At least this many distinct non-zero ids make a label image (a 0/1 mask or a three-class
@@ -117,6 +127,50 @@ def detect_labels(array: np.ndarray) -> LabelDetection:
               "pairs)", labels)
 
 
+class LabelImageError(ValueError):
+    """The values cannot be shown as labels; the message is one sentence for the user that
+    names the data."""
+
+
+def label_ids(values: np.ndarray, name: str) -> list[int]:
+    """The non-zero ids of the label image ``values`` (any shape, one channel), ascending.
+
+    ``name`` (a file name, or a channel's) starts the refusal. This is the one check behind
+    ``vtkvol render --labels`` and the app's labels mode.
+
+    Raises
+    ------
+    LabelImageError
+        Float values (label ids are integers; an int32 image whose ids did not fit 16 bits
+        was read as float32), no id but the background, or ids spanning more than
+        :data:`MAX_ID_SPAN` values (e.g. a million distinct ids), with the hint to renumber.
+    """
+    a = np.asarray(values)
+    if not np.issubdtype(a.dtype, np.integer):
+        raise LabelImageError(f"{name} holds {a.dtype} values; label ids are integers")
+    # The span first (min and max need no sort): a million ids are refused before np.unique.
+    nonzero = a[a != 0]
+    if nonzero.size:
+        lo, hi = int(nonzero.min()), int(nonzero.max())
+        hint = "renumber them first (e.g. skimage.segmentation.relabel_sequential)"
+        if hi - lo > MAX_ID_SPAN:
+            raise LabelImageError(
+                f"{name}'s ids span {lo}…{hi}, more than {MAX_ID_SPAN}: {hint}")
+        if max(hi, 0) - min(lo, 0) > MAX_ID_SPAN:  # the background's 0 is a colour step too
+            raise LabelImageError(
+                f"{name}'s ids run from {lo} to {hi}: with the background 0 they span more "
+                f"than {MAX_ID_SPAN} values: {hint}")
+    ids = [int(v) for v in np.unique(nonzero)]
+    if not ids:
+        raise LabelImageError(f"{name} has no label other than 0 (background)")
+    return ids
+
+
+def labelled_channels(model: SceneModel) -> list[int]:
+    """Indices of the channels of ``model`` shown as labels."""
+    return [c for c, channel in enumerate(model.channels) if channel.labels is not None]
+
+
 def label_colors(labels: Iterable[int]) -> np.ndarray:
     """Glasbey colours for ``labels``: an ``(n, 3)`` float array in 0…1; id ``k`` gets palette
     entry ``(k - 1) mod 256``, so an id keeps its colour whatever other ids are present (as
@@ -188,9 +242,46 @@ def apply_labels(
     hidden: Iterable[int] = (),
 ) -> None:
     """Show ``model.channels[channel]`` as labels: the glasbey step transfer function of
-    :func:`label_transfer_function` and nearest-voxel interpolation, in one model event.
-    ``hidden`` ids get opacity 0 (per-label visibility)."""
+    :func:`label_transfer_function`, ``Channel.labels`` (``opacity``, ``hidden``) and
+    nearest-voxel interpolation, in one model event. ``hidden`` ids get opacity 0 (per-label
+    visibility). A channel following another's transfer function stops following it."""
+    from vtkvol.model.scene import LabelDisplay
+
     tf = label_transfer_function(labels, opacity=opacity, hidden=hidden)
+    target = model.channels[channel]
     with model.batch():
-        model.channels[channel].tf = tf
+        target.tf = tf
+        target.tf_linked_to = None
+        target.tf_mode = "1d"  # the steps are a 1-D function of the id
+        target.labels = LabelDisplay(opacity=opacity, hidden=list(hidden))
         model.render.interpolation = "nearest"
+
+
+def show_intensities(model: SceneModel, channel: int, tf: TransferFunction) -> None:
+    """Show ``model.channels[channel]`` as intensities again, through ``tf`` (data units;
+    e.g. :func:`vtkvol.model.defaults.default_transfer_function`), in one model event. When
+    no other channel is a label image, the interpolation returns from nearest to trilinear."""
+    with model.batch():
+        model.channels[channel].labels = None
+        model.channels[channel].tf = tf
+        if not labelled_channels(model) and model.render.interpolation == "nearest":
+            model.render.interpolation = "trilinear"
+
+
+def show_detected_labels(model: SceneModel, data: VolumeData) -> list[tuple[int, str]]:
+    """Show as labels every channel of ``data`` that :func:`detect_labels` finds to be a
+    label image and :func:`label_ids` accepts (:func:`apply_labels`, on ``model``, whose
+    channels are ``data``'s); the others stay as they are. Returns ``(channel, reason)`` per
+    channel so shown (``reason``: detection's sentence), for the notice the app shows."""
+    shown: list[tuple[int, str]] = []
+    for c in range(min(data.n_channels, len(model.channels))):
+        found = detect_labels(data.array[c])
+        if not found.is_labels:
+            continue
+        try:
+            ids = label_ids(data.array[c], data.channel_names[c])
+        except LabelImageError:
+            continue  # looks like labels, but too many ids to colour: a grey ramp it is
+        apply_labels(model, ids, channel=c)
+        shown.append((c, found.reason))
+    return shown
