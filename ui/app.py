@@ -63,6 +63,7 @@ from vtkvol.io.pyramid import parse_bytes
 from vtkvol.io.remote import is_remote
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
+from vtkvol.model.labels import show_detected_labels
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
 from vtkvol.model.session import (
     SUFFIX as SESSION_SUFFIX,
@@ -81,6 +82,7 @@ from vtkvol.ui.auto_quality import AutoOutcome, AutoQuality
 from vtkvol.ui.background import Worker
 from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.docks.channels import ChannelsDock
+from vtkvol.ui.docks.labels import LabelsDock, note_labels
 from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_views import SliceViewsDock
@@ -357,6 +359,7 @@ class MainWindow(QMainWindow):
             dock.setVisible(dock is not self.slice_views_dock)
         self.tabifyDockWidget(self.tf_dock, self.slice_dock)
         self.tabifyDockWidget(self.lights_dock, self.ranges_dock)
+        self.tabifyDockWidget(self.ranges_dock, self.labels_dock)
         self.tf_dock.raise_()
         self.lights_dock.raise_()
         self.resizeDocks([self.tf_dock], [270], Qt.Orientation.Vertical)
@@ -388,9 +391,10 @@ class MainWindow(QMainWindow):
         self.lights_dock = LightsDock(self.model, self)
         self.ranges_dock = RangesDock(self.model, self)
         self.slice_views_dock = SliceViewsDock(self.model, self)
+        self.labels_dock = LabelsDock(self.model, self)
         self.docks: list[ModelDock] = [self.tf_dock, self.slice_dock, self.channels_dock,
                                        self.lights_dock, self.ranges_dock,
-                                       self.slice_views_dock]
+                                       self.slice_views_dock, self.labels_dock]
         bottom = Qt.DockWidgetArea.BottomDockWidgetArea
         right = Qt.DockWidgetArea.RightDockWidgetArea
         self.addDockWidget(bottom, self.tf_dock)
@@ -399,6 +403,7 @@ class MainWindow(QMainWindow):
         self.addDockWidget(right, self.channels_dock)
         self.addDockWidget(right, self.lights_dock)
         self.addDockWidget(right, self.ranges_dock)
+        self.addDockWidget(right, self.labels_dock)
         self.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.slice_views_dock)
         self.slice_views_dock.hide()
         self._docks_arranged = False  # tabs are made when first shown (see showEvent)
@@ -895,6 +900,7 @@ class MainWindow(QMainWindow):
         ``sample_args`` marks the built-in sample (so a session can regenerate it);
         ``time_index`` is the time point ``data`` holds."""
         fresh = scene_for(data)
+        labelled = show_detected_labels(fresh, data)  # label images: categorical colours
         fresh.volume.voxel_size_um = voxel_size
         fresh.volume.time_index = time_index
         self._file_voxel = (None if voxel_size is not None
@@ -912,6 +918,7 @@ class MainWindow(QMainWindow):
                 "camera": Camera().model_dump(),
                 "cursor": None,  # the slice views start at the new data's centre
             })
+            note_labels(self.model, data, labelled)
             # Before the batch's event: the player must not take time point 0 for a request.
             self.time_player.data_opened(data, time_index,
                                          memory_budget_bytes=self.gpu_budget())

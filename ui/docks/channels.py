@@ -25,6 +25,7 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.evented import touches
+from vtkvol.model.gamma import GAMMA_MAX, GAMMA_MIN
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
 from vtkvol.model.techniques import technique_specs
 from vtkvol.model.transfer_function import above
@@ -134,6 +135,14 @@ class ChannelRow(QFrame):
         grid.addWidget(self.auto, 1, 3)
         grid.setColumnStretch(1, 1)
         grid.setColumnStretch(2, 1)
+        self.gamma = number_box(
+            minimum=GAMMA_MIN, maximum=GAMMA_MAX, decimals=2, step=0.05,
+            object_name=f"channel_gamma_{index}",
+            tooltip="Gamma on the values between the contrast limits: below 1 brightens the "
+                    "mid-tones, above 1 darkens them; the limits themselves stay as they are "
+                    "(as napari's and Fiji's gamma). Not for label images")
+        grid.addWidget(QLabel("Gamma"), 2, 0)
+        grid.addWidget(self.gamma, 2, 1)
 
         b = self.bindings
         b.bind(channel, "visible", self.visible, self.visible.toggled, self.visible.setChecked)
@@ -144,6 +153,10 @@ class ChannelRow(QFrame):
         b.connect_qt(self.minimum.valueChanged, lambda v: self._set_limits(v, None))
         b.connect_qt(self.maximum.valueChanged, lambda v: self._set_limits(None, v))
         b.connect_qt(self.auto.clicked, self.auto_contrast)
+        b.bind(channel, "gamma", self.gamma, self.gamma.valueChanged, self.gamma.setValue,
+               to_model=float)
+        b.attr_to_setter(channel, "labels", self.gamma,
+                         lambda labels: self.gamma.setEnabled(labels is None))
         self._show_limits()
 
     @property
