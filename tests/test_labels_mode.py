@@ -6,6 +6,7 @@ probe's read-out of a label id."""
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,6 +19,7 @@ from vtkvol.model.defaults import scene_for
 from vtkvol.model.labels import (
     LabelImageError,
     apply_labels,
+    detect_labels,
     label_colors,
     label_ids,
     show_detected_labels,
@@ -160,3 +162,24 @@ def test_labels_over_raw_data_show_only_label_colours_and_hidden_ones_vanish():
     hidden = render(hidden=[17])
     assert (hidden[:, 2] <= 2).sum() == 0
     assert float((hidden.min(1) > 2).mean()) == 0.0
+
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+@pytest.mark.skipif(not DATA.is_dir(), reason="../shared/data not present")
+def test_real_stacks_are_told_apart():
+    """What the app opens in labels mode among the shared stacks: the nuclei labels, not the
+    8-bit bead image (its neighbours are equal in 71 % of pairs, as labels' are, but 28 % of
+    them change by 1 or 2: intensities) nor the deconvolution crop."""
+    import vtkvol
+
+    found = {name: detect_labels(vtkvol.read_volume(DATA / name).array[0])
+             for name in ("platynereis_nuclei_labels_256x256x103.tif", "Bead_Image1_crop.tif",
+                          "DeconvolutionSampleVerticalGrid1AU-crop.tif")}
+    assert found["platynereis_nuclei_labels_256x256x103.tif"].is_labels
+    beads = found["Bead_Image1_crop.tif"]
+    assert not beads.is_labels
+    assert beads.reason == ("neighbouring voxels differ by 1 or 2 in 28% of pairs: intensities "
+                            "change in small steps, ids do not")
+    assert not found["DeconvolutionSampleVerticalGrid1AU-crop.tif"].is_labels
