@@ -67,6 +67,8 @@ def test_a_label_image_opens_as_labels(main_window, qtbot, tmp_path):
     dock.enabled.setChecked(False)
     assert window.model.channels[0].labels is None
     assert window.model.render.interpolation == "trilinear"
+    row = window.channels_dock.rows[0]
+    assert row.gamma.isEnabled() and row.minimum.isEnabled()
     dock.enabled.setChecked(True)
     assert window.model.channels[0].labels is not None
 
@@ -77,7 +79,11 @@ def test_labels_and_gamma_survive_a_session(main_window, qtbot, tmp_path):
     window.labels_dock.set_hidden([12])
     window.labels_dock.opacity.setValue(0.4)
     row = window.channels_dock.rows[0]
-    assert not row.gamma.isEnabled()  # gamma is not for categories
+    # Gamma and contrast limits are not for categories; a new tint leaves the ids' colours.
+    assert not row.gamma.isEnabled() and not row.minimum.isEnabled()
+    colors = list(window.model.channels[0].tf.colors)
+    row._on_color((1.0, 0.0, 0.0))
+    assert window.model.channels[0].tf.colors == colors
     path = window.save_session(tmp_path / "labels.vtkvol.json")
     window.labels_dock.set_hidden([])
     with qtbot.waitSignal(window.dataShown, timeout=30_000):

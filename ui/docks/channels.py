@@ -155,8 +155,8 @@ class ChannelRow(QFrame):
         b.connect_qt(self.auto.clicked, self.auto_contrast)
         b.bind(channel, "gamma", self.gamma, self.gamma.valueChanged, self.gamma.setValue,
                to_model=float)
-        b.attr_to_setter(channel, "labels", self.gamma,
-                         lambda labels: self.gamma.setEnabled(labels is None))
+        b.attr_to_setter(channel, "labels", (self.gamma, self.minimum, self.maximum, self.auto),
+                         lambda _: self._show_link(self.channel.tf_linked_to))
         self._show_limits()
 
     @property
@@ -174,9 +174,12 @@ class ChannelRow(QFrame):
         position = self.link.findData(link)
         self.link.setCurrentIndex(max(position, 0))
         linked = link is not None
+        # A label channel's values are ids: no contrast limits, no gamma (the Labels dock).
+        labels = self.channel.labels is not None
         for widget in (self.minimum, self.maximum, self.auto):
             has_data = widget is not self.auto or self.dock.data is not None
-            widget.setEnabled(not linked and has_data)
+            widget.setEnabled(not linked and has_data and not labels)
+        self.gamma.setEnabled(not labels)
 
     def _on_link(self, position: int) -> None:
         self.channel.tf_linked_to = self.link.itemData(position)
@@ -216,7 +219,8 @@ class ChannelRow(QFrame):
     def _on_color(self, rgb: tuple[float, float, float]) -> None:
         channel = self.channel
         with channel.batch():
-            if channel.tf_linked_to is None:
+            # A label channel keeps its categorical colours: the tint is only the list's.
+            if channel.tf_linked_to is None and channel.labels is None:
                 channel.tf.colors = retint(channel.tf.colors, channel.color, rgb)
             channel.color = rgb
 
