@@ -183,3 +183,25 @@ def test_real_stacks_are_told_apart():
     assert beads.reason == ("neighbouring voxels differ by 1 or 2 in 28% of pairs: intensities "
                             "change in small steps, ids do not")
     assert not found["DeconvolutionSampleVerticalGrid1AU-crop.tif"].is_labels
+
+
+@pytest.mark.gl
+def test_labels_over_visible_raw_data_have_their_own_opacity():
+    """Raw intensities and labels both shown: the labels change the image where they are;
+    at label opacity 0 the image is the raw channel's alone."""
+    from vtkvol.engine.api import render_image
+
+    raw = confocal_phantom((32, 48, 48)).array[0]
+    data = VolumeData.from_array(np.stack([raw, blobs()]), (1.0, 1.0, 1.0), ["raw", "seg"])
+    ids = [3, 9, 17, 40, 41, 250]
+
+    def render(opacity: float | None) -> np.ndarray:
+        model = scene_for(data)
+        apply_labels(model, ids, channel=1, opacity=opacity or 0.0)
+        model.channels[1].visible = opacity is not None
+        return render_image(data, model=model, size=(64, 64), method="local").astype(float)
+
+    alone, faint, opaque = render(None), render(0.0), render(1.0)
+    assert np.abs(faint - alone).max() <= 2  # opacity 0: only the raw channel shows
+    changed = np.abs(opaque - alone).max(2) > 10
+    assert changed.mean() > 0.05, changed.mean()

@@ -109,3 +109,29 @@ def test_float_ids_are_refused_in_the_dock_and_gamma_edits_the_channel(
     assert row.gamma.isEnabled()
     row.gamma.setValue(0.5)
     assert window.model.channels[0].gamma == pytest.approx(0.5)
+
+
+def test_a_segmentation_channel_over_raw_data(main_window, qtbot, tmp_path):
+    """A two-channel file, raw intensities and a segmentation: the segmentation opens as
+    labels (the dock shows it), the raw channel keeps its ramp and its gamma; the labels'
+    opacity is their own."""
+    from vtkvol.io import confocal_phantom
+
+    raw = confocal_phantom((16, 32, 32)).array[0]
+    seg = np.zeros((16, 32, 32), np.uint16)
+    for n, label in enumerate((3, 7, 12, 300)):
+        seg[4:12, 4:28, 2 + 7 * n: 8 + 7 * n] = label
+    path = tmp_path / "raw_and_seg.tif"
+    tifffile.imwrite(path, np.stack([raw, seg], axis=1), imagej=True,
+                     metadata={"axes": "ZCYX"})
+    window = main_window
+    open_and_wait(window, qtbot, path)
+    raw_channel, seg_channel = window.model.channels
+    assert raw_channel.labels is None and seg_channel.labels is not None
+    assert window.labels_dock.index == 1 and window.labels_dock.list.count() == 4
+    raw_tf = raw_channel.tf.model_dump()
+    window.labels_dock.opacity.setValue(0.3)
+    assert seg_channel.tf.opacity_at(np.array([3.0, 300.0])) == pytest.approx([0.3, 0.3])
+    assert raw_channel.tf.model_dump() == raw_tf  # the raw channel's own opacity stays
+    window.channels_dock.rows[0].gamma.setValue(0.7)
+    assert raw_channel.gamma == pytest.approx(0.7) and seg_channel.gamma == 1.0
