@@ -47,7 +47,7 @@ def test_label_ids_refuses_floats_and_absurd_id_counts():
     with pytest.raises(LabelImageError) as info:
         label_ids(million, "cells.tif")
     assert str(info.value) == (
-        "cells.tif's ids span 1…1000000, more than 4000: renumber them first "
+        "cells.tif: ids span 1…1000000, more than 4000: renumber them first "
         "(e.g. skimage.segmentation.relabel_sequential)")
     assert time.perf_counter() - start < 2.0
     # Read from a file, int32 ids that do not fit 16 bits become float32: refused as floats.
@@ -205,3 +205,19 @@ def test_labels_over_visible_raw_data_have_their_own_opacity():
     assert np.abs(faint - alone).max() <= 2  # opacity 0: only the raw channel shows
     changed = np.abs(opaque - alone).max(2) > 10
     assert changed.mean() > 0.05, changed.mean()
+
+
+def test_a_label_image_with_too_many_ids_says_why_it_is_not_coloured():
+    """5120 ids, each a run of 8 voxels along x: detected as labels, but their span is more
+    than the colour table resolves; the channel stays as intensities and the reason is
+    given (the app shows it in the status bar)."""
+    ids = np.arange(1, 10 * 64 * 8 + 1, dtype=np.uint16).reshape(10, 64, 8)
+    array = np.repeat(ids, 8, axis=2)  # (10, 64, 64)
+    assert detect_labels(array).is_labels
+    data = VolumeData.from_array(array[None], (1.0, 1.0, 1.0), ["cells"])
+    model = scene_for(data)
+    refused: list[tuple[int, str]] = []
+    assert show_detected_labels(model, data, refused) == []
+    assert refused == [(0, "channel 'cells': ids span 1…5120, more than 4000: renumber them "
+                           "first (e.g. skimage.segmentation.relabel_sequential)")]
+    assert model.channels[0].labels is None and model.render.interpolation == "trilinear"

@@ -900,7 +900,8 @@ class MainWindow(QMainWindow):
         ``sample_args`` marks the built-in sample (so a session can regenerate it);
         ``time_index`` is the time point ``data`` holds."""
         fresh = scene_for(data)
-        labelled = show_detected_labels(fresh, data)  # label images: categorical colours
+        refused: list[tuple[int, str]] = []  # label images: categorical colours
+        labelled = show_detected_labels(fresh, data, refused)
         fresh.volume.voxel_size_um = voxel_size
         fresh.volume.time_index = time_index
         self._file_voxel = (None if voxel_size is not None
@@ -918,7 +919,7 @@ class MainWindow(QMainWindow):
                 "camera": Camera().model_dump(),
                 "cursor": None,  # the slice views start at the new data's centre
             })
-            note_labels(self.model, data, labelled)
+            note_labels(self.model, data, labelled, refused)
             # Before the batch's event: the player must not take time point 0 for a request.
             self.time_player.data_opened(data, time_index,
                                          memory_budget_bytes=self.gpu_budget())

@@ -248,11 +248,15 @@ def _swatch(rgb) -> QIcon:
 
 
 
-def note_labels(model: SceneModel, data: VolumeData, labelled: list[tuple[int, str]]) -> None:
+def note_labels(model: SceneModel, data: VolumeData, labelled: list[tuple[int, str]],
+                refused: list[tuple[int, str]] = ()) -> None:
     """After opening ``data``: nearest-voxel sampling when some channel was detected as a
     label image (``labelled``, from :func:`~vtkvol.model.labels.show_detected_labels`), and a
-    note saying so (the status bar shows it; the Labels dock turns it off); trilinear again
-    when none is and the last data's labels left nearest on."""
+    note saying so (the status bar shows it; the Labels dock turns it off), or why a channel
+    that looks like labels is shown as intensities (``refused``); trilinear again when no
+    channel is labels and the last data's labels left nearest on."""
+    for _, why in refused:
+        data.notes.insert(0, f"{why}; shown as intensities")
     if labelled:
         model.render.interpolation = "nearest"
         for c, reason in labelled:

@@ -170,10 +170,10 @@ def label_ids(values: np.ndarray, name: str) -> list[int]:
         hint = "renumber them first (e.g. skimage.segmentation.relabel_sequential)"
         if hi - lo > MAX_ID_SPAN:
             raise LabelImageError(
-                f"{name}'s ids span {lo}…{hi}, more than {MAX_ID_SPAN}: {hint}")
+                f"{name}: ids span {lo}…{hi}, more than {MAX_ID_SPAN}: {hint}")
         if max(hi, 0) - min(lo, 0) > MAX_ID_SPAN:  # the background's 0 is a colour step too
             raise LabelImageError(
-                f"{name}'s ids run from {lo} to {hi}: with the background 0 they span more "
+                f"{name}: ids run from {lo} to {hi}; with the background 0 they span more "
                 f"than {MAX_ID_SPAN} values: {hint}")
     ids = [int(v) for v in np.unique(nonzero)]
     if not ids:
@@ -315,20 +315,28 @@ def show_intensities(model: SceneModel, channel: int, tf: TransferFunction) -> N
             model.render.interpolation = "trilinear"
 
 
-def show_detected_labels(model: SceneModel, data: VolumeData) -> list[tuple[int, str]]:
+def show_detected_labels(
+    model: SceneModel,
+    data: VolumeData,
+    refused: list[tuple[int, str]] | None = None,
+) -> list[tuple[int, str]]:
     """Show as labels every channel of ``data`` that :func:`detect_labels` finds to be a
     label image and :func:`label_ids` accepts (:func:`apply_labels`, on ``model``, whose
     channels are ``data``'s); the others stay as they are. Returns ``(channel, reason)`` per
-    channel so shown (``reason``: detection's sentence), for the notice the app shows."""
+    channel so shown (``reason``: detection's sentence), for the notice the app shows.
+    Channels that look like labels but cannot be coloured (e.g. ids spanning more than
+    :data:`MAX_ID_SPAN`) are appended to ``refused`` as ``(channel, why)``."""
     shown: list[tuple[int, str]] = []
     for c in range(min(data.n_channels, len(model.channels))):
         found = detect_labels(data.array[c])
         if not found.is_labels:
             continue
         try:
-            ids = label_ids(data.array[c], data.channel_names[c])
-        except LabelImageError:
-            continue  # looks like labels, but too many ids to colour: a grey ramp it is
+            ids = label_ids(data.array[c], f"channel {data.channel_names[c]!r}")
+        except LabelImageError as exc:
+            if refused is not None:  # looks like labels, but cannot be coloured: a grey ramp
+                refused.append((c, str(exc)))
+            continue
         apply_labels(model, ids, channel=c)
         shown.append((c, found.reason))
     return shown
