@@ -221,3 +221,26 @@ def test_a_label_image_with_too_many_ids_says_why_it_is_not_coloured():
     assert refused == [(0, "channel 'cells': ids span 1…5120, more than 4000: renumber them "
                            "first (e.g. skimage.segmentation.relabel_sequential)")]
     assert model.channels[0].labels is None and model.render.interpolation == "trilinear"
+
+
+@pytest.mark.gl
+def test_many_labels_keep_exact_colours_in_the_renderer():
+    """600 ids (1202 colour points, more than a TF is otherwise reduced to): VTK's colour
+    function gives every id exactly its glasbey colour, and opacity 0 to a hidden one."""
+    import vtk
+
+    from vtkvol.engine.scene import VolumeScene
+
+    ids = np.arange(1, 601, dtype=np.uint16)
+    array = np.zeros((4, 16, 600), np.uint16)
+    array[1:3, 4:12] = ids  # each id a 2 × 8 × 1 column
+    data = VolumeData.from_array(array[None], (1.0, 1.0, 1.0), ["seg"])
+    model = scene_for(data)
+    apply_labels(model, ids.tolist(), hidden=[300])
+    renderer = vtk.vtkRenderer()
+    scene = VolumeScene(renderer, model, data, request_render=lambda: None)
+    ctf = scene.property.GetRGBTransferFunction(0)
+    otf = scene.property.GetScalarOpacity(0)
+    got = np.array([ctf.GetColor(float(k)) for k in ids])
+    assert np.abs(got - label_colors(ids)).max() < 1e-6
+    assert otf.GetValue(300.0) == 0.0 and otf.GetValue(299.0) == 1.0

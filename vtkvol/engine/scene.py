@@ -438,7 +438,10 @@ class VolumeScene:
     def _apply_channel_tf(self, c: int) -> None:
         channel = self.model.channels[c]
         tf = self._effective_tf(channel)
-        tf = tf.reduced() or tf  # at most MAX_POINTS each: bounded time for any function
+        if channel.labels is None:
+            tf = tf.reduced() or tf  # at most MAX_POINTS each: bounded time for any function
+        # (A label channel's steps must stay exact: resampled, the colours of more than 511
+        # ids blend. Its points are bounded anyway: 2 per id, at most MAX_ID_SPAN ids.)
         ctf, otf = self._color_functions[c], self._opacity_functions[c]
         # Bulk fills: AddPoint re-sorts the whole function per point (a TF of 100 000 points
         # took minutes); the points are sorted already.
