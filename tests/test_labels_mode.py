@@ -244,3 +244,15 @@ def test_many_labels_keep_exact_colours_in_the_renderer():
     got = np.array([ctf.GetColor(float(k)) for k in ids])
     assert np.abs(got - label_colors(ids)).max() < 1e-6
     assert otf.GetValue(300.0) == 0.0 and otf.GetValue(299.0) == 1.0
+
+
+def test_the_napari_reader_shares_the_detection():
+    """A label image named like anything else becomes a napari Labels layer, as the app
+    opens it in labels mode; intensities stay an image layer."""
+    from napari_plugin._reader import layer_data
+
+    seg = VolumeData.from_array(blobs()[None], (1.0, 1.0, 1.0), ["stack"])
+    raw = VolumeData.from_array(confocal_phantom((32, 48, 48)).array[:1], (1.0, 1.0, 1.0),
+                                ["stack"])
+    assert layer_data(seg, 0, seg.array[0], (1.0, 1.0, 1.0))[2] == "labels"
+    assert layer_data(raw, 0, raw.array[0], (1.0, 1.0, 1.0))[2] == "image"
