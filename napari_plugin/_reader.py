@@ -12,7 +12,8 @@ No Qt here (napari calls readers from its own thread or a script). Layers, per c
 * a time series: every time point, stacked on the first axis (a pyramid: the first time point
   of each level only, as vtkvol's readers open one time point of a pyramid at a time);
 * an integer image whose file or channel is named like a segmentation (``label``, ``mask``,
-  ``seg``): a Labels layer.
+  ``seg``), or whose values look like one (:func:`vtkvol.model.labels.detect_labels`, what
+  the app opens in labels mode): a Labels layer.
 
 A file vtkvol refuses raises its :class:`~vtkvol.io.VolumeReadError`, whose message napari
 shows as the error (one line, naming the file and the problem).
@@ -91,8 +92,13 @@ def _colors(data: VolumeData) -> list[tuple[float, float, float]]:
 def _is_labels(data: VolumeData, c: int) -> bool:
     if not np.issubdtype(data.array.dtype, np.integer):
         return False
+    from vtkvol.model.labels import detect_labels
+
     stem = Path(str(data.source or "")).name
-    return bool(LABEL_NAME.search(stem) or LABEL_NAME.search(data.channel_names[c]))
+    if LABEL_NAME.search(stem) or LABEL_NAME.search(data.channel_names[c]):
+        return True
+    # The app's detection (one function for both): ids over regions, whatever the name.
+    return detect_labels(np.asarray(data.array[c])).is_labels
 
 
 def layer_data(data: VolumeData, c: int, array: Any, color: tuple[float, float, float],

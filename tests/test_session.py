@@ -34,7 +34,7 @@ from vtkvol.model import (
 )
 from vtkvol.model import session as session_mod
 from vtkvol.model.migrations import MIGRATIONS, detect_version
-from vtkvol.model.scene import ClipPlane, Overlays
+from vtkvol.model.scene import ClipPlane, LabelDisplay, Overlays
 from vtkvol.model.session import (
     FORMAT,
     SUFFIX,
@@ -462,7 +462,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 9)"),
+         "(format version 99; this version reads up to 10)"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -877,7 +877,7 @@ def test_migrate_v6_to_v7_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[6](raw)
     assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[8](MIGRATIONS[7](out))
+    assert migrate(raw) == MIGRATIONS[9](MIGRATIONS[8](MIGRATIONS[7](out)))
     # v6 lit every channel with its own normal: the file renders as it did.
     assert out["scene"]["render"]["multichannel_lighting"] == "per_channel"
     assert raw == untouched
@@ -897,7 +897,7 @@ def test_migrate_v7_to_v8_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[7](raw)
     assert out == load_fixture("v7_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[8](out)
+    assert migrate(raw) == MIGRATIONS[9](MIGRATIONS[8](out))
     # VTK's ray caster drew every v7 volume: the file renders as it did.
     assert out["scene"]["render"]["renderer"] == "raycast"
     assert raw == untouched
@@ -915,7 +915,7 @@ def test_migrate_v8_to_v9_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[8](raw)
     assert out == load_fixture("v8_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == MIGRATIONS[9](out)
     # v8 had no exposure and no fill light: the file renders as it did.
     render = out["scene"]["render"]
     assert (render["exposure"], render["auto_exposure"], render["fill"]) == (1.0, False, 0.0)
@@ -930,7 +930,7 @@ def test_v8_file_reads_without_warnings_as_it_was_shown() -> None:
 
 @pytest.mark.parametrize("value", ["pathtracer", "Slicing", 2, None])
 def test_a_session_with_a_bad_renderer_is_refused_in_one_line(tmp_path, value) -> None:
-    doc = load_fixture("v9_complete.vtkvol.json")
+    doc = load_fixture("v10_complete.vtkvol.json")
     doc["scene"]["render"]["renderer"] = value
     path = tmp_path / "v.vtkvol.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
@@ -951,7 +951,7 @@ def test_a_session_with_the_path_tracer_round_trips(tmp_path) -> None:
 @pytest.mark.parametrize("value", ["Shared", "both", 1, None])
 def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_path, value
                                                                            ) -> None:
-    doc = load_fixture("v9_complete.vtkvol.json")
+    doc = load_fixture("v10_complete.vtkvol.json")
     doc["scene"]["render"]["multichannel_lighting"] = value
     path = tmp_path / "v.vtkvol.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
@@ -963,7 +963,7 @@ def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_p
 
 
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v9_complete.vtkvol.json")
+    doc = load_fixture("v10_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -992,11 +992,65 @@ def test_v0_session_opens_with_its_data(tmp_path: Path) -> None:
     assert read_session(again).model == model
 
 
-def test_current_version_fixture_reads_cleanly() -> None:
-    """The checked-in v9 file must keep reading: a guard against accidental format changes."""
+def test_migrate_v9_to_v10_matches_fixture() -> None:
+    raw = load_fixture("v9_complete.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[9](raw)
+    assert out == load_fixture("v9_complete.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    # v9 had no gamma and no labels display: every channel is shown as it was.
+    assert [(c["gamma"], c["labels"]) for c in out["scene"]["channels"]] == [(1.0, None)] * 2
+    assert raw == untouched
+
+
+def test_v9_file_reads_without_warnings_as_it_was_shown() -> None:
     session = read_session(FIXTURES / "v9_complete.vtkvol.json")
     assert session.warnings == []
     assert _same_except_volume(session.model, rich_model())
+
+
+def rich_model_v10() -> SceneModel:
+    """:func:`rich_model` with the fields version 10 added set away from their defaults."""
+    model = rich_model()
+    model.channels[0].gamma = 0.5
+    membrane = model.channels[1]
+    membrane.gamma = 2.0
+    membrane.tf_linked_to = None
+    membrane.labels = LabelDisplay(opacity=0.8, hidden=[7, 3])
+    return model
+
+
+def test_gamma_and_labels_round_trip(tmp_path) -> None:
+    model = rich_model_v10()
+    path = save_session(tmp_path / "g.vtkvol.json", model)
+    again = read_session(path).model
+    assert again == model
+    assert again.channels[1].labels == LabelDisplay(opacity=0.8, hidden=[3, 7])
+    assert (again.channels[0].gamma, again.channels[1].gamma) == (0.5, 2.0)
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("gamma", 0.0, "channels[0].gamma = 0.0 is below 0.1"),
+    ("gamma", 11, "channels[0].gamma = 11 is above 10"),
+    ("labels", {"opacity": 2.0, "hidden": []}, "channels[0].labels.opacity = 2.0 is above 1"),
+    ("labels", {"opacity": 1.0, "hidden": [1.5]}, "channels[0].labels.hidden[0]"),
+])
+def test_a_session_with_a_bad_gamma_or_labels_is_refused_in_one_line(
+        tmp_path, field, value, message) -> None:
+    doc = load_fixture("v10_complete.vtkvol.json")
+    doc["scene"]["channels"][0][field] = value
+    path = tmp_path / "v.vtkvol.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(SessionError, match=r"^v\.vtkvol\.json: ") as info:
+        read_session(path)
+    assert message in str(info.value) and "\n" not in str(info.value)
+
+
+def test_current_version_fixture_reads_cleanly() -> None:
+    """The checked-in v10 file must keep reading: a guard against accidental format changes."""
+    session = read_session(FIXTURES / "v10_complete.vtkvol.json")
+    assert session.warnings == []
+    assert _same_except_volume(session.model, rich_model_v10())
     assert session.model.volume.shape_zyx == (4, 5, 6) and session.model.volume.channels == 2
     assert session.window == WINDOW
     assert session.data_path == (FIXTURES / "cells.npy").resolve()
@@ -1014,8 +1068,8 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 10; this version reads up to 9"):
-        migrate({"format": FORMAT, "version": 10})
+    with pytest.raises(ValueError, match="format version 11; this version reads up to 10"):
+        migrate({"format": FORMAT, "version": 11})
 
 
 @pytest.mark.parametrize(

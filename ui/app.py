@@ -51,6 +51,7 @@ from vtkvol.io.folder_channels import read_folder_as_channels
 from vtkvol.io.volume_data import Spacing, format_bytes
 from vtkvol.model.defaults import scene_for
 from vtkvol.model.document import SAMPLE_KEY, Document, sample_kwargs
+from vtkvol.model.labels import show_detected_labels
 from vtkvol.model.scene import Camera, CropBox, SceneModel, SliceWeights
 from vtkvol.model.session import (
     MissingDataError,
@@ -65,6 +66,7 @@ from vtkvol.ui.auto_quality import AutoOutcome, AutoQuality
 from vtkvol.ui.background import BackgroundTask
 from vtkvol.ui.dock_layout import DockLayout
 from vtkvol.ui.docks.base import ModelDock
+from vtkvol.ui.docks.labels import note_labels
 from vtkvol.ui.edit_watcher import DockEditWatcher
 from vtkvol.ui.measure import MeasureTool
 from vtkvol.ui.menus.edit_menu import EditMenu
@@ -225,6 +227,7 @@ class MainWindow(QMainWindow):
         self.tf_dock, self.slice_dock = layout.tf_dock, layout.slice_dock
         self.channels_dock, self.lights_dock = layout.channels_dock, layout.lights_dock
         self.ranges_dock, self.slice_views_dock = layout.ranges_dock, layout.slice_views_dock
+        self.labels_dock = layout.labels_dock
         self.docks: list[ModelDock] = layout.docks
         for dock in self.docks:
             dock.gestureStarted.connect(self.recorder.begin_gesture)
@@ -469,6 +472,8 @@ class MainWindow(QMainWindow):
         ``sample_args`` marks the built-in sample (so a session can regenerate it);
         ``time_index`` is the time point ``data`` holds."""
         fresh = scene_for(data)
+        refused: list[tuple[int, str]] = []  # label images: categorical colours
+        labelled = show_detected_labels(fresh, data, refused)
         fresh.volume.voxel_size_um = voxel_size
         fresh.volume.time_index = time_index
         fresh.volume.level = data.metadata.get("level") if is_pyramid(data) else None
@@ -481,6 +486,7 @@ class MainWindow(QMainWindow):
                 "camera": Camera().model_dump(),
                 "cursor": None,  # the slice views start at the new data's centre
             })
+            note_labels(self.model, data, labelled, refused)
             # Before the batch's event: the player must not take time point 0 for a request.
             self.time_player.data_opened(data, time_index,
                                          memory_budget_bytes=self.gpu_budget())

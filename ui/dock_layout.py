@@ -9,6 +9,7 @@ from PySide6.QtWidgets import QMainWindow, QScrollArea
 from vtkvol.model.scene import SceneModel
 from vtkvol.ui.docks.base import ModelDock
 from vtkvol.ui.docks.channels import ChannelsDock
+from vtkvol.ui.docks.labels import LabelsDock
 from vtkvol.ui.docks.lights import LightsDock
 from vtkvol.ui.docks.ranges import RangesDock
 from vtkvol.ui.docks.slice_views import SliceViewsDock
@@ -17,7 +18,7 @@ from vtkvol.ui.docks.transfer_function import TransferFunctionDock
 
 
 class DockLayout:
-    """The six docks of ``window``, each bound to ``model``, placed in their areas."""
+    """The seven docks of ``window``, each bound to ``model``, placed in their areas."""
 
     def __init__(self, window: QMainWindow, model: SceneModel) -> None:
         self.window = window
@@ -29,9 +30,10 @@ class DockLayout:
         self.lights_dock = LightsDock(model, window)
         self.ranges_dock = RangesDock(model, window)
         self.slice_views_dock = SliceViewsDock(model, window)
+        self.labels_dock = LabelsDock(model, window)
         self.docks: list[ModelDock] = [self.tf_dock, self.slice_dock, self.channels_dock,
                                        self.lights_dock, self.ranges_dock,
-                                       self.slice_views_dock]
+                                       self.slice_views_dock, self.labels_dock]
         bottom = Qt.DockWidgetArea.BottomDockWidgetArea
         right = Qt.DockWidgetArea.RightDockWidgetArea
         window.addDockWidget(bottom, self.tf_dock)
@@ -40,6 +42,7 @@ class DockLayout:
         window.addDockWidget(right, self.channels_dock)
         window.addDockWidget(right, self.lights_dock)
         window.addDockWidget(right, self.ranges_dock)
+        window.addDockWidget(right, self.labels_dock)
         window.addDockWidget(Qt.DockWidgetArea.LeftDockWidgetArea, self.slice_views_dock)
         self.slice_views_dock.hide()
 
@@ -54,6 +57,7 @@ class DockLayout:
             dock.setVisible(dock is not self.slice_views_dock)
         self.window.tabifyDockWidget(self.tf_dock, self.slice_dock)
         self.window.tabifyDockWidget(self.lights_dock, self.ranges_dock)
+        self.window.tabifyDockWidget(self.ranges_dock, self.labels_dock)
         self.tf_dock.raise_()
         self.lights_dock.raise_()
         self.window.resizeDocks([self.tf_dock], [270], Qt.Orientation.Vertical)

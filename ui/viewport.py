@@ -900,8 +900,9 @@ class Viewport(QWidget):
             return None
         ratio = self.plotter.devicePixelRatioF()
         height = self.render_window.GetSize()[1]
+        labels = tuple(channel.labels is not None for channel in self.model.channels)
         return probe(self.renderer, scene.volume, scene.data, x * ratio,
-                     height - 1 - y * ratio)
+                     height - 1 - y * ratio, labels)
 
     def _probe(self) -> None:
         result = self.probe_at(*self._probe_at) if self._probe_at is not None else None

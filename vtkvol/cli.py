@@ -444,18 +444,13 @@ def _show_labels(model, data) -> str | None:
     """Show channel 0 of ``data`` as labels in ``model``; what is wrong, or None."""
     import numpy as np
 
-    from vtkvol.model.labels import MAX_ID_SPAN, apply_labels
+    from vtkvol.model.labels import LabelImageError, apply_labels, label_ids
 
-    values = np.asarray(data.array[0])
     name = Path(data.source).name if data.source else "the data"
-    if not np.issubdtype(values.dtype, np.integer):
-        return f"{name} holds {values.dtype} values; label ids are integers"
-    ids = [int(v) for v in np.unique(values) if v != 0]
-    if not ids:
-        return f"{name} has no label other than 0 (background)"
-    if ids[-1] - ids[0] > MAX_ID_SPAN:
-        return (f"{name}'s ids span {ids[0]}…{ids[-1]}, more than {MAX_ID_SPAN}: renumber them "
-                "first (e.g. skimage.segmentation.relabel_sequential)")
+    try:
+        ids = label_ids(np.asarray(data.array[0]), name)
+    except LabelImageError as exc:
+        return str(exc)
     apply_labels(model, ids)
     return None
 

@@ -25,6 +25,7 @@ from PySide6.QtWidgets import (
 
 from vtkvol.model.defaults import contrast_limits
 from vtkvol.model.evented import touches
+from vtkvol.model.gamma import GAMMA_MAX, GAMMA_MIN
 from vtkvol.model.scene import BLEND_MODES, Channel, SceneModel
 from vtkvol.model.techniques import technique_specs
 from vtkvol.model.transfer_function import above
@@ -134,6 +135,14 @@ class ChannelRow(QFrame):
         grid.addWidget(self.auto, 1, 3)
         grid.setColumnStretch(1, 1)
         grid.setColumnStretch(2, 1)
+        self.gamma = number_box(
+            minimum=GAMMA_MIN, maximum=GAMMA_MAX, decimals=2, step=0.05,
+            object_name=f"channel_gamma_{index}",
+            tooltip="Gamma on the values between the contrast limits: below 1 brightens the "
+                    "mid-tones, above 1 darkens them; the limits themselves stay as they are "
+                    "(as napari's and Fiji's gamma). Not for label images")
+        grid.addWidget(QLabel("Gamma"), 2, 0)
+        grid.addWidget(self.gamma, 2, 1)
 
         b = self.bindings
         b.bind(channel, "visible", self.visible, self.visible.toggled, self.visible.setChecked)
@@ -144,6 +153,10 @@ class ChannelRow(QFrame):
         b.connect_qt(self.minimum.valueChanged, lambda v: self._set_limits(v, None))
         b.connect_qt(self.maximum.valueChanged, lambda v: self._set_limits(None, v))
         b.connect_qt(self.auto.clicked, self.auto_contrast)
+        b.bind(channel, "gamma", self.gamma, self.gamma.valueChanged, self.gamma.setValue,
+               to_model=float)
+        b.attr_to_setter(channel, "labels", (self.gamma, self.minimum, self.maximum, self.auto),
+                         lambda _: self._show_link(self.channel.tf_linked_to))
         self._show_limits()
 
     @property
@@ -161,9 +174,12 @@ class ChannelRow(QFrame):
         position = self.link.findData(link)
         self.link.setCurrentIndex(max(position, 0))
         linked = link is not None
+        # A label channel's values are ids: no contrast limits, no gamma (the Labels dock).
+        labels = self.channel.labels is not None
         for widget in (self.minimum, self.maximum, self.auto):
             has_data = widget is not self.auto or self.dock.data is not None
-            widget.setEnabled(not linked and has_data)
+            widget.setEnabled(not linked and has_data and not labels)
+        self.gamma.setEnabled(not labels)
 
     def _on_link(self, position: int) -> None:
         self.channel.tf_linked_to = self.link.itemData(position)
@@ -203,7 +219,8 @@ class ChannelRow(QFrame):
     def _on_color(self, rgb: tuple[float, float, float]) -> None:
         channel = self.channel
         with channel.batch():
-            if channel.tf_linked_to is None:
+            # A label channel keeps its categorical colours: the tint is only the list's.
+            if channel.tf_linked_to is None and channel.labels is None:
                 channel.tf.colors = retint(channel.tf.colors, channel.color, rgb)
             channel.color = rgb
 

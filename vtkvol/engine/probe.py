@@ -23,20 +23,29 @@ VISIBLE_OPACITY = 0.05
 @dataclass(frozen=True)
 class ProbeResult:
     """One probed voxel: ``position_um`` (x, y, z) world µm where the ray met the material,
-    ``index`` (i, j, k) of the nearest voxel, ``values`` per channel (raw data values) and
-    the channel ``names``."""
+    ``index`` (i, j, k) of the nearest voxel, ``values`` per channel (raw data values), the
+    channel ``names`` and, per channel, whether it is a label image (``labels``; its value
+    is then a label id, 0 the background)."""
 
     position_um: tuple[float, float, float]
     index: tuple[int, int, int]
     values: tuple[float, ...]
     names: tuple[str, ...]
+    labels: tuple[bool, ...] = ()
 
     def text(self) -> str:
-        """One line for a status bar: ``x 12.3 y 4.5 z 6 µm · voxel (12, 4, 6) · DAPI 1234``."""
+        """One line for a status bar: ``x 12.3 y 4.5 z 6 µm · voxel (12, 4, 6) · DAPI 1234``;
+        a label channel's value reads ``nuclei label 17`` (``nuclei background`` for 0)."""
         x, y, z = self.position_um
-        values = " · ".join(f"{name} {_number(v)}" for name, v in
-                            zip(self.names, self.values, strict=True))
+        flags = self.labels or (False,) * len(self.values)
+        values = " · ".join(
+            f"{name} {_label(v) if is_label else _number(v)}"
+            for name, v, is_label in zip(self.names, self.values, flags, strict=True))
         return f"x {x:.4g} y {y:.4g} z {z:.4g} µm · voxel {self.index} · {values}"
+
+
+def _label(value: float) -> str:
+    return "background" if value == 0 else f"label {int(value)}"
 
 
 def _number(value: float) -> str:
@@ -44,9 +53,10 @@ def _number(value: float) -> str:
 
 
 def probe(renderer: vtk.vtkRenderer, volume: vtk.vtkVolume, data: VolumeData, x: float,
-          y: float) -> ProbeResult | None:
+          y: float, labels: tuple[bool, ...] = ()) -> ProbeResult | None:
     """The first visible voxel of ``volume`` under display pixel (x, y), or None (nothing
-    visible there). ``data`` is what the volume shows (its array ``[c, z, y, x]``)."""
+    visible there). ``data`` is what the volume shows (its array ``[c, z, y, x]``);
+    ``labels`` marks the channels that are label images (their values read as ids)."""
     picker = vtk.vtkVolumePicker()
     picker.SetVolumeOpacityIsovalue(VISIBLE_OPACITY)
     picker.PickFromListOn()
@@ -77,5 +87,7 @@ def probe(renderer: vtk.vtkRenderer, volume: vtk.vtkVolume, data: VolumeData, x:
     assert best is not None
     i, j, k = best[1]
     values = tuple(float(array[c, k, j, i]) for c in range(array.shape[0]))
+    flags = tuple(bool(f) for f in labels[:len(values)])
+    flags += (False,) * (len(values) - len(flags))
     return ProbeResult(tuple(float(v) for v in pos), (i, j, k), values,  # type: ignore[arg-type]
-                       tuple(data.channel_names))
+                       tuple(data.channel_names), flags)

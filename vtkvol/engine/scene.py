@@ -25,7 +25,7 @@ from vtkvol.engine.framing import visible_bounds
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.overlays import SceneOverlays
 from vtkvol.engine.shaders import ReplacementSet
-from vtkvol.engine.slices import snap_cursor
+from vtkvol.engine.slices import shown_tf, snap_cursor
 from vtkvol.engine.tf2d import (
     TABLE_SHAPE,
     TableImage,
@@ -258,7 +258,8 @@ class VolumeScene:
         for c, names in changed.items():
             if names <= set(_LABEL_ONLY):
                 continue
-            if names & {"tf", "tf2d"} or "" in names:
+            # Gamma and the labels display change what the TF is drawn as.
+            if names & {"tf", "tf2d", "gamma", "labels"} or "" in names:
                 # A channel linked to this one follows it.
                 for target, channel in enumerate(self.model.channels):
                     if target == c or channel.tf_linked_to == c:
@@ -413,7 +414,7 @@ class VolumeScene:
         elif effective.tf_mode == "2d":
             rgba = effective.tf2d.table(value_range, gradient_range, TABLE_SHAPE)
         else:
-            rgba = table_from_1d(effective.tf, value_range, TABLE_SHAPE)
+            rgba = table_from_1d(self._effective_tf(channel), value_range, TABLE_SHAPE)
         step, unit = self._table_step(c)
         self._tables[c].set_table(rgba, step, unit)
 
@@ -437,7 +438,10 @@ class VolumeScene:
     def _apply_channel_tf(self, c: int) -> None:
         channel = self.model.channels[c]
         tf = self._effective_tf(channel)
-        tf = tf.reduced() or tf  # at most MAX_POINTS each: bounded time for any function
+        if channel.labels is None:
+            tf = tf.reduced() or tf  # at most MAX_POINTS each: bounded time for any function
+        # (A label channel's steps must stay exact: resampled, the colours of more than 511
+        # ids blend. Its points are bounded anyway: 2 per id, at most MAX_ID_SPAN ids.)
         ctf, otf = self._color_functions[c], self._opacity_functions[c]
         # Bulk fills: AddPoint re-sorts the whole function per point (a TF of 100 000 points
         # took minutes); the points are sorted already.
@@ -521,11 +525,9 @@ class VolumeScene:
         return changed
 
     def _effective_tf(self, channel: Channel):
-        link = channel.tf_linked_to
-        channels = self.model.channels
-        if link is not None and 0 <= link < len(channels) and channels[link] is not channel:
-            return channels[link].tf
-        return channel.tf
+        """The 1-D transfer function ``channel`` is drawn with: its own or its link's, with
+        the channel's gamma baked in (vtkvol.model.gamma)."""
+        return shown_tf(self.model, self.model.channels.index(channel))
 
     def _isosurface_value(self) -> float:
         value = self.model.render.isosurface_value

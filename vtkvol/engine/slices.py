@@ -40,6 +40,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from vtkvol.model.gamma import with_gamma
 from vtkvol.model.gradient import gradient_axis_max, normalised_gradient
 
 if TYPE_CHECKING:
@@ -143,6 +144,15 @@ def effective_channel(model: SceneModel, channel: int) -> Channel:
     return channels[channel]
 
 
+def shown_tf(model: SceneModel, channel: int) -> TransferFunction:
+    """:func:`effective_tf` with the channel's own gamma baked in (vtkvol.model.gamma): what
+    the 3-D view and the slice views classify channel ``channel``'s values (data units) with.
+    A label channel's colours are categories: gamma does not apply to them."""
+    tf = effective_tf(model, channel)
+    own = model.channels[channel]
+    return tf if own.labels is not None else with_gamma(tf, own.gamma)
+
+
 def slice_values(array: np.ndarray, plane: Plane | str, index: int) -> np.ndarray:
     """The raw values of slice ``index`` (voxels along the plane's normal) of ``array``
     (``[c, z, y, x]``) as ``[c, rows, columns]`` (a view where numpy can make one)."""
@@ -198,7 +208,7 @@ def slice_rgba(data: VolumeData, model: SceneModel, plane: Plane | str,
         if source.tf_mode == "2d":
             color, alpha = _tf2d_lookup(data, source, c, plane, index, values[c])
         else:
-            color, alpha = _tf_lookup(source.tf, values[c])
+            color, alpha = _tf_lookup(shown_tf(model, c), values[c])
         if kept is not None:  # the renderer multiplies the sample's RGBA by the weight
             color = color * kept[..., None]
             alpha = alpha * kept

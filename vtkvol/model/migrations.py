@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 9
+VERSION = 10
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -238,9 +238,26 @@ def _v8_to_v9(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v9_to_v10(raw: dict[str, Any]) -> dict[str, Any]:
+    """v9 → v10: every channel gained ``gamma``, filled with 1 (the transfer function as
+    drawn), and ``labels``, filled with null (values shown as intensities): how v9 showed
+    them (the same image; a v9 file saved from ``vtkvol render --labels`` holds the label
+    colours in its transfer function already)."""
+    out = copy.deepcopy(raw)
+    out["version"] = 10
+    scene = out.get("scene")
+    channels = scene.get("channels") if isinstance(scene, dict) else None
+    if isinstance(channels, list):
+        for channel in channels:
+            if isinstance(channel, dict):
+                channel.setdefault("gamma", 1.0)
+                channel.setdefault("labels", None)
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
                                     4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8,
-                                    8: _v8_to_v9}
+                                    8: _v8_to_v9, 9: _v9_to_v10}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

@@ -16,6 +16,7 @@ from typing import Any, Literal
 from pydantic import Field, field_validator, model_validator
 
 from vtkvol.model.evented import EventedModel
+from vtkvol.model.gamma import GAMMA_DEFAULT, GAMMA_MAX, GAMMA_MIN
 from vtkvol.model.renderers import RendererName, unsupported_reason
 from vtkvol.model.transfer_function import RGB, TransferFunction, TransferFunction2D
 
@@ -83,6 +84,22 @@ class VolumeSource(EventedModel):
         return v
 
 
+class LabelDisplay(EventedModel):
+    """How a channel that holds a label image (segmentation: an integer id per voxel, 0 =
+    background) is shown (vtkvol.model.labels): every id in its own categorical colour, at
+    ``opacity`` (per opacity unit distance, 0…1), except the ids in ``hidden``, which are
+    transparent and cast no shadow. The channel's ``tf`` holds the resulting step function
+    (:func:`vtkvol.model.labels.apply_labels` writes both), so a renderer needs nothing else."""
+
+    opacity: float = Field(1.0, ge=0.0, le=1.0)
+    hidden: list[int] = Field(default_factory=list)
+
+    @field_validator("hidden")
+    @classmethod
+    def _sorted_ids(cls, v: list[int]):
+        return sorted(set(v))
+
+
 class Channel(EventedModel):
     """One fluorescence channel (one component of the rendered volume)."""
 
@@ -95,6 +112,13 @@ class Channel(EventedModel):
     #: ``tf2d`` over value × gradient magnitude. Switching keeps both, so nothing is lost.
     tf_mode: Literal["1d", "2d"] = "1d"
     tf2d: TransferFunction2D = Field(default_factory=TransferFunction2D)
+    #: Gamma on the contrast-limited value (unit-free; vtkvol.model.gamma): 1 = the transfer
+    #: function as drawn, < 1 brighter mid-tones, > 1 darker; the limits look the same. It
+    #: applies to the 1-D transfer function, not to label channels or 2-D ones.
+    gamma: float = Field(GAMMA_DEFAULT, ge=GAMMA_MIN, le=GAMMA_MAX)
+    #: Set when the channel is a label image shown with categorical colours; None = values
+    #: are intensities.
+    labels: LabelDisplay | None = None
 
     @field_validator("color")
     @classmethod
