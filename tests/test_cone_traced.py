@@ -489,13 +489,12 @@ def test_gpu_pyramid_matches_cpu(scene_factory, shape, spacing):
 
 
 @pytest.mark.gl
-def test_cpu_backend_renders_like_gpu(scene_factory, monkeypatch):
+def test_cpu_backend_renders_like_gpu(scene_factory):
     vol = phantom_sphere_over_slab(24)
     gpu = scene_factory(vol, elevation=40.0)
     gpu.image()
     gpu_image = gpu.image()
-    monkeypatch.setattr(ConeTraced, "BACKEND", "cpu")
-    cpu = scene_factory(vol, elevation=40.0)
+    cpu = scene_factory(vol, elevation=40.0, parameters={"backend": "cpu"})
     cpu.image()
     cpu_image = cpu.image()
     _require_compute(gpu.rw)

@@ -27,7 +27,8 @@ def test_the_host_and_the_technique_contract_form_no_circle() -> None:
     host (issue 21): the illuminator is the only module that imports them all."""
     graph = import_graph.edges(ROOT)
     for module in ("technique", "opacity_source", "empty_space", "shader_builder",
-                   "precompute", "bindings", "lights", "light_grid", "light_grid_gpu"):
+                   "precompute", "bindings", "lights", "light_grid", "light_grid_gpu",
+                   "changes", "exposure", "technique_host", "smart"):
         assert "vtkvol.engine.illuminator" not in graph[f"vtkvol.engine.{module}"], module
 
 

@@ -6,7 +6,7 @@ are in ``shaders/``. This module imports no VTK.
 
 from __future__ import annotations
 
-from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
 #: AO variants (``ao_mode``) and their ``VV_CT_AO`` value in the fragment shader.
@@ -134,6 +134,7 @@ PARAMETERS: tuple[Param, ...] = (
         "opacity (per unit distance) exceeds this (thesis 0.05); baked AO applies everywhere.",
         range=(0.0, 1.0), step=0.01,
     ),
+    backend_param(_BAKE),
 )
 
 

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
+from vtkvol.engine.gl import ComputeProgram, Texture3D, gl, unbind_images
 from vtkvol.engine.shaders import compute_source
 from vtkvol.plugins.cone_traced.cpu import (
     _FRAME_A,
@@ -74,15 +74,17 @@ class GpuFilter:
             source.generate_mipmaps()
             self._gl.glMemoryBarrier(self._gl.GL_ALL_BARRIER_BITS)
         else:
-            prog = self.down.use()
+            down = self.down
+            down.use()
             for lev in range(1, len(shapes)):
                 nz, ny, nx = shapes[lev]
-                prog.SetUniform1iv("vv_srcSize", 3, list(shapes[lev - 1][::-1]))
-                prog.SetUniform1iv("vv_dstSize", 3, [nx, ny, nz])
+                down.set_uniform_array("vv_srcSize", list(shapes[lev - 1][::-1]), kind="i")
+                down.set_uniform_array("vv_dstSize", [nx, ny, nz], kind="i")
                 source.bind_image(0, "read", lev - 1)
                 source.bind_image(1, "write", lev)
-                self.down.dispatch(((nx + 15) // 16, ny, 1))
-            self.down.done()
+                down.dispatch(((nx + 15) // 16, ny, 1))
+            unbind_images(self.render_window, 2)
+            down.done()
         # Work of each blur pass ∝ its level's voxels (level 0 is ~7/8 of the whole).
         sizes = [float(np.prod(shape)) for shape in shapes]
         total = 3.0 * sum(sizes) * (1.0 + 1.0 / 6.0)  # the reduction: about a sixth more
@@ -97,20 +99,22 @@ class GpuFilter:
         for lev, shape in enumerate(shapes):
             nz, ny, nx = shape
             for src, dst, axis in passes:
-                prog = blur.use()
-                prog.SetUniform1fv("vv_weights", len(weights), [float(w) for w in weights])
-                prog.SetUniform1iv("vv_size", 3, [nx, ny, nz])
-                prog.SetUniformi("vv_axis", axis)
-                prog.SetUniformi("vv_convert", 1 if axis == 2 else 0)
+                blur.use()
+                blur.set_uniform_array("vv_weights", [float(w) for w in weights])
+                blur.set_uniform_array("vv_size", [nx, ny, nz], kind="i")
+                blur.set_uniform("vv_axis", axis)
+                blur.set_uniform("vv_convert", 1 if axis == 2 else 0)
                 src.bind_image(0, "read", lev)
                 dst.bind_image(1, "write", lev)
                 lanes, rows = {0: (ny, nz), 1: (nx, nz), 2: (nx, ny)}[axis]
                 blur.dispatch(((lanes + 15) // 16, rows, 1))
                 done += sizes[lev]
                 if chunked and sizes[lev] * 64 >= sizes[0]:  # coarse levels: no own chunk
+                    unbind_images(self.render_window, 2)
                     blur.done()
                     self._gl.glFinish()
                     yield done / total
+        unbind_images(self.render_window, 2)
         blur.done()
         if chunked:
             self._gl.glFinish()
@@ -185,6 +189,7 @@ class GpuAoBaker:
             self._bind(program, filtered, source, ao, grid, data_dims, spacing, unit_distance,
                        values, gate_level, gate_offset, first)
             program.dispatch(((grid[0] + 15) // 16, grid[1], count))
+            unbind_images(self.render_window, 1)
             program.done()
             first += count
             if chunk_s is not None:
@@ -198,22 +203,24 @@ class GpuAoBaker:
               grid: Sequence[int], data_dims: Sequence[int], spacing: Sequence[float],
               unit_distance: float, values: Mapping[str, Any], gate_level: int,
               gate_offset: float, z_offset: int) -> None:
-        prog = program.use()
-        prog.SetUniformi("vv_filtered", filtered.activate())
-        prog.SetUniformi("vv_opacity", source.activate())
-        prog.SetUniform1iv("vv_gridDims", 3, [int(m) for m in grid])
-        prog.SetUniform3f("vv_gridStep", [float(v) for v in ao_grid_step(data_dims, grid)])
-        prog.SetUniform3f("vv_dims", [float(n) for n in data_dims])
-        prog.SetUniform3f("vv_spacing", [float(v) for v in spacing])
-        prog.SetUniformf("vv_unit", float(unit_distance))
-        prog.SetUniformf("vv_maxLod", float(filtered.mip_levels - 1))
-        prog.SetUniformf("vv_gateLod", float(min(gate_level, filtered.mip_levels - 1)))
-        prog.SetUniformf("vv_gateOffset", float(gate_offset))
-        prog.SetUniformf("vv_lodWidth", float(values["lod_width"] * values["sigma"]))
-        prog.SetUniformf("vv_h", float(values["h"]))
-        prog.SetUniformf("vv_h0", float(values["h0"]))
-        prog.SetUniformf("vv_maxDistUm", float(values["max_distance"]) * min(spacing))
-        prog.SetUniformi("vv_zOffset", int(z_offset))
+        program.use()
+        program.set_uniform("vv_filtered", filtered.activate())
+        program.set_uniform("vv_opacity", source.activate())
+        program.set_uniform_array("vv_gridDims", [int(m) for m in grid], kind="i")
+        program.set_uniform("vv_gridStep", *(float(v) for v in ao_grid_step(data_dims, grid)),
+                            kind="f")
+        program.set_uniform("vv_dims", *(float(n) for n in data_dims), kind="f")
+        program.set_uniform("vv_spacing", *(float(v) for v in spacing), kind="f")
+        for name, value in (
+                ("vv_unit", unit_distance), ("vv_maxLod", filtered.mip_levels - 1),
+                ("vv_gateLod", min(gate_level, filtered.mip_levels - 1)),
+                ("vv_gateOffset", gate_offset),
+                ("vv_lodWidth", values["lod_width"] * values["sigma"]),
+                ("vv_h", values["h"]), ("vv_h0", values["h0"]),
+                ("vv_maxDistUm", float(values["max_distance"]) * min(spacing))):
+            # vv_gateOffset is read only by the 8-tap gate variant (VV_GATE_TAPS 8).
+            program.set_uniform(name, float(value), kind="f", optional=name == "vv_gateOffset")
+        program.set_uniform("vv_zOffset", int(z_offset))
         ao.bind_image(0, "write", 0)
 
     def release(self) -> None:

@@ -14,9 +14,14 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from vtk import vtkTextureObject
 
-from vtkvol.engine.gl import GLUnavailableError, Texture3D
-from vtkvol.engine.illuminator import scale_steps
-from vtkvol.engine.technique import Technique, finish_gl
+from vtkvol.engine.gl import Texture3D
+from vtkvol.engine.technique import (
+    ComputePath,
+    Technique,
+    TechniqueStats,
+    finish_gl,
+    scale_steps,
+)
 from vtkvol.plugins.cone_traced import AO_MODES, TECHNIQUE
 from vtkvol.plugins.cone_traced.cpu import (
     _FAR,
@@ -46,8 +51,9 @@ if TYPE_CHECKING:
 BAKE_PARAMETERS = frozenset(
     {"ao_mode", "ao_cones", "ao_resolution", "max_distance", "lod_width", "h", "h0"}
 )
-#: Parameters of the filtered pyramid itself.
-FILTER_PARAMETERS = frozenset({"sigma", "span"})
+#: Parameters of the filtered pyramid itself (``backend``: the pyramid is built anew on the
+#: chosen path, and the baked AO with it).
+FILTER_PARAMETERS = frozenset({"sigma", "span", "backend"})
 #: Seconds of GPU work per bake slab when the host precomputes in chunks
 #: (Illuminator.precompute): the longest the application's event loop waits between two.
 CHUNK_S = 0.08
@@ -59,8 +65,6 @@ class ConeTraced(Technique):
 
     SPEC = TECHNIQUE
     SHADER: ClassVar[str] = "cone_traced.glsl"
-    #: "auto" (compute shaders when available), "gpu" or "cpu" (numpy/scipy, then upload).
-    BACKEND: ClassVar[str] = "auto"
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
@@ -69,13 +73,14 @@ class ConeTraced(Technique):
         self.source: Texture3D | None = None  #: opacity pyramid S_L (level 0 = α)
         self.filtered: Texture3D | None = None  #: D_L = −ln(1 − G_σ * S_L)
         self._scratch: Texture3D | None = None
-        self._gpu: GpuFilter | None = None
-        self._gpu_failed = False
+        #: The GPU-or-numpy choice of the pyramid filter and of the AO bake (the ``backend``
+        #: parameter; numpy for good after a failure of either).
+        self._compute = ComputePath("cone_traced", GpuFilter)
+        self._bake_compute = ComputePath("cone_traced AO bake", GpuAoBaker)
         #: Baked AO (ao_mode = baked_hemisphere): occlusion on the AO grid, and its bookkeeping.
         self.ao: Texture3D | None = None
         self._bakes = 0
         self._bake_backend = ""
-        self._baker: GpuAoBaker | None = None
         self._cpu_pyramids: tuple[list[np.ndarray], list[np.ndarray]] | None = None
         #: Textures made by a chunked rebuild that has not finished (released on cancel).
         self._pending_textures: list[Texture3D] = []
@@ -97,21 +102,17 @@ class ConeTraced(Technique):
             "VV_CONE_TAU_EXIT": f"{TAU_EXIT:.8f}",
         }
 
-    def stats(self) -> dict[str, Any]:
-        """``recomputes``/``bakes`` (counts), ``recompute_ms``/``bake_ms`` (GPU milliseconds of
-        the last one when ``host.profiling``, else the wall time of issuing it; on the numpy
-        path its whole cost), ``backend``/``bake_backend`` ("gpu" or "cpu") and
-        ``texture_bytes`` (all textures held, mip levels included)."""
+    def stats(self) -> TechniqueStats:
+        """The pyramid's rebuilds as ``recomputes``/``recompute_ms``/``backend``; ``extra``:
+        the AO bake's ``bakes`` (count), ``bake_ms`` (as ``recompute_ms``) and ``bake_backend``
+        ("gpu" or "cpu")."""
         textures = (self.source, self.filtered, self._scratch, self.ao)
-        return {
-            "recomputes": self._recomputes,
-            "recompute_ms": self.elapsed_ms("recompute"),
-            "backend": self._backend,
-            "bakes": self._bakes,
-            "bake_ms": self.elapsed_ms("bake"),
-            "bake_backend": self._bake_backend,
-            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
-        }
+        return TechniqueStats(
+            recomputes=self._recomputes, recompute_ms=self.elapsed_ms("recompute"),
+            backend=self._backend,
+            texture_bytes=sum(t.nbytes for t in textures if t is not None),
+            extra={"bakes": self._bakes, "bake_ms": self.elapsed_ms("bake"),
+                   "bake_backend": self._bake_backend})
 
     def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
         nz, ny, nx = self.source.shape if self.source is not None else (1, 1, 1)
@@ -163,7 +164,7 @@ class ConeTraced(Technique):
 
     def _recompute_steps(self, values: Mapping[str, Any]) -> Iterator[float]:
         chunked = self.host.precomputing
-        gpu = self._gpu_filter()
+        gpu = self._gpu_filter(values)
         self._cpu_pyramids = None
         if gpu is not None:
             # The host's opacity texture (classified on the GPU: no numpy pass, no upload)
@@ -220,7 +221,7 @@ class ConeTraced(Technique):
             self._ensure_ao(grid)
             yield 0.0  # a new (large) texture
         assert self.ao is not None
-        baker = self._gpu_baker()
+        baker = self._gpu_baker(values)
         if baker is not None:
             chunk_s = CHUNK_S if self.host.precomputing else None
             self._source_mips(True)
@@ -246,18 +247,14 @@ class ConeTraced(Technique):
             self._bake_backend = "cpu"
             yield 1.0
 
-    def _gpu_baker(self) -> GpuAoBaker | None:
-        if self._gpu_filter() is None:
+    def _gpu_baker(self, values: Mapping[str, Any]) -> GpuAoBaker | None:
+        """The GPU AO baker, or None for the numpy bake (also whenever the filter is on numpy)."""
+        if self._gpu_filter(values) is None:
             return None
-        if self._baker is None:
-            try:
-                self._baker = GpuAoBaker(self.host.render_window)
-            except GLUnavailableError:
-                if self.BACKEND == "gpu":
-                    raise
-                self._gpu_failed = True  # CPU for good (the filter follows at the next rebuild)
-                return None
-        return self._baker
+        baker = self._bake_compute.get(self.host, values["backend"])
+        if baker is None:
+            self._compute.failed = True  # CPU for good (the filter follows at the next rebuild)
+        return baker
 
     def _ensure_ao(self, grid_xyz: Sequence[int]) -> None:
         shape = (int(grid_xyz[2]), int(grid_xyz[1]), int(grid_xyz[0]))
@@ -276,18 +273,9 @@ class ConeTraced(Technique):
             self.ao.release()
             self.ao = None
 
-    def _gpu_filter(self) -> GpuFilter | None:
-        if self.BACKEND == "cpu" or self._gpu_failed:
-            return None
-        if self._gpu is None:
-            try:
-                self._gpu = GpuFilter(self.host.render_window)
-            except GLUnavailableError:
-                if self.BACKEND == "gpu":
-                    raise
-                self._gpu_failed = True  # fall back to the CPU path for good
-                return None
-        return self._gpu
+    def _gpu_filter(self, values: Mapping[str, Any]) -> GpuFilter | None:
+        """The GPU pyramid filter (compiled on first use), or None for the numpy path."""
+        return self._compute.get(self.host, values["backend"])
 
     def _source_mips(self, on: bool) -> None:
         """Sample the source pyramid with (bake) or without (rendering) its mip levels."""
@@ -343,12 +331,8 @@ class ConeTraced(Technique):
     def release(self) -> None:
         self._release_textures()
         self._release_ao(unbind=False)
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
-        if self._baker is not None:
-            self._baker.release()
-            self._baker = None
+        self._compute.release()
+        self._bake_compute.release()
         self._release_timers()
 
     # -- verification ---------------------------------------------------------------------------

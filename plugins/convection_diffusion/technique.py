@@ -13,6 +13,7 @@ changes (``Changes.reset_accumulation``), never for the camera.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -21,19 +22,18 @@ import numpy as np
 import vtk
 
 from vtkvol.engine.diffusion import (
-    GROUP,
     GpuFieldDiffusion,
     GpuSourceDiffusion,
     GridScattering,
+    dispatch_groups,
     light_channels,
     propagation_sweeps,
     relative_residual,
-    set_uniform,
     source_coefficients,
-    unbind_images,
 )
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.technique import TechniqueStats
 from vtkvol.plugins.convection_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -101,8 +101,9 @@ class ConvectionDiffusion(GridScattering):
         gpu = self._gpu
         self._bind((gpu.rho, gpu.rho_s) if gpu is not None else None)
 
-    def stats(self) -> dict[str, Any]:
-        return {**super().stats(), "residual": self.residual}
+    def stats(self) -> TechniqueStats:
+        """:meth:`GridScattering.stats`; ``extra``: the source model's relative ``residual``."""
+        return dataclasses.replace(super().stats(), extra={"residual": self.residual})
 
     def release(self) -> None:
         super().release()
@@ -233,7 +234,6 @@ class GpuTransport:
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
         self._programs: dict[tuple[str, int, bool], ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
         self._rho: list[Texture3D] = []
         self._sigma_a: Texture3D | None = None
         self._lam: Texture3D | None = None
@@ -297,10 +297,9 @@ class GpuTransport:
     def _convect(self, iterations: int, steady: bool, diffusion_steps: int = 0) -> None:
         """``iterations`` convection dispatches (time steps, or steady sweeps), each followed by
         ``diffusion_steps`` explicit diffusion steps of the same field."""
-        GL = gl(self.render_window)
         grid = self._grid
         nz, ny, nx = grid.shape_zyx
-        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
+        groups = dispatch_groups(grid)
         conv = self.program("convection", self._channels, steady)
         light_vecs = []
         for light in self._lights:
@@ -312,22 +311,22 @@ class GpuTransport:
         light_vecs += [0.0] * (16 - len(light_vecs))
         assert self._sigma_a is not None and self._lam is not None
         for _ in range(iterations):
-            program = conv.use()
-            self._set(conv, "vv_rhoIn", 0)
-            self._set(conv, "vv_rhoOut", 1)
-            self._set(conv, "vv_sigmaA", 2)
-            self._set(conv, "vv_dims", nx, ny, nz)
-            self._set(conv, "vv_ratio", *grid.axis_ratios.tolist(), integer=False)
-            self._set(conv, "vv_origin", *grid.origin, integer=False)
-            self._set(conv, "vv_spacing", *grid.spacing, integer=False)
-            self._set(conv, "vv_sourceRadius2", max(grid.spacing) ** 2, integer=False)
-            self._set(conv, "vv_numLights", len(self._lights))
-            program.SetUniform4fv("vv_lightVec", 4, light_vecs)
+            conv.use()
+            conv.set_uniform("vv_rhoIn", 0)
+            conv.set_uniform("vv_rhoOut", 1)
+            conv.set_uniform("vv_sigmaA", 2)
+            conv.set_uniform("vv_dims", nx, ny, nz)
+            conv.set_uniform("vv_ratio", *grid.axis_ratios.tolist(), kind="f")
+            conv.set_uniform("vv_origin", *grid.origin, kind="f")
+            conv.set_uniform("vv_spacing", *grid.spacing, kind="f")
+            conv.set_uniform("vv_sourceRadius2", max(grid.spacing) ** 2, kind="f")
+            conv.set_uniform("vv_numLights", len(self._lights))
+            conv.set_uniform_array("vv_lightVec", light_vecs, size=4)
             self._rho[0].bind_image(0, "read")
             self._rho[1].bind_image(1, "write")
             self._sigma_a.bind_image(2, "read")
             conv.dispatch(groups)
-            unbind_images(GL, 3)
+            unbind_images(self.render_window, 3)
             conv.done()
             self._rho.reverse()
             for _ in range(diffusion_steps):
@@ -346,9 +345,6 @@ class GpuTransport:
         """The source model's relative residual after the last sweep's start."""
         return relative_residual(*self.source.residual())
 
-    def _set(self, prog: ComputeProgram, name: str, *values: float, integer: bool = True) -> None:
-        set_uniform(self._locations, prog, name, *values, integer=integer)
-
     def download(self) -> tuple[np.ndarray, np.ndarray]:
         """(ρ ``[z, y, x(, channels)]``, ρ_s ``[z, y, x, 4]``) for tests and verification."""
         return self._rho[0].download(), self.rho_s.download()
@@ -366,4 +362,3 @@ class GpuTransport:
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
-        self._locations.clear()

@@ -13,6 +13,7 @@ tolerance, so the result is final exactly when the samples are.
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -22,16 +23,15 @@ import vtk
 
 from vtkvol.engine import diffusion as kd
 from vtkvol.engine.diffusion import (
-    GROUP,
     GpuDiffusion,
     GpuSourceDiffusion,
     GridScattering,
+    dispatch_groups,
     relative_residual,
-    set_uniform,
-    unbind_images,
 )
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.technique import TechniqueStats
 from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -130,8 +130,9 @@ class HybridDiffusion(GridScattering):
             if self._gpu is not None:
                 self.residual = self._gpu.residual()
 
-    def stats(self) -> dict[str, Any]:
-        return {**super().stats(), "residual": self.residual}
+    def stats(self) -> TechniqueStats:
+        """:meth:`GridScattering.stats`; ``extra``: the source model's relative ``residual``."""
+        return dataclasses.replace(super().stats(), extra={"residual": self.residual})
 
     def release(self) -> None:
         super().release()
@@ -234,7 +235,6 @@ class GpuHybrid:
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
         self._programs: dict[tuple[str, str], ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
         self.rho_d: Texture3D | None = None  # type: ignore[assignment]
         self._sigma: Texture3D | None = None
         self.diffusion = GpuDiffusion(render_window)
@@ -305,11 +305,10 @@ class GpuHybrid:
     def _sample(self, iteration: int, values: Mapping[str, Any]) -> None:
         setup = self._setup
         assert setup is not None and self.rho_d is not None and self._sigma is not None
-        GL = gl(self.render_window)
         grid = setup.grid
         nz, ny, nx = grid.shape_zyx
         prog = self.program(values["estimator"], values["light_sampling"])
-        program = prog.use()
+        prog.use()
         vecs: list[float] = []
         for light in setup.lights:
             vecs += [*light.vector, 1.0 if light.kind == "point" else 0.0]
@@ -322,23 +321,21 @@ class GpuHybrid:
             falloffs += [*light.vector, d0]
         falloffs += [0.0] * (16 - len(falloffs))
         for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
-            set_uniform(self._locations, prog, name, unit)
-        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
-        set_uniform(self._locations, prog, "vv_origin", *grid.origin, integer=False)
-        set_uniform(self._locations, prog, "vv_spacing", *grid.spacing, integer=False)
-        set_uniform(self._locations, prog, "vv_majorant", float(setup.sigma_t.max()),
-                    integer=False)
-        handle = int(prog.prog.GetHandle())
-        for name, value in (("vv_iteration", iteration), ("vv_seed", int(values["seed"]))):
-            GL.glUniform1ui(GL.glGetUniformLocation(handle, name), value)
-        set_uniform(self._locations, prog, "vv_numLights", len(setup.lights))
-        program.SetUniform4fv("vv_lightVec", 4, vecs)
-        program.SetUniform3fv("vv_color", 4, colors)
-        program.SetUniform4fv("vv_falloff", 4, falloffs)
+            prog.set_uniform(name, unit)
+        prog.set_uniform("vv_dims", nx, ny, nz)
+        prog.set_uniform("vv_origin", *grid.origin, kind="f")
+        prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
+        prog.set_uniform("vv_majorant", float(setup.sigma_t.max()), kind="f")
+        prog.set_uniform("vv_iteration", iteration, kind="ui")
+        prog.set_uniform("vv_seed", int(values["seed"]), kind="ui")
+        prog.set_uniform("vv_numLights", len(setup.lights))
+        prog.set_uniform_array("vv_lightVec", vecs, size=4)
+        prog.set_uniform_array("vv_color", colors, size=3)
+        prog.set_uniform_array("vv_falloff", falloffs, size=4)
         self._sigma.bind_image(0, "read")
         self.rho_d.bind_image(1, "readwrite")
-        prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2])))
-        unbind_images(GL, 2)
+        prog.dispatch(dispatch_groups(grid))
+        unbind_images(self.render_window, 2)
         prog.done()
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
@@ -359,4 +356,3 @@ class GpuHybrid:
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
-        self._locations.clear()

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from vtkvol.engine.gl import Texture3D
-from vtkvol.engine.technique import Technique
+from vtkvol.engine.technique import Technique, TechniqueStats
 from vtkvol.plugins.path_traced import TECHNIQUE
 from vtkvol.reference import (
     DirectionalLight,
@@ -86,15 +86,14 @@ class PathTraced(Technique):
         self.host.bind_texture(DIRECT_UNIFORM, self._direct)
         self.host.bind_texture(SCATTERED_UNIFORM, self._scattered)
 
-    def stats(self) -> dict[str, Any]:
+    def stats(self) -> TechniqueStats:
+        """Restarts as ``recomputes``, the last frame's ms, ``backend`` "cpu" (the estimator
+        is numpy's); ``extra``: ``paths_per_voxel`` (the fewest paths any voxel has)."""
         textures = [t for t in (self._direct, self._scattered) if t is not None]
-        return {
-            "recomputes": self._restarts,
-            "iterations": self.iteration,
-            "recompute_ms": self._last_ms,
-            "paths_per_voxel": float(self._count.min()) if self._count.size else 0.0,
-            "texture_bytes": sum(t.nbytes for t in textures),
-        }
+        return TechniqueStats(
+            recomputes=self._restarts, recompute_ms=self._last_ms, backend="cpu",
+            texture_bytes=sum(t.nbytes for t in textures), iterations=self.iteration,
+            extra={"paths_per_voxel": float(self._count.min()) if self._count.size else 0.0})
 
     def release(self) -> None:
         for tex in (self._direct, self._scattered):

@@ -7,7 +7,7 @@ The engine part is :mod:`.technique` (GPU propagation, numpy twin); the shaders 
 from __future__ import annotations
 
 from vtkvol.engine.light_grid import RESOLUTIONS
-from vtkvol.model.params import Invalidates, Param
+from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
 _ILLUM = Invalidates.ILLUMINATION
@@ -57,13 +57,7 @@ PARAMETERS: tuple[Param, ...] = (
         "does not shadow itself (the thesis's h₀ = 1.25).",
         range=(0.0, 4.0), step=0.05, unit="voxel",
     ),
-    Param(
-        "backend", "auto", "Compute on",
-        "auto: compute shader when the OpenGL context has them, else numpy; cpu: always "
-        "numpy (verification).",
-        kind="choice", choices=("auto", "cpu"), invalidates=_ILLUM, uniform=False,
-        choice_labels=("GPU when available", "CPU (numpy)"),
-    ),
+    backend_param(_ILLUM),
 )
 
 

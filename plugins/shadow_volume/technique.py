@@ -8,14 +8,12 @@ parameter changes, never on camera moves. The propagation runs in a compute shad
 
 from __future__ import annotations
 
-import logging
 from collections.abc import Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtkvol.engine.gl import GLUnavailableError, Texture3D, compute_supported
-from vtkvol.engine.illuminator import scale_steps
+from vtkvol.engine.gl import GLUnavailableError, Texture3D
 from vtkvol.engine.light_grid import (
     LightGrid,
     light_softness,
@@ -28,14 +26,13 @@ from vtkvol.engine.light_grid_gpu import (
     LightTexture,
     ensure_work_textures,
 )
-from vtkvol.engine.technique import Technique
+from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats, scale_steps
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import TECHNIQUE
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
 
-log = logging.getLogger(__name__)
 
 TEXTURE_UNIFORM = "vv_shadow_volume_tex"
 #: Seconds of GPU work per chunk when the host precomputes in chunks (Illuminator.precompute):
@@ -57,8 +54,8 @@ class ShadowVolume(Technique):
         self._backend = ""  # "gpu" or "cpu": the path of the last recomputation
         self.grid: LightGrid | None = None
         self.light_texture: LightTexture | None = None
-        self._gpu: GpuPropagator | None = None
-        self._gpu_failed = False
+        #: The GPU-or-numpy choice (the ``backend`` parameter; numpy for good after a failure).
+        self._compute = ComputePath("shadow_volume", GpuPropagator)
         self._sigma_tex: Texture3D | None = None
         self._work_tex: dict[int, Texture3D] = {}
         self._sigma_cpu: np.ndarray | None = None
@@ -106,7 +103,7 @@ class ShadowVolume(Technique):
                 yield from self._recompute_gpu(gpu, grid, specs, values, chunk_s)
                 self._backend = "gpu"
             except GLUnavailableError as exc:
-                self._disable_gpu(exc)
+                self._compute.disable(exc)
                 gpu = None
         if gpu is None:
             yield from self._recompute_cpu(grid, specs, values)
@@ -114,18 +111,14 @@ class ShadowVolume(Technique):
         assert self.light_texture is not None
         self.host.bind_texture(TEXTURE_UNIFORM, self.light_texture)
 
-    def stats(self) -> dict[str, Any]:
-        """``recomputes`` (count), ``recompute_ms`` (GPU milliseconds of the last one when
-        ``host.profiling``, else the wall time of issuing it; on the numpy path its whole cost),
-        ``backend`` ("gpu" or "cpu") and ``texture_bytes`` (light, extinction and work
+    def stats(self) -> TechniqueStats:
+        """The light volume's recomputations (``texture_bytes``: light, extinction and work
         textures)."""
         textures = [self.light_texture, self._sigma_tex, *self._work_tex.values()]
-        return {
-            "recomputes": self._recomputes,
-            "recompute_ms": self.elapsed_ms("recompute"),
-            "backend": self._backend,
-            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
-        }
+        return TechniqueStats(
+            recomputes=self._recomputes, recompute_ms=self.elapsed_ms("recompute"),
+            backend=self._backend,
+            texture_bytes=sum(t.nbytes for t in textures if t is not None))
 
     def shader_defines(self, values: Mapping[str, Any]) -> dict[str, str]:
         """``VV_SV_POINT_LIGHTS``: whether any light is a point light (their offset direction
@@ -152,9 +145,7 @@ class ShadowVolume(Technique):
                 tex.release()
         self.light_texture = self._sigma_tex = None
         self._work_tex = {}
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
+        self._compute.release()
         self._sigma_cpu = None
         self._sigma_valid = {"gpu": False, "cpu": False}
         self.grid = None
@@ -186,26 +177,8 @@ class ShadowVolume(Technique):
         return np.array([[m.GetElement(i, j) for j in range(3)] for i in range(3)])
 
     def _gpu_path(self, values: Mapping[str, Any]) -> GpuPropagator | None:
-        if values["backend"] == "cpu" or self._gpu_failed:
-            return None
-        if self._gpu is None:
-            rw = self.host.render_window
-            try:
-                if rw is None or not compute_supported(rw):
-                    raise GLUnavailableError("this OpenGL context has no compute shaders")
-                self._gpu = GpuPropagator(rw)
-            except GLUnavailableError as exc:
-                self._disable_gpu(exc)
-                return None
-        return self._gpu
-
-    def _disable_gpu(self, exc: Exception) -> None:
-        if not self._gpu_failed:
-            log.warning("shadow_volume: compute path unavailable, using numpy (%s)", exc)
-        self._gpu_failed = True
-        if self._gpu is not None:
-            self._gpu.release()
-            self._gpu = None
+        """The GPU propagator (compiled on first use), or None for the numpy path."""
+        return self._compute.get(self.host, values["backend"])
 
     def _ensure_light_texture(self, grid: LightGrid, channels: int) -> bool:
         """Whether a new light texture was made."""

@@ -25,7 +25,7 @@ from vtkvol.engine.light_grid_gpu import (
     LightTexture,
     ensure_work_textures,
 )
-from vtkvol.engine.technique import ComputePath, Technique
+from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.translucency import TECHNIQUE
 from vtkvol.plugins.translucency.cpu import (
@@ -203,18 +203,13 @@ class Translucency(Technique):
             ),
         }
 
-    def stats(self) -> dict[str, Any]:
-        """``recomputes`` (count), ``recompute_ms`` (GPU milliseconds of the last one when
-        ``host.profiling``, else the wall time of issuing it; on the numpy path its whole cost),
-        ``backend`` ("gpu" or "cpu"), ``lights`` (light volumes) and ``texture_bytes``."""
+    def stats(self) -> TechniqueStats:
+        """The light volumes' recomputations; ``extra``: ``lights`` (light volumes held)."""
         textures = [*self.light_textures, *self._sigma_tex, *self._work_tex.values()]
-        return {
-            "recomputes": self._recomputes,
-            "recompute_ms": self.elapsed_ms("recompute"),
-            "backend": self._backend,
-            "lights": len(self.light_textures),
-            "texture_bytes": sum(t.nbytes for t in textures),
-        }
+        return TechniqueStats(
+            recomputes=self._recomputes, recompute_ms=self.elapsed_ms("recompute"),
+            backend=self._backend, texture_bytes=sum(t.nbytes for t in textures),
+            extra={"lights": len(self.light_textures)})
 
     def release(self) -> None:
         # The host removes our uniforms and texture bindings; we release what we created.

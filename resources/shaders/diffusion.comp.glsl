@@ -27,18 +27,15 @@ vec3 totalAt(ivec3 p)
   return direct + imageLoad(vv_scatteredIn, p).rgb;
 }
 
+#define VV_LAPLACIAN_TYPE vec3
+#define VV_LAPLACIAN_AT totalAt
+//@include laplacian.glsl
+
 void main()
 {
   ivec3 p = ivec3(gl_GlobalInvocationID);
   if (any(greaterThanEqual(p, vv_dims))) return;
-  vec3 t = totalAt(p);
-  vec3 lap = vec3(0.0);
-  for (int a = 0; a < 3; ++a)
-  {
-    ivec3 e = ivec3(0);
-    e[a] = 1;
-    lap += vv_weights[a] * (totalAt(p + e) + totalAt(p - e) - 2.0 * t);
-  }
+  vec3 lap = vv_laplacian(p, totalAt(p));
   vec3 s = imageLoad(vv_scatteredIn, p).rgb + imageLoad(vv_lambda, p).r * lap;
   imageStore(vv_scatteredOut, p, vec4(s, 0.0));
 }

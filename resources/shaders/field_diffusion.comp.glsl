@@ -18,17 +18,14 @@ uniform vec3 vv_weights;        // (smallest edge / edge)^2 along x, y, z
 
 vec4 at(ivec3 p) { return imageLoad(vv_fieldIn, clamp(p, ivec3(0), vv_dims - 1)); }
 
+#define VV_LAPLACIAN_TYPE vec4
+#define VV_LAPLACIAN_AT at
+//@include laplacian.glsl
+
 void main()
 {
   ivec3 p = ivec3(gl_GlobalInvocationID);
   if (any(greaterThanEqual(p, vv_dims))) return;
   vec4 c = at(p);
-  vec4 lap = vec4(0.0);
-  for (int a = 0; a < 3; ++a)
-  {
-    ivec3 e = ivec3(0);
-    e[a] = 1;
-    lap += vv_weights[a] * (at(p + e) + at(p - e) - 2.0 * c);
-  }
-  imageStore(vv_fieldOut, p, c + imageLoad(vv_lambda, p).r * lap);
+  imageStore(vv_fieldOut, p, c + imageLoad(vv_lambda, p).r * vv_laplacian(p, c));
 }

@@ -146,6 +146,21 @@ class Bindings:
             self._fu.RemoveUniform(name)
 
 
+def technique_uniform_values(tech: Any, values: Mapping[str, Any]) -> dict[str, Any]:
+    """The fragment uniforms of technique ``tech`` for parameter ``values``: one
+    ``vv_<name>_<parameter>`` per non-choice parameter declared ``uniform`` (int for int and bool
+    parameters, else float), then what its :meth:`~vtkvol.engine.technique.Technique.uniforms`
+    returns."""
+    out: dict[str, Any] = {}
+    for p in tech.PARAMETERS:
+        if p.uniform and p.kind != "choice":
+            value = values[p.name]
+            out[f"vv_{tech.NAME}_{p.name}"] = int(value) if p.kind in ("int", "bool") else (
+                float(value))
+    out.update(tech.uniforms(values))
+    return out
+
+
 def set_uniform(fu: vtk.vtkUniforms, name: str, value: Any) -> None:
     """Set a fragment custom uniform from a Python value: bool/int → int, float → float,
     2/3/4 numbers → vec2/3/4, any other count → float array."""

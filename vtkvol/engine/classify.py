@@ -341,25 +341,27 @@ class GpuClassifier:
         assert self._scalars is not None
         for z0 in range(0, nz, slab):
             z1 = min(nz, z0 + slab)
-            program = prog.use()
+            prog.use()
             for c, table in self._tables_2d.items():
-                program.SetUniformi(f"vv_tf2d_{c}", table.activate())
-            GL.glUniform3i(GL.glGetUniformLocation(int(program.GetHandle()), "vv_dims"),
-                           nx, ny, nz)
-            program.SetUniformi("vv_z0", z0)
-            program.SetUniformi("vv_z1", z1)
+                prog.set_uniform(f"vv_tf2d_{c}", table.activate())
+            prog.set_uniform("vv_dims", nx, ny, nz)
+            prog.set_uniform("vv_z0", z0)
+            prog.set_uniform("vv_z1", z1)
+            # The plan fills every uniform of the program family; a variant compiled without a
+            # feature (gradient opacity, 2-D tables, crop, clip planes) does not read that
+            # feature's uniforms, so they are optional here (the checked ones are above).
             for name, values in plan.ints.items():
                 if len(values) == 1:
-                    program.SetUniformi(name, values[0])
+                    prog.set_uniform(name, values[0], optional=True)
                 else:
-                    program.SetUniform1iv(name, len(values), values)
+                    prog.set_uniform_array(name, values, kind="i", optional=True)
             for name, values in plan.floats.items():
                 if name == "vv_clip":
-                    program.SetUniform4fv(name, len(values) // 4, values)
+                    prog.set_uniform_array(name, values, size=4, optional=True)
                 elif name == "vv_gradDivisor":
-                    program.SetUniform3f(name, values)
+                    prog.set_uniform(name, *values, kind="f", optional=True)
                 else:
-                    program.SetUniform1fv(name, len(values), values)
+                    prog.set_uniform_array(name, values, optional=True)
             self._scalars.bind(0)
             self._tables.bind(1)
             self._out.bind(2)

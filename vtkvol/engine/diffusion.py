@@ -31,9 +31,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
+from vtkvol.engine.gl import ComputeProgram, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import ComputePath, Technique
+from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
 
 if TYPE_CHECKING:
@@ -347,17 +347,16 @@ class GridScattering(Technique):
         self.host.bind_texture(self.DIRECT, direct)
         self.host.bind_texture(self.SCATTERED, scattered)
 
-    def stats(self) -> dict[str, Any]:
+    def stats(self) -> TechniqueStats:
+        """Restarts as ``recomputes``; ``recompute_ms``: milliseconds of the last frame's
+        iterations."""
         textures = [self._direct, self._scattered]
         if self._gpu is not None:
             textures += self._gpu.textures
-        return {
-            "recomputes": self._restarts,
-            "iterations": self.iteration,
-            "recompute_ms": self._last_ms,
-            "backend": self._backend,
-            "texture_bytes": sum(t.nbytes for t in textures if t is not None),
-        }
+        return TechniqueStats(
+            recomputes=self._restarts, recompute_ms=self._last_ms, backend=self._backend,
+            texture_bytes=sum(t.nbytes for t in textures if t is not None),
+            iterations=self.iteration)
 
     def release(self) -> None:
         for tex in (self._direct, self._scattered):
@@ -370,15 +369,89 @@ class GridScattering(Technique):
         return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
 
 
-class GpuDiffusion:
-    """The diffusion step on the GPU (``diffusion.comp.glsl``): ρ_s ping-pongs between two RGBA
-    textures; the direct light comes from a texture of up to four channels weighted by RGB
-    colours. Also used by the hybrid method (seed 003 HD), which shares KD's diffusion."""
+def dispatch_groups(grid: Grid) -> tuple[int, int, int]:
+    """Work groups of :data:`GROUP` that cover ``grid`` (x, y, z)."""
+    nz, ny, nx = grid.shape_zyx
+    return (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
+
+
+class GridPrograms:
+    """One diffusion compute shader (``SHADER``), compiled once per light-channel count, and
+    the dispatch loop its drivers share: image units bound, sweeps ping-ponged between two
+    textures, units detached after the last dispatch."""
+
+    SHADER: ClassVar[str]
+    LABEL: ClassVar[str]
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
         self._programs: dict[int, ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
+
+    def program(self, channels: int) -> ComputeProgram:
+        prog = self._programs.get(channels)
+        if prog is None:
+            source = compute_source(self.SHADER, {"VV_CHANNELS": str(channels)})
+            prog = ComputeProgram(self.render_window, source, self.LABEL)
+            self._programs[channels] = prog
+        return prog
+
+    @staticmethod
+    def bind(prog: ComputeProgram, grid: Grid, images: Sequence[tuple[str, Texture3D | None]],
+             *, weights: bool = False, placement: bool = False) -> None:
+        """Use ``prog``: image uniform ``name`` i on unit i (its texture bound for reading
+        when given; None: bound per sweep), ``vv_dims``, the axis ``vv_weights`` and/or
+        the grid's ``vv_origin`` and ``vv_spacing`` (µm)."""
+        prog.use()
+        for unit, (name, texture) in enumerate(images):
+            prog.set_uniform(name, unit)
+            if texture is not None:
+                texture.bind_image(unit, "read")
+        nz, ny, nx = grid.shape_zyx
+        prog.set_uniform("vv_dims", nx, ny, nz)
+        if weights:
+            prog.set_uniform("vv_weights", *grid.axis_weights.tolist(), kind="f")
+        if placement:
+            prog.set_uniform("vv_origin", *grid.origin, kind="f")
+            prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
+
+    def sweep(self, prog: ComputeProgram, grid: Grid, pair: list[Texture3D],
+              units: tuple[int, int], count: int, bound: int) -> None:
+        """``count`` dispatches over ``grid``, each reading ``pair[0]`` on ``units[0]`` and
+        writing ``pair[1]`` on ``units[1]``, the two swapped after each (``pair[0]`` holds
+        the result); then image units 0…``bound``−1 are detached and the program released."""
+        groups = dispatch_groups(grid)
+        for _ in range(count):
+            pair[0].bind_image(units[0], "read")
+            pair[1].bind_image(units[1], "write")
+            prog.dispatch(groups)
+            pair.reverse()
+        unbind_images(self.render_window, bound)
+        prog.done()
+
+    def release(self) -> None:
+        for prog in self._programs.values():
+            prog.release()
+        self._programs.clear()
+
+
+def _colours_uniforms(prog: ComputeProgram, colors: Sequence[tuple[float, float, float]]
+                      ) -> None:
+    """``vv_numLights`` and the lights' RGB ``vv_color[4]`` (unused entries 0)."""
+    flat = [c for color in colors for c in color]
+    prog.set_uniform("vv_numLights", len(colors))
+    prog.set_uniform_array("vv_color", flat + [0.0] * (12 - len(flat)), size=3)
+
+
+class GpuDiffusion(GridPrograms):
+    """The diffusion step on the GPU (``diffusion.comp.glsl``): ρ_s ping-pongs between two RGBA
+    textures; the direct light comes from a texture of up to four channels weighted by RGB
+    colours. Also used by the hybrid method (seed 003 HD), which shares KD's diffusion."""
+
+    SHADER = "diffusion.comp.glsl"
+    LABEL = "diffusion"
+
+    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
+        super().__init__(render_window)
         self._rho_s: list[Texture3D] = []
         self._lam: Texture3D | None = None
         self._grid = Grid((1, 1, 1), (1.0, 1.0, 1.0))
@@ -391,14 +464,6 @@ class GpuDiffusion:
     @property
     def textures(self) -> list[Texture3D]:
         return [*self._rho_s, *(t for t in (self._lam,) if t)]
-
-    def program(self, channels: int) -> ComputeProgram:
-        prog = self._programs.get(channels)
-        if prog is None:
-            source = compute_source("diffusion.comp.glsl", {"VV_CHANNELS": str(channels)})
-            prog = ComputeProgram(self.render_window, source, "diffusion")
-            self._programs[channels] = prog
-        return prog
 
     def reset(self, grid: Grid, lam: np.ndarray, channels: int) -> None:
         """Zero ρ_s on ``grid`` with diffusion rate ``lam``; the direct light will have
@@ -415,31 +480,12 @@ class GpuDiffusion:
     def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
             steps: int) -> None:
         """``steps`` diffusion steps of Σ_l colors[l]·direct[l] + ρ_s into ρ_s."""
-        GL = gl(self.render_window)
-        nz, ny, nx = self._grid.shape_zyx
-        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
-        flat = [c for color in colors for c in color]
-        flat += [0.0] * (12 - len(flat))
         prog = self.program(self._channels)
-        program = prog.use()
-        for name, unit in (("vv_direct", 0), ("vv_scatteredIn", 1), ("vv_scatteredOut", 2),
-                           ("vv_lambda", 3)):
-            set_uniform(self._locations, prog, name, unit)
-        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
-        set_uniform(self._locations, prog, "vv_weights", *self._grid.axis_weights.tolist(),
-                    integer=False)
-        set_uniform(self._locations, prog, "vv_numLights", len(colors))
-        program.SetUniform3fv("vv_color", 4, flat)
-        assert self._lam is not None
-        direct.bind_image(0, "read")
-        self._lam.bind_image(3, "read")
-        for _ in range(steps):
-            self._rho_s[0].bind_image(1, "read")
-            self._rho_s[1].bind_image(2, "write")
-            prog.dispatch(groups)
-            self._rho_s.reverse()
-        unbind_images(GL, 4)
-        prog.done()
+        self.bind(prog, self._grid, (("vv_direct", direct), ("vv_scatteredIn", None),
+                                     ("vv_scatteredOut", None), ("vv_lambda", self._lam)),
+                  weights=True)
+        _colours_uniforms(prog, colors)
+        self.sweep(prog, self._grid, self._rho_s, (1, 2), steps, bound=4)
 
     def _release_textures(self) -> None:
         for tex in self.textures:
@@ -449,21 +495,19 @@ class GpuDiffusion:
 
     def release(self) -> None:
         self._release_textures()
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
-        self._locations.clear()
+        super().release()
 
 
-class GpuSourceDiffusion:
+class GpuSourceDiffusion(GridPrograms):
     """The source model on the GPU (``source_diffusion.comp.glsl``): φ ping-pongs between two
     RGBA textures; the per-voxel coefficients are one RGBA texture; each sweep also writes the
     per-voxel squared residual and source, read back (once per frame) for the stopping test."""
 
+    SHADER = "source_diffusion.comp.glsl"
+    LABEL = "source diffusion"
+
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
-        self.render_window = render_window
-        self._programs: dict[int, ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
+        super().__init__(render_window)
         self._phi: list[Texture3D] = []
         self._coefficients: Texture3D | None = None
         self._residual: Texture3D | None = None
@@ -478,14 +522,6 @@ class GpuSourceDiffusion:
     @property
     def textures(self) -> list[Texture3D]:
         return [*self._phi, *(t for t in (self._coefficients, self._residual) if t)]
-
-    def program(self, channels: int) -> ComputeProgram:
-        prog = self._programs.get(channels)
-        if prog is None:
-            source = compute_source("source_diffusion.comp.glsl", {"VV_CHANNELS": str(channels)})
-            prog = ComputeProgram(self.render_window, source, "source diffusion")
-            self._programs[channels] = prog
-        return prog
 
     def reset(self, grid: Grid, coefficients: np.ndarray, channels: int,
               lights: Sequence[LightSource]) -> None:
@@ -511,34 +547,16 @@ class GpuSourceDiffusion:
     def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
             sweeps: int) -> None:
         """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``."""
-        GL = gl(self.render_window)
-        grid = self._grid
-        nz, ny, nx = grid.shape_zyx
-        groups = (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
-        flat = [c for color in colors for c in color]
-        flat += [0.0] * (12 - len(flat))
-        prog = self.program(self._channels)
-        program = prog.use()
-        for name, unit in (("vv_direct", 0), ("vv_coefficients", 1), ("vv_phiIn", 2),
-                           ("vv_phiOut", 3), ("vv_residual", 4)):
-            set_uniform(self._locations, prog, name, unit)
-        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
-        set_uniform(self._locations, prog, "vv_spacing", *grid.spacing, integer=False)
-        set_uniform(self._locations, prog, "vv_origin", *grid.origin, integer=False)
-        set_uniform(self._locations, prog, "vv_numLights", len(colors))
-        program.SetUniform3fv("vv_color", 4, flat)
-        program.SetUniform4fv("vv_falloff", 4, self._falloff)
         assert self._coefficients is not None and self._residual is not None
-        direct.bind_image(0, "read")
-        self._coefficients.bind_image(1, "read")
+        prog = self.program(self._channels)
+        self.bind(prog, self._grid, (("vv_direct", direct),
+                                     ("vv_coefficients", self._coefficients),
+                                     ("vv_phiIn", None), ("vv_phiOut", None),
+                                     ("vv_residual", None)), placement=True)
+        _colours_uniforms(prog, colors)
+        prog.set_uniform_array("vv_falloff", self._falloff, size=4)
         self._residual.bind_image(4, "write")
-        for _ in range(sweeps):
-            self._phi[0].bind_image(2, "read")
-            self._phi[1].bind_image(3, "write")
-            prog.dispatch(groups)
-            self._phi.reverse()
-        unbind_images(GL, 5)
-        prog.done()
+        self.sweep(prog, self._grid, self._phi, (2, 3), sweeps, bound=5)
 
     def residual(self) -> tuple[float, float]:
         """(Σ residual², Σ source²) of the last sweep's starting φ."""
@@ -554,67 +572,20 @@ class GpuSourceDiffusion:
 
     def release(self) -> None:
         self._release_textures()
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
-        self._locations.clear()
+        super().release()
 
 
-class GpuFieldDiffusion:
+class GpuFieldDiffusion(GridPrograms):
     """The published model's explicit diffusion of each light's own field
     (``field_diffusion.comp.glsl``), from one texture into another of the same format."""
 
-    def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
-        self.render_window = render_window
-        self._programs: dict[int, ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
+    SHADER = "field_diffusion.comp.glsl"
+    LABEL = "field diffusion"
 
     def run(self, field_in: Texture3D, field_out: Texture3D, lam: Texture3D, grid: Grid,
             channels: int) -> None:
         """One step ``field_out = field_in + λ ∇²field_in`` (zero flux at the box)."""
-        prog = self._programs.get(channels)
-        if prog is None:
-            source = compute_source("field_diffusion.comp.glsl", {"VV_CHANNELS": str(channels)})
-            prog = ComputeProgram(self.render_window, source, "field diffusion")
-            self._programs[channels] = prog
-        GL = gl(self.render_window)
-        nz, ny, nx = grid.shape_zyx
-        prog.use()
-        for name, unit in (("vv_fieldIn", 0), ("vv_fieldOut", 1), ("vv_lambda", 2)):
-            set_uniform(self._locations, prog, name, unit)
-        set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
-        set_uniform(self._locations, prog, "vv_weights", *grid.axis_weights.tolist(),
-                    integer=False)
-        field_in.bind_image(0, "read")
-        field_out.bind_image(1, "write")
-        lam.bind_image(2, "read")
-        prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2])))
-        unbind_images(GL, 3)
-        prog.done()
-
-    def release(self) -> None:
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
-        self._locations.clear()
-
-
-def set_uniform(cache: dict[tuple[int, str], int], prog: ComputeProgram, name: str,
-                *values: float, integer: bool = True) -> None:
-    """Set a uniform of the bound compute program; a missing one is an error (a renamed or
-    optimised-away uniform must not be silently ignored)."""
-    GL = gl(prog.render_window)
-    handle = int(prog.prog.GetHandle())
-    loc = cache.get((handle, name))
-    if loc is None:
-        loc = int(GL.glGetUniformLocation(handle, name))
-        if loc < 0:
-            raise GLUnavailableError(f"compute shader {prog.name!r} has no uniform {name!r}")
-        cache[(handle, name)] = loc
-    getattr(GL, f"glUniform{len(values)}{'i' if integer else 'f'}")(loc, *values)
-
-
-def unbind_images(GL: Any, units: int) -> None:
-    """Detach image units 0…units−1 (a texture left bound there stays referenced)."""
-    for unit in range(units):
-        GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
+        prog = self.program(channels)
+        self.bind(prog, grid, (("vv_fieldIn", None), ("vv_fieldOut", None), ("vv_lambda", lam)),
+                  weights=True)
+        self.sweep(prog, grid, [field_in, field_out], (0, 1), 1, bound=3)

@@ -47,7 +47,8 @@ class EmptySpaceSkipper:
         weights, blend mode, filter, the switch) and bind it; camera moves cost nothing."""
         mapper = self._host.volume.GetMapper()
         prop = self._host.volume.GetProperty()
-        key = (self._host._signature, self._host._skip_empty, int(mapper.GetBlendMode()),
+        key = (self._host.changes.opacity_signature, self._host._skip_empty,
+               int(mapper.GetBlendMode()),
                self._host._interpolation, int(prop.GetTransferFunctionMode()),
                mapper.GetMaskInput() is not None)
         if key == self._key:

@@ -20,7 +20,10 @@ lit ones: the exposure is one factor for the whole frame.
 from __future__ import annotations
 
 import contextlib
+import math
+from collections.abc import Iterator
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import vtk
@@ -118,3 +121,54 @@ def measure_auto_exposure(renderer: vtk.vtkRenderer, volume: vtk.vtkVolume,
         for prop in hidden:
             prop.VisibilityOn()
     return factor_from_frames(method, local, renderer.GetBackground())
+
+
+class ExposureControl:
+    """The host's exposure factor and sky fill, and the two frame modes the automatic exposure
+    needs: a service of :class:`~vtkvol.engine.illuminator.Illuminator`, uploaded through its
+    :class:`~vtkvol.engine.bindings.Bindings` (per-frame uniforms: nothing is recomputed)."""
+
+    def __init__(self, bindings: Any) -> None:
+        self._bindings = bindings
+        self.exposure = 1.0  #: the factor on the shaded colour (manual × automatic)
+        self.fill = 0.0  #: strength of the unshadowed sky fill (0…1)
+        self.probe = False  #: frames lit as local shading (measure_auto_exposure)
+        self.held = False  #: frames keep what is installed (holding_still)
+
+    def set(self, exposure: float | None = None, fill: float | None = None) -> None:
+        """Validate and upload ``exposure`` (> 0) and ``fill`` (0…1); None keeps a value."""
+        if exposure is not None:
+            if not (math.isfinite(exposure) and exposure > 0.0):
+                raise ValueError(f"exposure must be a finite number > 0, not {exposure!r}")
+            self.exposure = float(exposure)
+        if fill is not None:
+            if not (math.isfinite(fill) and 0.0 <= fill <= 1.0):
+                raise ValueError(f"fill must lie in 0…1, not {fill!r}")
+            self.fill = float(fill)
+        self.upload()
+
+    def upload(self) -> None:
+        """The uniforms as they stand (exposure 1 while lit as local shading)."""
+        self._bindings.upload_exposure(1.0 if self.probe else self.exposure, self.fill,
+                                       self.probe)
+
+    @contextlib.contextmanager
+    def holding_still(self) -> Iterator[None]:
+        """Frames rendered inside keep what is installed (the host prepares nothing)."""
+        held, self.held = self.held, True
+        try:
+            yield
+        finally:
+            self.held = held
+
+    @contextlib.contextmanager
+    def lit_as_local(self) -> Iterator[None]:
+        """Frames rendered inside are held still and lit as local shading (exposure 1)."""
+        with self.holding_still():
+            self.probe = True
+            self.upload()
+            try:
+                yield
+            finally:
+                self.probe = False
+                self.upload()

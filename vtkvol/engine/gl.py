@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import ctypes
 import os
+from collections.abc import Sequence
 from typing import Any, ClassVar
 
 import numpy as np
@@ -412,6 +413,42 @@ class ComputeProgram:
             raise GLUnavailableError(f"compute shader {name!r} failed to build:\n{error}")
         cache.ReleaseCurrentShader()
         self.prog = prog
+        self._locations: dict[str, int] = {}  # uniform name → location (−1: not in the program)
+
+    def location(self, uniform: str, *, optional: bool = False) -> int:
+        """The location of ``uniform`` in this program (cached). A uniform the program does not
+        have (misspelt, renamed, or optimised away because unused) is a
+        :class:`GLUnavailableError` naming program and uniform, unless ``optional`` (a
+        variant of the shader that does not read it): then −1."""
+        loc = self._locations.get(uniform)
+        if loc is None:
+            handle = int(self.prog.GetHandle())
+            loc = int(gl(self.render_window).glGetUniformLocation(handle, uniform))
+            self._locations[uniform] = loc
+        if loc < 0 and not optional:
+            raise GLUnavailableError(f"compute shader {self.name!r} has no uniform {uniform!r}")
+        return loc
+
+    def set_uniform(self, uniform: str, *values: float, kind: str = "i",
+                    optional: bool = False) -> None:
+        """Set ``uniform`` of this program, which must be bound (:meth:`use`): one to four
+        ``values`` as ``int``/``ivecN`` (``kind`` ``"i"``), ``uint``/``uvecN`` (``"ui"``) or
+        ``float``/``vecN`` (``"f"``). Checked: see :meth:`location`."""
+        loc = self.location(uniform, optional=optional)
+        if loc >= 0:
+            getattr(gl(self.render_window), f"glUniform{len(values)}{kind}")(loc, *values)
+
+    def set_uniform_array(self, uniform: str, values: Sequence[float], *, size: int = 1,
+                          kind: str = "f", optional: bool = False) -> None:
+        """Set the array ``uniform`` (elements of ``size`` components: ``float[n]`` is 1,
+        ``vec3[n]`` 3) from the flat ``values``, of ``kind`` ``"f"`` or ``"i"``; checked as
+        :meth:`set_uniform`."""
+        loc = self.location(uniform, optional=optional)
+        if loc >= 0:
+            dtype = np.float32 if kind == "f" else np.int32
+            flat = np.ascontiguousarray(values, dtype=dtype).ravel()
+            getattr(gl(self.render_window), f"glUniform{size}{kind}v")(
+                loc, len(flat) // size, flat)
 
     def use(self) -> vtk.vtkShaderProgram:
         self.render_window.GetShaderCache().ReadyShaderProgram(self.prog)
@@ -429,6 +466,7 @@ class ComputeProgram:
         self.render_window.GetShaderCache().ReleaseCurrentShader()
 
     def release(self) -> None:
+        self._locations.clear()
         if self.prog is not None:
             self.prog.ReleaseGraphicsResources(self.render_window)
             self.prog = None
@@ -437,3 +475,11 @@ class ComputeProgram:
             # believes the ray caster's program is bound and the next frame draws with
             # program 0 (a blank volume). Resync the cache.
             self.render_window.GetShaderCache().ReleaseCurrentShader()
+
+
+def unbind_images(render_window: vtk.vtkRenderWindow, units: int) -> None:
+    """Detach image units 0…``units``−1 after a dispatch (a texture left bound there stays
+    referenced by the context, and a later dispatch of another program could write it)."""
+    GL = gl(render_window)
+    for unit in range(units):
+        GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)

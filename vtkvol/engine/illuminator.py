@@ -21,26 +21,27 @@ import logging
 import math
 import time
 import weakref
-from collections.abc import Callable, Generator, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, Literal
 
 import numpy as np
 import vtk
 
 from vtkvol.engine import shaders
-from vtkvol.engine.bindings import Bindings
+from vtkvol.engine.bindings import Bindings, technique_uniform_values
+from vtkvol.engine.changes import ChangeTracker, first_changes
 from vtkvol.engine.empty_space import EmptySpaceSkipper
-from vtkvol.engine.gl import Texture3D
-from vtkvol.engine.lights import (  # noqa: F401  (key_light_direction: re-exported)
+from vtkvol.engine.exposure import ExposureControl
+from vtkvol.engine.lights import (  # noqa: F401  (re-exported)
     MAX_LIGHTS,
+    LightRig,
+    check_lights,
     key_light_direction,
-    light_specs_in_dataset,
-    renderer_lights,
 )
 from vtkvol.engine.opacity_source import OpacitySource
 from vtkvol.engine.precompute import PrecomputeRunner, no_collection
-from vtkvol.engine.shader_builder import ShaderBuild, ShaderBuilder, source_observer, verify
-from vtkvol.engine.smart import SmartStandIn, check_mapper
+from vtkvol.engine.shader_builder import ShaderBuilder, source_observer
+from vtkvol.engine.smart import SmartStandIn, check_mapper, input_problem, take_over
 from vtkvol.engine.technique import (  # noqa: F401  (old import path)
     Changes,
     LightSpec,
@@ -50,6 +51,7 @@ from vtkvol.engine.technique import (  # noqa: F401  (old import path)
     technique_class,
     warn_inert,
 )
+from vtkvol.engine.technique_host import ServedTechniqueHost
 from vtkvol.model.params import Invalidates
 from vtkvol.model.scene import MULTICHANNEL_LIGHTINGS, Light
 from vtkvol.model.techniques import TechniqueSpec
@@ -57,7 +59,7 @@ from vtkvol.model.techniques import TechniqueSpec
 logger = logging.getLogger(__name__)
 
 
-class Illuminator:
+class Illuminator(ServedTechniqueHost):
     """Installs one illumination technique on a ``vtkVolume`` and keeps it up to date.
 
     Parameters
@@ -126,49 +128,33 @@ class Illuminator:
         self.volume = volume
         self.renderer = renderer
         self.shader_property = volume.GetShaderProperty()
-        self._replacements = shaders.ReplacementSet(self.shader_property)
+        #: The services this host owns (plain classes; see docs/architecture.md).
+        self.shader_builder = ShaderBuilder(self)  # records the user's shading flags
+        self._replacements = self.shader_builder.replacements
         # Refused at the call rather than at the first frame: every shaded build replaces
         # VTK's lighting exit, so a user replacement there that drops the tag never composes.
         self._replacements.compose({key: "" for key in _REPLACED_OUTRIGHT})
-        #: "renderer": follow the renderer's own (switched-on) lights at every frame.
-        self._follow_renderer = lights == "renderer"
-        #: "renderer_fixed": take the renderer's lights once, at the first frame, and keep them
-        #: fixed in the world (a lone headlight becomes a key light; see _renderer_lights).
-        self._capture_renderer = lights == "renderer_fixed"
-        self._lights: list[Light] = (
-            [Light()] if lights is None or isinstance(lights, str) else list(lights)
-        )
-        self._check_lights(self._lights)
+        self.light_rig = LightRig(volume, renderer, lights)
         self._unsupported: str | None = None
-        self._frame_specs: list[LightSpec] | None = None
         self._check_input(raise_error=True)
         self._values: dict[str, dict[str, Any]] = {}
         self._inert_warned: set[tuple[str, str]] = set()  # (method, parameter) warned about
         self._technique_cls: type[Technique] = technique_class(method)
         self._technique: Technique | None = None
         self._detach_requested = False
-        self._changes = Changes(first=True, opacity=True, lights=True)
-        self._signature: tuple | None = None
-        self._light_signature: tuple | None = None
-        self._view_signature: tuple | None = None
+        self.changes = ChangeTracker(self)
         self._weights: np.ndarray | None = None  # (3, W) or None for identity
         self._weights_version = 0
         self.bindings = Bindings(self.shader_property)
         #: The bindings' table (uniform → (texture, sampler)); tests and diagnostics read it.
         self._textures = self.bindings.textures
-        self._expected_build: ShaderBuild | None = None
-        self._fragment_source = ""
-        #: The services this host owns (plain classes; see docs/architecture.md).
         self.opacity = OpacitySource(self)
         self.empty_space = EmptySpaceSkipper(self)
-        self.shader_builder = ShaderBuilder(self)
+        self.exposure_control = ExposureControl(self.bindings)
+        self.precompute_runner = PrecomputeRunner(self)
         self._closed = False
         self._albedo = 1.0
         self._phase_g = 0.0
-        self._exposure = 1.0  # the factor on the shaded colour (manual × automatic)
-        self._fill = 0.0
-        self._probe = False  # frames lit as local shading (exposure.measure_auto_exposure)
-        self._held = False  # frames keep what is installed (holding_still)
         self._interpolation = "trilinear"
         self._skip_empty = True
         self._multichannel_lighting = "per_channel"
@@ -189,33 +175,21 @@ class Illuminator:
         #: The renderer drawing this volume beside VTK's ray caster (vtkvol.engine.renderers),
         #: None while VTK's ray caster draws it.
         self.beside: Any = None
-        self.precompute_runner = PrecomputeRunner(self)
         self._precomputed_ms = 0.0  # precompute()'s work since the last frame
         self.set_parameters(**(parameters or {}))
-        #: The GPU mapper rendering in place of the user's vtkSmartVolumeMapper, if any.
-        self._stand_in: SmartStandIn | None = None
-        if isinstance(mapper, vtk.vtkSmartVolumeMapper):
-            # The smart mapper hides its GPU mapper; render through our own, kept in step with
-            # it, and give the user's back on release(). Swapped only now that nothing of the
-            # call can be refused any more.
-            self._stand_in = SmartStandIn(mapper)
-            mapper = self._stand_in.gpu
-            volume.SetMapper(mapper)
-            logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
-                        "vtkSmartVolumeMapper until release()")
+        #: The GPU mapper rendering in place of the user's vtkSmartVolumeMapper, if any; taken
+        #: over only now that nothing of the call can be refused any more.
+        self._stand_in: SmartStandIn | None = take_over(volume, mapper)
+        mapper = volume.GetMapper()
         # Illumination lives in VTK's computeLighting(): the surface model needs VTK's shaded
         # variant (gradients; PyVista's add_volume leaves shading off), the medium model the
         # unshaded one (no gradient is computed). The user's setting is restored on release().
-        prop = volume.GetProperty()
-        self._user_shade = [prop.GetShade(c) for c in range(4)]
         self._apply_shade()
         self._start_tag = renderer.AddObserver(vtk.vtkCommand.StartEvent, self._on_start)
         self._error_tag = mapper.AddObserver(vtk.vtkCommand.ErrorEvent, self._on_mapper_error)
         # Keep a reference: VTK holds the observer weakly.
         self._capture = source_observer(self._on_built_source)
-        self._shader_tag = volume.GetMapper().AddObserver(
-            vtk.vtkCommand.UpdateShaderEvent, self._capture
-        )
+        self._shader_tag = mapper.AddObserver(vtk.vtkCommand.UpdateShaderEvent, self._capture)
         # Our textures hold texture units only while this volume draws: units are one budget
         # for the whole window (32 on llvmpipe), and eight illuminated volumes holding theirs
         # all frame long left VTK none for its own textures (every volume went black).
@@ -242,14 +216,14 @@ class Illuminator:
         unchanged)."""
         follow = isinstance(lights, str) and lights == "renderer"
         if lights is not None and not follow:
-            self._check_lights(list(lights))
+            check_lights(list(lights))
         if multichannel_lighting is not None:
             check_multichannel_lighting(multichannel_lighting)
         cls = technique_class(method)
         cls.SPEC.validate({**self._values.get(cls.NAME, cls.defaults()), **(parameters or {})})
         self.set_method(method, parameters)
         if follow:
-            self._follow_renderer, self._capture_renderer = True, False
+            self.light_rig.follow()
         elif lights is not None:
             self.set_lights(lights)  # type: ignore[arg-type]
             self._keep_local_shading = False  # lights given: the caller asks them to shade
@@ -279,7 +253,7 @@ class Illuminator:
         if cls is not self._technique_cls:
             self._detach_requested = True
             self._technique_cls = cls
-            self._changes = Changes(first=True, opacity=True, lights=True)
+            self.changes.restart()
             self._apply_shade()
         if method == self.failed_method:
             self.failed_method = None
@@ -301,20 +275,17 @@ class Illuminator:
         changed = {k for k in merged if merged[k] != current.get(k)}
         warn_inert(spec, self.method, changed & set(values), merged, self._inert_warned)
         self._values[self.method] = merged
-        self._changes.parameters |= changed
-        self._changes.invalidates |= spec.invalidations(changed)
+        self.changes.pending.parameters |= changed
+        self.changes.pending.invalidates |= spec.invalidations(changed)
 
     @property
     def lights(self) -> list[Light]:
-        return list(self._lights)
+        return list(self.light_rig.lights)
 
     def set_lights(self, lights: Sequence[Light]) -> None:
         """Replace the lights (world space). Techniques are told whether the geometry changed
         (``Changes.lights``) or only colours and intensities (``Changes.light_colors``)."""
-        lights = list(lights)
-        self._check_lights(lights)
-        self._lights = lights
-        self._follow_renderer = self._capture_renderer = False
+        self.light_rig.set(lights)
 
     def _check_input(self, *, raise_error: bool) -> bool:
         """Whether the mapper's input can be illuminated (point scalars). Cell data cannot: at
@@ -324,16 +295,11 @@ class Illuminator:
         if mapper.GetInputAlgorithm() is None and mapper.GetInput() is None:
             return True  # no input yet: checked again at the first frame
         try:
-            img = self.image
+            message = input_problem(self.image)
         except RuntimeError:
             return True
-        if img.GetPointData().GetScalars() is not None:
+        if message is None:
             return True
-        what = "cell data" if img.GetCellData().GetScalars() is not None else "no scalars"
-        message = (
-            f"the volume's image has {what}; vtkvol illumination needs point scalars "
-            "(convert with vtkCellDataToPointData, in PyVista grid.cell_data_to_point_data())"
-        )
         if raise_error:
             raise ValueError(message)
         self._stand_aside(message)
@@ -345,42 +311,11 @@ class Illuminator:
         if self._unsupported is not None:
             return
         self._unsupported = message
-        self._replacements.clear()
-        self._expected_build = None  # nothing of ours is built any more
-        prop = self.volume.GetProperty()
-        for c, shade in enumerate(self._user_shade):
-            prop.SetShade(c, shade)
+        self.shader_builder.clear()  # nothing of ours is built any more
+        self.shader_builder.restore_shade()
         logger.error("vtkvol: %s", message)
         if self.on_error is not None:
             self.on_error(message)
-
-    def _take_renderer_lights(self) -> None:
-        """At a frame's start: the renderer's lights, every frame when following them, once
-        (the first frame, when the camera is set) when they are taken as fixed lights."""
-        if self._follow_renderer:
-            self._lights = self._renderer_lights()
-        elif self._capture_renderer:
-            self._lights = self._renderer_lights(fixed=True)
-            self._capture_renderer = False
-
-    def _renderer_lights(self, *, fixed: bool = False) -> list[Light]:
-        """:func:`vtkvol.engine.lights.renderer_lights` of this renderer."""
-        return renderer_lights(self.renderer, fixed=fixed)
-
-    @staticmethod
-    def _check_lights(lights: Sequence[Light]) -> None:
-        if len(lights) > MAX_LIGHTS:
-            raise ValueError(f"at most {MAX_LIGHTS} lights are supported, not {len(lights)}")
-
-    @property
-    def albedo(self) -> float:
-        """Single-scattering albedo of the ``medium`` model (0…1)."""
-        return self._albedo
-
-    @property
-    def phase_g(self) -> float:
-        """Henyey–Greenstein asymmetry of the ``medium`` model (0 = isotropic)."""
-        return self._phase_g
 
     def set_material(self, *, albedo: float | None = None, phase_g: float | None = None) -> None:
         """Scattering material of the ``medium`` lighting model: single-scattering ``albedo``
@@ -390,65 +325,40 @@ class Illuminator:
                 raise ValueError(f"albedo must lie in 0…1, not {albedo!r}")
             if albedo != self._albedo:
                 self._albedo = float(albedo)
-                self._changes.invalidates |= Invalidates.ACCUMULATION
+                self.changes.pending.invalidates |= Invalidates.ACCUMULATION
         if phase_g is not None:
             if not (math.isfinite(phase_g) and -0.99 <= phase_g <= 0.99):
                 raise ValueError(f"phase_g must lie in −0.99…0.99, not {phase_g!r}")
             if phase_g != self._phase_g:
                 self._phase_g = float(phase_g)
-                self._changes.invalidates |= Invalidates.ACCUMULATION
+                self.changes.pending.invalidates |= Invalidates.ACCUMULATION
 
     @property
     def exposure(self) -> float:
         """The factor on the shaded colour (1 = as lit)."""
-        return self._exposure
+        return self.exposure_control.exposure
 
     @property
     def fill(self) -> float:
         """Strength of the unshadowed sky fill (0…1; 0 = none)."""
-        return self._fill
+        return self.exposure_control.fill
 
     def set_exposure(self, exposure: float | None = None, fill: float | None = None) -> None:
         """The shaded colour's ``exposure`` factor (> 0) and the sky ``fill`` strength (0…1):
         per-frame uniforms, nothing is recomputed (they apply to frames held still too)."""
-        if exposure is not None:
-            if not (math.isfinite(exposure) and exposure > 0.0):
-                raise ValueError(f"exposure must be a finite number > 0, not {exposure!r}")
-            self._exposure = float(exposure)
-        if fill is not None:
-            if not (math.isfinite(fill) and 0.0 <= fill <= 1.0):
-                raise ValueError(f"fill must lie in 0…1, not {fill!r}")
-            self._fill = float(fill)
-        self._upload_exposure()
+        self.exposure_control.set(exposure, fill)
 
-    def _upload_exposure(self) -> None:
-        self.bindings.upload_exposure(1.0 if self._probe else self._exposure, self._fill,
-                                      self._probe)
-
-    @contextlib.contextmanager
-    def holding_still(self) -> Iterator[None]:
+    def holding_still(self) -> contextlib.AbstractContextManager[None]:
         """Frames rendered inside keep what is installed: nothing is prepared, recomputed or
         refined (as between two chunks of :meth:`precompute`); per-frame uniforms set
         meanwhile (exposure, fill) still apply."""
-        held, self._held = self._held, True
-        try:
-            yield
-        finally:
-            self._held = held
+        return self.exposure_control.holding_still()
 
-    @contextlib.contextmanager
-    def lit_as_local(self) -> Iterator[None]:
+    def lit_as_local(self) -> contextlib.AbstractContextManager[None]:
         """Frames rendered inside are held still (:meth:`holding_still`) and lit as local
         shading: every light unobstructed, no ambient occlusion, no in-scattering, exposure 1.
         The automatic exposure's reference frame (:mod:`vtkvol.engine.exposure`)."""
-        with self.holding_still():
-            self._probe = True
-            self._upload_exposure()
-            try:
-                yield
-            finally:
-                self._probe = False
-                self._upload_exposure()
+        return self.exposure_control.lit_as_local()
 
     @property
     def interpolation(self) -> str:
@@ -535,7 +445,7 @@ class Illuminator:
     def invalidate(self) -> None:
         """Force a recompute of precomputed light at the next frame (rarely needed: changes to
         the input image, opacity functions, cropping and volume matrix are detected)."""
-        self._changes.opacity = True
+        self.changes.pending.opacity = True
 
     @property
     def closed(self) -> bool:
@@ -543,11 +453,6 @@ class Illuminator:
         return self._closed
 
     # -- precomputation outside a frame -----------------------------------------------------------
-    @property
-    def precomputing(self) -> bool:
-        """True while :meth:`precompute` runs (between its chunks, too)."""
-        return self.precompute_runner.stepping
-
     def precompute(self, progress: Callable[[float], bool] | None = None) -> bool:
         """Bring the technique's precomputed light up to date now, outside a frame, in the
         chunks its :meth:`~vtkvol.engine.technique.Technique.prepare_steps` yields.
@@ -569,8 +474,7 @@ class Illuminator:
     @property
     def has_pending_changes(self) -> bool:
         """Whether changes wait for a prepare (deferred ones included) that may recompute."""
-        return self._needs_prepare(self._changes) or (
-            self._signature is not None and self.opacity.signature() != self._signature)
+        return self.changes.has_pending()
 
     def _ensure_technique(self) -> None:
         """Release a technique whose detach was asked for, take in what changed since the last
@@ -578,15 +482,10 @@ class Illuminator:
         if self._detach_requested and self._technique is not None:
             self._release_technique()
         self._detach_requested = False
-        self._detect_changes()
+        self.changes.detect()
         if self._technique is None:
             self._technique = self._technique_cls(self)
-            self._changes.first = True
-
-    def _needs_prepare(self, changes: Changes) -> bool:
-        """Whether ``changes`` may make a (non-progressive) technique recompute."""
-        return bool(changes.first or changes.opacity or changes.lights or changes.parameters
-                    or changes.view or changes.invalidates)
+            self.changes.pending.first = True
 
     # -- progressive techniques -----------------------------------------------------------------
     @property
@@ -607,119 +506,14 @@ class Illuminator:
         ``max_frames`` rendered or ``max_seconds`` passed; returns the frames rendered."""
         return self.precompute_runner.converge(max_frames, max_seconds, iterations=iterations)
 
-    # -- what techniques read -------------------------------------------------------------------
-    @property
-    def image(self) -> vtk.vtkImageData:
-        mapper = self.volume.GetMapper()
-        mapper.Update() if mapper.GetInputAlgorithm() is not None else None
-        img = mapper.GetInput()
-        if img is None:
-            raise RuntimeError("the volume's mapper has no input image")
-        return img
-
-    @property
-    def dims(self) -> tuple[int, int, int]:
-        """(nx, ny, nz) voxels."""
-        return tuple(int(d) for d in self.image.GetDimensions())  # type: ignore[return-value]
-
-    @property
-    def spacing(self) -> tuple[float, float, float]:
-        """(sx, sy, sz) µm (dataset space)."""
-        return tuple(float(s) for s in self.image.GetSpacing())  # type: ignore[return-value]
-
-    @property
-    def unit_distance(self) -> float:
-        """Opacity unit distance (µm) of component 0: TF opacity is per this thickness."""
-        return float(self.volume.GetProperty().GetScalarOpacityUnitDistance(0))
-
-    def light_specs(self) -> list[LightSpec]:
-        """Enabled lights converted to dataset space (through the volume's inverse matrix).
-
-        Computed once per frame (the host and the technique both ask); outside a frame, anew."""
-        if self._frame_specs is not None:
-            return list(self._frame_specs)
-        return self._compute_light_specs()
-
-    def _compute_light_specs(self) -> list[LightSpec]:
-        return light_specs_in_dataset(self._lights, self.volume, self.image)
-
-    # -- classification on the GPU --------------------------------------------------------------
-
-    # -- the opacity source (engine/opacity_source.py), as techniques and tests reach it -----
-    def opacity_volume(self) -> np.ndarray:
-        """:meth:`OpacitySource.opacity_volume`: per-voxel opacity per ``unit_distance``,
-        float32 ``[z, y, x]``, cropped, clipped and slice-weighted."""
-        return self.opacity.opacity_volume()
-
-    def opacity_volume_steps(self) -> Generator[float, None, np.ndarray]:
-        """:meth:`OpacitySource.opacity_volume_steps` (for ``prepare_steps``)."""
-        return self.opacity.opacity_volume_steps()
-
-    def opacity_texture(self, quantity: str = "alpha") -> Texture3D:
-        """:meth:`OpacitySource.opacity_texture`: the opacity as a host-owned r32f texture."""
-        return self.opacity.opacity_texture(quantity)
-
-    def opacity_texture_steps(self, quantity: str = "alpha"
-                              ) -> Generator[float, None, Texture3D]:
-        """:meth:`OpacitySource.opacity_texture_steps` (for ``prepare_steps``)."""
-        return self.opacity.opacity_texture_steps(quantity)
-
-    def classify_2d(self, c: int, what: Literal["alpha", "rgb"] = "alpha") -> np.ndarray | None:
-        """:meth:`OpacitySource.classify_2d`: component ``c``'s 2-D table at every voxel."""
-        return self.opacity.classify_2d(c, what)
-
-    @property
-    def classification(self) -> str:
-        """:attr:`OpacitySource.classification`: ``"auto"``, ``"gpu"`` or ``"cpu"``."""
-        return self.opacity.classification
-
-    @classification.setter
-    def classification(self, backend: str) -> None:
-        self.opacity.classification = backend
-
-    def classification_stats(self) -> dict[str, Any]:
-        """:meth:`OpacitySource.classification_stats`."""
-        return self.opacity.classification_stats()
-
-    def opacity_signature(self) -> tuple:
-        """Changes whenever the classified opacity can (data, TF, crop, clipping, weights,
-        placement): renderers beside the ray caster restart on it."""
-        return self.opacity.signature()
-
-    def _opacity_signature(self) -> tuple:
-        return self.opacity.signature()
-
-    # -- GL helpers for techniques --------------------------------------------------------------
-    def bind_texture(self, uniform: str, texture: Any, sampler: str = "sampler3D") -> None:
-        """:meth:`Bindings.bind_texture`: ``texture`` visible to GLSL as ``uniform``, removed
-        when the technique is switched or released."""
-        self.bindings.bind_texture(uniform, texture, sampler)
-
-    def bound_textures(self) -> dict[str, Any]:
-        """:meth:`Bindings.bound_textures`: the technique's textures by uniform name."""
-        return self.bindings.bound_textures()
-
-    def unbind_texture(self, uniform: str) -> None:
-        self.bindings.unbind_texture(uniform)
-
-    @property
-    def shaded(self) -> bool:
-        """:meth:`ShaderBuilder.shaded`: VTK generates its shaded ``computeLighting()``."""
-        return self.shader_builder.shaded()
-
     def _apply_shade(self) -> None:
-        # surface: VTK's shaded variant computes the gradient we shade with; medium: the
-        # unshaded variant skips it (the medium model uses no gradient).
-        prop = self.volume.GetProperty()
-        shade = 1 if self.spec.lighting == "surface" else 0
-        keep = self._keep_local_shading and self.method == "local"
-        for c in range(4):
-            prop.SetShade(c, self._user_shade[c] if keep else shade)
+        self.shader_builder.apply_shade(
+            keep_user=self._keep_local_shading and self.method == "local")
 
     @property
     def fragment_source(self) -> str:
         """The last fragment shader VTK built with our replacements (for tests/diagnostics)."""
-        return self._fragment_source
+        return self.shader_builder.fragment_source
 
     # -- failures -------------------------------------------------------------------------------
     def _fail(self, why: str) -> None:
@@ -743,26 +537,17 @@ class Illuminator:
                    "the log)")
 
     def _on_built_source(self, source: str) -> None:
-        self._fragment_source = source
-        self._check_built_source(source)
-
-    def _check_built_source(self, source: str) -> None:
-        """Every section, replaced VTK line and technique uniform of the last build must have
-        reached the shader VTK built (a missing VTK tag or line is an error, not a silent
-        no-op; :func:`vtkvol.engine.shader_builder.verify`)."""
-        pending, self._expected_build = self._expected_build, None
-        if pending is None:
-            return
-        why = verify(pending, source)
+        # Every section, replaced VTK line and technique uniform of the last build must have
+        # reached the shader VTK built (a missing VTK tag or line is an error, not a silent
+        # no-op; :func:`vtkvol.engine.shader_builder.verify`).
+        why = self.shader_builder.built(source)
         if why is not None:
             self._fail(why)
 
     # -- frame ----------------------------------------------------------------------------------
     def _install_shader(self, values: Mapping[str, Any]) -> None:
         assert self._technique is not None
-        build = self.shader_builder.build(self._technique, values)
-        if self._replacements.install(build.replacements):
-            self._expected_build = build
+        self.shader_builder.install(self._technique, values)
 
     def _on_start(self, _renderer: Any, _event: str) -> None:
         with no_collection():
@@ -773,7 +558,7 @@ class Illuminator:
                 self._on_draw_end()  # preparing may have given our textures units
                 self._stand_aside(str(exc).removeprefix("vtkvol: "))
             finally:
-                self._frame_specs = None
+                self.light_rig.frame_specs = None
 
     def _start_frame(self) -> None:
         if self._closed:
@@ -784,11 +569,11 @@ class Illuminator:
             return
         if not self._check_input(raise_error=False):
             return
-        self._take_renderer_lights()
-        self._frame_specs = self._compute_light_specs()
+        self.light_rig.take_renderer_lights()
+        self.light_rig.frame_specs = self.light_rig.compute(self.image)
         self.render_window = self.renderer.GetRenderWindow()
         t0 = time.perf_counter()
-        if self.precompute_runner.stepping or self._held:
+        if self.precompute_runner.stepping or self.exposure_control.held:
             # A repaint between two chunks of precompute(): the technique is half-way, so the
             # frame keeps what was installed and bound before (changes wait for later). The
             # same for frames held still on purpose (holding_still).
@@ -797,11 +582,11 @@ class Illuminator:
         self._ensure_technique()
         self._upload_weights()
         self.empty_space.update()
-        changes, self._changes = self._changes, Changes()
+        changes = self.changes.take()
         if self.precompute_runner.defers(changes):
             # Keep the previous light: no prepare, the changes wait (merged) for later;
             # per-frame uniforms (colours, strengths) still follow.
-            self._changes = changes.merge(self._changes)
+            self.changes.keep(changes)
             values = self.parameters
             self._install_shader(values)
             self._upload_uniforms(values)
@@ -817,7 +602,7 @@ class Illuminator:
             self._release_technique()
             self._detach_requested = False
             self._technique = self._technique_cls(self)
-            self._prepare_and_install(Changes(first=True, opacity=True, lights=True))
+            self._prepare_and_install(first_changes())
         self._on_draw_end()  # preparing activated them; they get units again to draw
         self.last_prepare_ms = (time.perf_counter() - t0) * 1e3 + self._precomputed_ms
         self._precomputed_ms = 0.0
@@ -839,55 +624,16 @@ class Illuminator:
         self._install_shader(values)
         self._upload_uniforms(values)
 
-    def _detect_changes(self) -> None:
-        signature = self.opacity.signature()
-        if signature != self._signature:
-            self._signature = signature
-            self._changes.opacity = True
-        specs = self.light_specs()
-        geometry = tuple((s.kind, s.vector, s.size, s.falloff_distance) for s in specs)
-        colors = tuple(s.color for s in specs)
-        if self._light_signature is None or geometry != self._light_signature[0]:
-            self._changes.lights = True
-        elif colors != self._light_signature[1]:
-            self._changes.light_colors = True
-        self._light_signature = (geometry, colors)
-        if self.spec.has("view_dependent"):
-            view = self._camera_signature()
-            if view != self._view_signature:
-                self._view_signature = view
-                self._changes.view = True
-
-    def _camera_signature(self) -> tuple:
-        cam = self.renderer.GetActiveCamera()
-        return (
-            tuple(cam.GetPosition()), tuple(cam.GetFocalPoint()), tuple(cam.GetViewUp()),
-            cam.GetViewAngle(), cam.GetParallelProjection(), cam.GetParallelScale(),
-            tuple(self.renderer.GetSize()),
-        )
-
     # -- empty-space skipping -------------------------------------------------------------------
 
     def _upload_weights(self) -> None:
         self.bindings.upload_weights(self.render_window, self._weights)
 
-    def _technique_uniform_values(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        tech = self._technique
-        assert tech is not None
-        out: dict[str, Any] = {}
-        for p in tech.PARAMETERS:
-            if p.uniform and p.kind != "choice":
-                value = values[p.name]
-                out[f"vv_{tech.NAME}_{p.name}"] = int(value) if p.kind in ("int", "bool") else (
-                    float(value)
-                )
-        out.update(tech.uniforms(values))
-        return out
-
     def _upload_uniforms(self, values: Mapping[str, Any]) -> None:
         medium = (self._albedo, self._phase_g) if self.spec.lighting == "medium" else None
-        self.bindings.upload(self.light_specs(), medium, self._technique_uniform_values(values))
-        self._upload_exposure()
+        self.bindings.upload(self.light_specs(), medium,
+                             technique_uniform_values(self._technique, values))
+        self.exposure_control.upload()
 
     def _release_technique(self) -> None:
         """Release the technique and everything the host set up for it (its uniforms and
@@ -918,10 +664,8 @@ class Illuminator:
         self._release_technique()
         self.empty_space.drop()
         self.bindings.release()
-        self._replacements.clear()
-        prop = self.volume.GetProperty()
-        for c, shade in enumerate(self._user_shade):
-            prop.SetShade(c, shade)
+        self.shader_builder.clear()
+        self.shader_builder.restore_shade()
         self.renderer.RemoveObserver(self._start_tag)
         self.volume.GetMapper().RemoveObserver(self._shader_tag)
         self.volume.GetMapper().RemoveObserver(self._error_tag)

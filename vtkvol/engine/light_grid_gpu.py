@@ -8,12 +8,11 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Iterator, Mapping
-from typing import Any
 
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
+from vtkvol.engine.gl import ComputeProgram, Texture3D, gl, unbind_images
 from vtkvol.engine.light_grid import (
     SEED000_RADIUS,
     LightGrid,
@@ -102,7 +101,6 @@ class GpuPropagator:
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
         self._programs: dict[tuple, ComputeProgram] = {}
-        self._locations: dict[tuple[int, str], int] = {}
         self.program(("convert",))  # fail now, not mid-frame, when compute cannot work
 
     def program(self, key: tuple) -> ComputeProgram:
@@ -123,14 +121,6 @@ class GpuPropagator:
             self._programs[key] = prog
         return prog
 
-    def _set(self, prog: ComputeProgram, name: str, *values: float, integer: bool = True) -> None:
-        GL = gl(self.render_window)
-        loc = self._location(prog, name)
-        if loc < 0:
-            return  # optimised away
-        fn = {1: "glUniform1", 2: "glUniform2", 3: "glUniform3"}[len(values)]
-        getattr(GL, fn + ("i" if integer else "f"))(loc, *values)
-
     def prefilter(self, alpha: np.ndarray, sigma: Texture3D, grid: LightGrid) -> None:
         """TF opacity ``alpha`` (data resolution, ``[z, y, x]``, numpy) -> s on the light grid,
         for techniques that derive their own opacities (translucency's per-channel ones; the
@@ -140,7 +130,6 @@ class GpuPropagator:
         memory). Coarser grids: a temporary data-resolution texture, converted in place, then
         reduced by box averaging into ``sigma``.
         """
-        GL = gl(self.render_window)
         full = grid.dims == grid.data_dims
         data = sigma if full else Texture3D(self.render_window, alpha.shape)
         try:
@@ -148,14 +137,14 @@ class GpuPropagator:
             data.tex.Deactivate()  # upload bound it to a unit; image units are separate
             prog = self.program(("convert",))
             prog.use()
-            self._set(prog, "vv_volume", 0)
-            self._set(prog, "vv_dataDims", *grid.data_dims)
+            prog.set_uniform("vv_volume", 0)
+            prog.set_uniform("vv_dataDims", *grid.data_dims)
             data.bind_image(0, "readwrite")
             nx, ny, nz = grid.data_dims
             prog.dispatch((-(-nx // 8), -(-ny // 8), -(-nz // 4)))
             if not full:
                 prog = self._reduce(data, sigma, grid)
-            self._unbind_images(GL, 2)
+            unbind_images(self.render_window, 2)
             prog.done()
         finally:
             if not full:
@@ -172,7 +161,7 @@ class GpuPropagator:
             depth.copy_to(sigma)
         else:
             prog = self._reduce(depth, sigma, grid)
-            self._unbind_images(GL, 2)
+            unbind_images(self.render_window, 2)
             prog.done()
         if chunked:
             GL.glFinish()
@@ -184,11 +173,11 @@ class GpuPropagator:
         caller to unbind and finish."""
         prog = self.program(("reduce",))
         prog.use()
-        self._set(prog, "vv_sigmaData", 0)
-        self._set(prog, "vv_sigmaOut", 1)
-        self._set(prog, "vv_dataDims", *grid.data_dims)
-        self._set(prog, "vv_gridDims", *grid.dims)
-        self._set(prog, "vv_gridStep", *grid.step, integer=False)
+        prog.set_uniform("vv_sigmaData", 0)
+        prog.set_uniform("vv_sigmaOut", 1)
+        prog.set_uniform("vv_dataDims", *grid.data_dims)
+        prog.set_uniform("vv_gridDims", *grid.dims)
+        prog.set_uniform("vv_gridStep", *grid.step, kind="f")
         data.bind_image(0, "read")
         sigma.bind_image(1, "write")
         mx, my, mz = grid.dims
@@ -235,34 +224,35 @@ class GpuPropagator:
         def bind(axis: int, p_sweep: int, restrict: bool) -> tuple[int, int]:
             if edge is not None:
                 set_uniforms(edge, axis, p_sweep, restrict)
-                self._set(edge, "vv_cellOrigin", 0, 0)
-                edge_locs[:] = [self._location(edge, n) for n in
-                                ("vv_slice", "vv_first", "vv_cellOrigin")]
+                edge_locs[:] = [edge.location(n) for n in ("vv_slice", "vv_first", "vv_cellOrigin")]
             set_uniforms(prog, axis, p_sweep, restrict)
             sigma.bind_image(0, "read")
             out.bind_image(2, "write" if out.channels == 1 else "readwrite")
             work[axis].bind_image(1, "readwrite")
-            return self._location(prog, "vv_slice"), self._location(prog, "vv_first")
+            return prog.location("vv_slice"), prog.location("vv_first")
 
         edge_locs: list[int] = []
 
         def set_uniforms(target: ComputeProgram, axis: int, p_sweep: int, restrict: bool) -> None:
-            program = target.use()
-            self._set(target, "vv_sigma", 0)
-            self._set(target, "vv_work", 1)
-            self._set(target, "vv_out", 2)
-            self._set(target, "vv_dims", *grid.dims)
-            self._set(target, "vv_point", int(kind == "point"))
-            self._set(target, "vv_light", *(float(c) for c in vec), integer=False)
-            self._set(target, "vv_cellUm", *grid.cell_um, integer=False)
-            self._set(target, "vv_invUnit", 1.0 / unit_distance, integer=False)
-            self._set(target, "vv_radius", radius)
-            self._set(target, "vv_channel", channel)
-            program.SetUniform1fv("vv_gauss", radius + 1, [float(x) for x in g])
-            self._set(target, "vv_axis", axis)
-            self._set(target, "vv_sweep", p_sweep)
-            self._set(target, "vv_restrict", int(restrict))
-            self._set(target, "vv_cellOrigin", 0, 0)
+            # The pass is compiled in variants (model, channels, cells per invocation) and each
+            # reads a subset: the variant-dependent uniforms are optional (measured per
+            # variant: the seed-000 model reads no cell size, unit or Gaussian; one channel no
+            # vv_channel; the block kernel no vv_point, vv_restrict, vv_cellOrigin).
+            target.use()
+            target.set_uniform("vv_sigma", 0)
+            target.set_uniform("vv_work", 1)
+            target.set_uniform("vv_out", 2)
+            target.set_uniform("vv_dims", *grid.dims)
+            target.set_uniform("vv_light", *(float(c) for c in vec), kind="f")
+            target.set_uniform("vv_axis", axis)
+            target.set_uniform("vv_sweep", p_sweep)
+            target.set_uniform("vv_point", int(kind == "point"), optional=True)
+            target.set_uniform("vv_cellUm", *grid.cell_um, kind="f", optional=True)
+            target.set_uniform("vv_invUnit", 1.0 / unit_distance, kind="f", optional=True)
+            target.set_uniform("vv_channel", channel, optional=True)
+            target.set_uniform_array("vv_gauss", [float(x) for x in g], optional=True)
+            target.set_uniform("vv_restrict", int(restrict), optional=True)
+            target.set_uniform("vv_cellOrigin", 0, 0, optional=True)
 
         done = 0
         per_chunk = 4  # slices per chunk; adapted to chunk_s after each measured chunk
@@ -296,13 +286,13 @@ class GpuPropagator:
                     GL.glFinish()
                     elapsed = max(time.perf_counter() - t0, 1e-4)
                     per_chunk = max(1, min(4 * per_chunk, round(per_chunk * chunk_s / elapsed)))
-                    self._unbind_images(GL, 3)
+                    unbind_images(self.render_window, 3)
                     prog.done()
                     yield done
                     slice_loc, first_loc = bind(a, p.sweep, p.restrict)
                     issued, t0 = 0, time.perf_counter()
         GL.glMemoryBarrier(GL.GL_TEXTURE_FETCH_BARRIER_BIT | GL.GL_SHADER_IMAGE_ACCESS_BARRIER_BIT)
-        self._unbind_images(GL, 3)
+        unbind_images(self.render_window, 3)
         prog.done()
         if chunk_s is not None:
             GL.glFinish()
@@ -313,21 +303,7 @@ class GpuPropagator:
         """Slices :meth:`propagate_steps` dispatches for one light (its progress total)."""
         return sum(len(p.slices) for p in plan_passes(grid.dims, kind, vec))
 
-    def _location(self, prog: ComputeProgram, name: str) -> int:
-        handle = int(prog.prog.GetHandle())
-        loc = self._locations.get((handle, name))
-        if loc is None:
-            loc = int(gl(self.render_window).glGetUniformLocation(handle, name))
-            self._locations[(handle, name)] = loc
-        return loc
-
-    @staticmethod
-    def _unbind_images(GL: Any, count: int) -> None:
-        for unit in range(count):
-            GL.glBindImageTexture(unit, 0, 0, GL.GL_FALSE, 0, GL.GL_READ_ONLY, GL.GL_R32F)
-
     def release(self) -> None:
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()
-        self._locations.clear()

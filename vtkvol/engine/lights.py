@@ -7,8 +7,9 @@ dataset space (µm of the image's own coordinates), once per frame by the host.
 
 from __future__ import annotations
 
+import contextlib
 import math
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 import vtk
@@ -146,3 +147,80 @@ def key_light_direction(camera: vtk.vtkCamera) -> tuple[float, float, float]:
     direction = (math.cos(elevation) * (math.cos(azimuth) * to_camera + math.sin(azimuth) * right)
                  + math.sin(elevation) * up)
     return tuple(float(v) for v in direction)
+
+
+class LightRig:
+    """The host's lights, a service of :class:`~vtkvol.engine.illuminator.Illuminator`: the
+    world-space lights it was given, or the renderer's own (followed at every frame, or taken
+    once at the first frame and fixed in the world), and their dataset-space
+    :class:`LightSpec` computed once per frame (the host and the technique both ask).
+
+    ``lights``: up to :data:`MAX_LIGHTS` world-space lights, ``"renderer"`` (follow the
+    renderer's switched-on lights), ``"renderer_fixed"`` (take them at the first frame) or None
+    (one directional light)."""
+
+    def __init__(self, volume: vtk.vtkVolume, renderer: vtk.vtkRenderer,
+                 lights: Sequence[Light] | str | None) -> None:
+        self._volume = volume
+        self._renderer = renderer
+        #: "renderer": follow the renderer's own (switched-on) lights at every frame.
+        self.follow_renderer = lights == "renderer"
+        #: "renderer_fixed": take the renderer's lights once, at the first frame, and keep them
+        #: fixed in the world (a lone headlight becomes a key light; see renderer_lights).
+        self.capture_renderer = lights == "renderer_fixed"
+        self.lights: list[Light] = (
+            [Light()] if lights is None or isinstance(lights, str) else list(lights))
+        check_lights(self.lights)
+        #: The frame's specs while a frame (or a precompute chunk) runs, else None.
+        self.frame_specs: list[LightSpec] | None = None
+        self._signature: tuple | None = None  # (geometry, colours) the technique last saw
+
+    def set(self, lights: Sequence[Light]) -> None:
+        """Fixed world-space ``lights`` from now on (the renderer's are no longer followed)."""
+        lights = list(lights)
+        check_lights(lights)
+        self.lights = lights
+        self.follow_renderer = self.capture_renderer = False
+
+    def follow(self) -> None:
+        """Follow the renderer's lights at every frame from now on."""
+        self.follow_renderer, self.capture_renderer = True, False
+
+    def take_renderer_lights(self) -> None:
+        """At a frame's start: the renderer's lights, every frame when following them, once
+        (the first frame, when the camera is set) when they are taken as fixed lights."""
+        if self.follow_renderer:
+            self.lights = renderer_lights(self._renderer)
+        elif self.capture_renderer:
+            self.lights = renderer_lights(self._renderer, fixed=True)
+            self.capture_renderer = False
+
+    def compute(self, image: vtk.vtkImageData) -> list[LightSpec]:
+        """The enabled lights in ``image``'s dataset space, computed now."""
+        return light_specs_in_dataset(self.lights, self._volume, image)
+
+    @contextlib.contextmanager
+    def frame(self, image: vtk.vtkImageData) -> Iterator[None]:
+        """Inside: :meth:`specs` returns the specs computed once on entry."""
+        self.frame_specs = self.compute(image)
+        try:
+            yield
+        finally:
+            self.frame_specs = None
+
+    def specs(self, image: vtk.vtkImageData) -> list[LightSpec]:
+        """The frame's specs inside :meth:`frame`, else computed anew."""
+        if self.frame_specs is not None:
+            return list(self.frame_specs)
+        return self.compute(image)
+
+    def changed(self, specs: Sequence[LightSpec]) -> tuple[bool, bool]:
+        """``(geometry, colours_only)``: whether ``specs`` differ from those of the last call in
+        geometry (kind, vector, size, fall-off; also True at the first call) or only in colour
+        and intensity."""
+        geometry = tuple((s.kind, s.vector, s.size, s.falloff_distance) for s in specs)
+        colors = tuple(s.color for s in specs)
+        previous, self._signature = self._signature, (geometry, colors)
+        if previous is None or geometry != previous[0]:
+            return True, False
+        return False, colors != previous[1]

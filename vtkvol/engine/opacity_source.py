@@ -215,7 +215,7 @@ class OpacitySource:
         if backend != self._classification:
             self._classification = backend
             self._opacity_texture_key = None  # the next request classifies anew
-            self._host._changes.opacity = True  # and the technique recomputes from it
+            self._host.changes.pending.opacity = True  # and the technique recomputes from it
 
     def classification_stats(self) -> dict[str, Any]:
         """The opacity texture's classification: ``backend`` of the last one ("gpu"/"cpu"),

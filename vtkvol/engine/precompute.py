@@ -59,17 +59,13 @@ class PrecomputeRunner:
         window = host.render_window
         with no_collection():
             window.MakeCurrent()
-            host._take_renderer_lights()
-            host._frame_specs = host._compute_light_specs()
-            try:
+            host.light_rig.take_renderer_lights()
+            with host.light_rig.frame(host.image):
                 host._ensure_technique()
-                if not host._needs_prepare(host._changes):
+                if not host.changes.needs_prepare(host.changes.pending):
                     return True
                 host._upload_weights()
-                changes, host._changes = host._changes, Changes()
-                steps = host._technique.prepare_steps(changes, host.parameters)
-            finally:
-                host._frame_specs = None
+                steps = host._technique.prepare_steps(host.changes.take(), host.parameters)
         return self.run(steps, progress)
 
     def run(self, steps: Iterator[float], progress: Callable[[float], bool] | None) -> bool:
@@ -82,13 +78,12 @@ class PrecomputeRunner:
                 with no_collection():
                     window.MakeCurrent()
                     t0 = time.perf_counter()
-                    self._host._frame_specs = self._host._compute_light_specs()
                     try:
-                        fraction = next(steps)
+                        with self._host.light_rig.frame(self._host.image):
+                            fraction = next(steps)
                     except StopIteration:
                         break
                     finally:
-                        self._host._frame_specs = None
                         work_s += time.perf_counter() - t0
                     if self._host._technique is not None:
                         self._host._on_draw_end()  # units go back between chunks

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import vtk
 
 from vtkvol.engine import shaders
+from vtkvol.engine.bindings import technique_uniform_values
 from vtkvol.engine.precompute import no_collection
 
 if TYPE_CHECKING:
@@ -109,12 +110,55 @@ class ShaderBuilder:
     """Composes the host's and the technique's GLSL for one illuminated volume.
 
     ``host`` supplies the volume, its image and the state the build depends on (slice weights,
-    interpolation, multi-channel settings, bound textures, empty-space statistics)."""
+    interpolation, multi-channel settings, bound textures, empty-space statistics). The builder
+    also installs its builds on the volume's shader property, checks them on the source VTK
+    then builds, and sets the property's shading flags for the lighting model (restored on
+    :meth:`restore_shade`)."""
 
     def __init__(self, host: Any) -> None:
         self._host = host
         #: What the last build did with multi-channel lighting (multichannel_lighting_state).
         self.mc_lighting_state = "per_channel"
+        #: Our replacements, composed with the user's on the volume's shader property.
+        self.replacements = shaders.ReplacementSet(host.volume.GetShaderProperty())
+        #: The last fragment shader VTK built with our replacements (tests, diagnostics).
+        self.fragment_source = ""
+        self._expected: ShaderBuild | None = None  # installed, not yet seen built
+        prop = host.volume.GetProperty()
+        self._user_shade = [prop.GetShade(c) for c in range(4)]
+
+    # -- installation ----------------------------------------------------------------------------
+    def install(self, tech: Technique, values: Mapping[str, Any]) -> None:
+        """:meth:`build` and install; a build that changed the replacements is checked on the
+        next source VTK builds (:meth:`built`)."""
+        build = self.build(tech, values)
+        if self.replacements.install(build.replacements):
+            self._expected = build
+
+    def built(self, source: str) -> str | None:
+        """The fragment ``source`` VTK built: remembered, and checked against the last
+        installed build (:func:`verify`). Returns why it lacks part of that build, else None."""
+        self.fragment_source = source
+        pending, self._expected = self._expected, None
+        return None if pending is None else verify(pending, source)
+
+    def clear(self) -> None:
+        """Remove our replacements (VTK builds its own shader again; nothing is checked)."""
+        self.replacements.clear()
+        self._expected = None
+
+    def apply_shade(self, *, keep_user: bool) -> None:
+        """Shading flags for the method's lighting model (``keep_user``: the user's)."""
+        # surface: VTK's shaded variant computes the gradient we shade with; medium: the
+        # unshaded variant skips it (the medium model uses no gradient).
+        prop = self._host.volume.GetProperty()
+        shade = 1 if self._host.spec.lighting == "surface" else 0
+        for c in range(4):
+            prop.SetShade(c, self._user_shade[c] if keep_user else shade)
+
+    def restore_shade(self) -> None:
+        """The user's shading flags as they were before the host changed them."""
+        self.apply_shade(keep_user=True)
 
     def build(self, tech: Technique, values: Mapping[str, Any]) -> ShaderBuild:
         """The replacements that install ``tech`` (with ``values``) and the host's sections for
@@ -181,7 +225,7 @@ class ShaderBuilder:
             expected_markers=frozenset(shaders.marker(s) for s in sections),
             expected_lines=frozenset(expected_lines),
             absent_lines=frozenset(absent_lines),
-            expected_uniforms=frozenset(self._host._technique_uniform_values(values)),
+            expected_uniforms=frozenset(technique_uniform_values(tech, values)),
         )
 
     def _multichannel_sections(self, *, shares_gradient: bool, lighting: str

@@ -14,12 +14,15 @@ mapper API (``blend_mode``, ``scalar_range``, ``lookup_table``, ``dataset``) kee
 
 from __future__ import annotations
 
+import logging
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import vtk
+
+logger = logging.getLogger(__name__)
 
 _MISSING = object()
 
@@ -147,6 +150,29 @@ class SmartStandIn:
         """Carry the last edits of the stand-in over to the smart mapper (the caller then puts
         the smart mapper back on the volume)."""
         self.sync(None)
+
+
+def take_over(volume: vtk.vtkVolume, mapper: vtk.vtkVolumeMapper) -> SmartStandIn | None:
+    """For a ``vtkSmartVolumeMapper``: a :class:`SmartStandIn` installed as ``volume``'s
+    mapper (the smart mapper hides its GPU mapper; vtkvol renders through its own, kept in step
+    with it, until :meth:`SmartStandIn.give_back`). None for any other mapper."""
+    if not isinstance(mapper, vtk.vtkSmartVolumeMapper):
+        return None
+    stand_in = SmartStandIn(mapper)
+    volume.SetMapper(stand_in.gpu)
+    logger.info("vtkvol: rendering the volume with a GPU ray-cast mapper in place of its "
+                "vtkSmartVolumeMapper until release()")
+    return stand_in
+
+
+def input_problem(image: vtk.vtkImageData) -> str | None:
+    """Why ``image`` cannot be illuminated (it has no point scalars: cell data or none),
+    as one sentence; None when it can."""
+    if image.GetPointData().GetScalars() is not None:
+        return None
+    what = "cell data" if image.GetCellData().GetScalars() is not None else "no scalars"
+    return (f"the volume's image has {what}; vtkvol illumination needs point scalars "
+            "(convert with vtkCellDataToPointData, in PyVista grid.cell_data_to_point_data())")
 
 
 def check_mapper(volume: vtk.vtkVolume, renderer: vtk.vtkRenderer) -> vtk.vtkVolumeMapper:

@@ -149,6 +149,46 @@ def warn_inert(spec: TechniqueSpec, method: str, names: Iterable[str],
             warnings.warn(f"vtkvol: {method}: {reason}", UserWarning, stacklevel=3)
 
 
+@dataclass(frozen=True)
+class TechniqueStats(Mapping[str, Any]):
+    """A technique's counters (:meth:`Technique.stats`), for diagnostics and the benchmark.
+
+    Typed fields for what several techniques count, ``extra`` for a technique's own (named in
+    its ``stats`` docstring). A field left None does not apply to the technique (local shading
+    recomputes nothing; only progressive techniques iterate). It also reads as a read-only
+    mapping of the fields that apply, then ``extra`` (``stats["recomputes"]``,
+    ``stats.get("bakes")``, ``dict(stats)``), which is how scripts and the bench's JSON see it.
+    """
+
+    #: Precomputations (non-progressive techniques) or restarts (progressive ones) so far.
+    recomputes: int | None = None
+    #: Milliseconds of the last one: GPU time when ``host.profiling``, else the wall time of
+    #: issuing it (on a numpy path its whole cost); a progressive technique's last frame.
+    recompute_ms: float | None = None
+    #: Where the last one ran: ``"gpu"`` (compute shaders) or ``"cpu"`` (numpy).
+    backend: str | None = None
+    #: Bytes of every texture the technique holds (mip levels included).
+    texture_bytes: int | None = None
+    #: Progressive techniques: iterations accumulated since the last restart.
+    iterations: int | None = None
+    #: The technique's own counters (plain numbers and strings).
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def _items(self) -> dict[str, Any]:
+        typed = {name: getattr(self, name) for name in
+                 ("recomputes", "iterations", "recompute_ms", "backend", "texture_bytes")}
+        return {**{k: v for k, v in typed.items() if v is not None}, **self.extra}
+
+    def __getitem__(self, key: str) -> Any:
+        return self._items()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._items())
+
+    def __len__(self) -> int:
+        return len(self._items())
+
+
 @runtime_checkable
 class TechniqueHost(Protocol):
     """What a technique may use of its host (:class:`vtkvol.engine.illuminator.Illuminator`
@@ -302,10 +342,10 @@ class Technique:
     def release(self) -> None:
         """Release the GL objects ``prepare`` created. Context is current."""
 
-    def stats(self) -> dict[str, Any]:
-        """Counters for diagnostics and the benchmark (e.g. ``recomputes``, ``backend``,
-        ``texture_bytes``); values are plain numbers and strings."""
-        return {}
+    def stats(self) -> TechniqueStats:
+        """Counters for diagnostics and the benchmark (:class:`TechniqueStats`; none for a
+        technique that precomputes nothing)."""
+        return TechniqueStats()
 
     # -- verification -------------------------------------------------------------------------
     def light_visibility_cpu(

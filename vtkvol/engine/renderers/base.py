@@ -505,7 +505,6 @@ class BesideRenderer:
 
     def _composite_result(self, window: vtk.vtkRenderWindow, viewport: list[float],
                           scale: float) -> None:
-        G = gl(window)
         state = window.GetState()
         state.Push()
         try:
@@ -514,11 +513,7 @@ class BesideRenderer:
             self._composite.SetUniformi("resultTex", self.result.GetTextureUnit())
             self._composite.SetUniform4f("viewport", viewport)
             self._composite.SetUniformf("scale", float(scale))
-            state.vtkglDisable(G.GL_DEPTH_TEST)
-            state.vtkglDepthMask(G.GL_FALSE)
-            state.vtkglEnable(G.GL_BLEND)
-            state.vtkglBlendFuncSeparate(G.GL_ONE, G.GL_ONE_MINUS_SRC_ALPHA,
-                                         G.GL_ONE, G.GL_ONE_MINUS_SRC_ALPHA)
+            blend_premultiplied_over(window)
             self._quad.Render()
             self.result.Deactivate()
         finally:
@@ -616,3 +611,16 @@ def check_renderer(host: Illuminator, name: str) -> None:
                   f"{channels}-component colour data needs the raycast renderer")
     if reason is not None:
         raise ValueError(f"vtkvol: {reason}")
+
+
+def blend_premultiplied_over(window: vtk.vtkRenderWindow) -> None:
+    """GL state for drawing premultiplied colour over the scene: no depth test or depth
+    writes, blending ``src + (1 − src α)·dst`` (colour and alpha). Call inside the window
+    state's ``Push``/``Pop``, which restores VTK's state."""
+    G = gl(window)
+    state = window.GetState()
+    state.vtkglDisable(G.GL_DEPTH_TEST)
+    state.vtkglDepthMask(G.GL_FALSE)
+    state.vtkglEnable(G.GL_BLEND)
+    state.vtkglBlendFuncSeparate(G.GL_ONE, G.GL_ONE_MINUS_SRC_ALPHA,
+                                 G.GL_ONE, G.GL_ONE_MINUS_SRC_ALPHA)

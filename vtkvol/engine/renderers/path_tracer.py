@@ -199,15 +199,21 @@ def brick_majorants(opacity: np.ndarray, unit_distance: float, brick: int = BRIC
     """Max extinction (per µm) per ``brick``³ brick of ``opacity`` ``[z, y, x]``, over the
     brick dilated by one voxel on every side (trilinear reads reach the neighbours)."""
     sigma = -np.log(np.maximum(1.0 - opacity.astype(np.float64), 1e-6)) / unit_distance
-    pad = np.pad(sigma, 1, mode="edge")
-    nb = [-(-s // brick) for s in sigma.shape]
+    return _per_brick(sigma, brick, np.max)
+
+
+def _per_brick(field: np.ndarray, brick: int, reduce: Any) -> np.ndarray:
+    """``reduce(block)`` for every ``brick``³ brick of ``field`` ``[z, y, x]``, the block
+    dilated by one voxel on every side (edge-padded), as float32 ``[bz, by, bx]``."""
+    pad = np.pad(field, 1, mode="edge")
+    nb = [-(-s // brick) for s in field.shape]
     out = np.zeros(nb, np.float32)
     for bz in range(nb[0]):
         for by in range(nb[1]):
             for bx in range(nb[2]):
-                out[bz, by, bx] = pad[bz * brick:bz * brick + brick + 2,
-                                      by * brick:by * brick + brick + 2,
-                                      bx * brick:bx * brick + brick + 2].max()
+                out[bz, by, bx] = reduce(pad[bz * brick:bz * brick + brick + 2,
+                                             by * brick:by * brick + brick + 2,
+                                             bx * brick:bx * brick + brick + 2])
     return out
 
 
@@ -220,18 +226,13 @@ def post_brick_majorants(scalars: np.ndarray, opacity_table: np.ndarray, unit_di
     n = len(opacity_table)
     sigma_table = -np.log(np.maximum(1.0 - opacity_table.astype(np.float64), 1e-6)) / (
         unit_distance)
-    pad = np.pad(scalars, 1, mode="edge")
-    nb = [-(-s // brick) for s in scalars.shape]
-    out = np.zeros(nb, np.float32)
-    for bz in range(nb[0]):
-        for by in range(nb[1]):
-            for bx in range(nb[2]):
-                block = pad[bz * brick:bz * brick + brick + 2, by * brick:by * brick + brick + 2,
-                            bx * brick:bx * brick + brick + 2]
-                lo = int(np.floor(np.clip(block.min(), 0, 1) * (n - 1)))
-                hi = int(np.ceil(np.clip(block.max(), 0, 1) * (n - 1)))
-                out[bz, by, bx] = sigma_table[lo:hi + 1].max()
-    return out
+
+    def largest(block: np.ndarray) -> float:
+        lo = int(np.floor(np.clip(block.min(), 0, 1) * (n - 1)))
+        hi = int(np.ceil(np.clip(block.max(), 0, 1) * (n - 1)))
+        return float(sigma_table[lo:hi + 1].max())
+
+    return _per_brick(scalars, brick, largest)
 
 
 class PathTracer(BesideRenderer):

@@ -25,11 +25,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtkvol.engine.gl import Texture3D, gl
+from vtkvol.engine.gl import Texture3D
 from vtkvol.engine.renderers.base import (
     COMMON_GLSL,
     POST_DEFINES,
     BesideRenderer,
+    blend_premultiplied_over,
     quad_program,
 )
 
@@ -122,7 +123,6 @@ class ViewAlignedSlicing(BesideRenderer):
 
     def draw(self, opacity: Texture3D, uniforms: dict[str, Any]) -> float | None:
         window = self.renderer.GetRenderWindow()
-        G = gl(window)
         prop = self.volume.GetProperty()
         shade = bool(prop.GetShade(0))
         post, opacity, colour = self.medium_textures(window, opacity)
@@ -171,11 +171,7 @@ class ViewAlignedSlicing(BesideRenderer):
             self.set_uniforms(p, values)
             p.SetUniform4fv("lightVec", MAX_LIGHTS, vec.ravel().tolist())
             p.SetUniform3fv("lightColour", MAX_LIGHTS, col.ravel().tolist())
-            state.vtkglDisable(G.GL_DEPTH_TEST)
-            state.vtkglDepthMask(G.GL_FALSE)
-            state.vtkglEnable(G.GL_BLEND)
-            state.vtkglBlendFuncSeparate(G.GL_ONE, G.GL_ONE_MINUS_SRC_ALPHA,
-                                         G.GL_ONE, G.GL_ONE_MINUS_SRC_ALPHA)
+            blend_premultiplied_over(window)
             self._slicer.Render()
             self._depth.Deactivate()
             colour.tex.Deactivate()
