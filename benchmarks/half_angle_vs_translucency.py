@@ -97,7 +97,7 @@ def run(size: int, image: int, paths: int) -> list[dict[str, Any]]:
                 truths[mode] = (mean, psnr(img_a, img_b) + FLOOR_DB, secs)
 
             def record(name: str, img: np.ndarray, truth: str, seconds: float,
-                       note: str, scene: Any = scene) -> None:
+                       note: str, scene: Any = scene, truths: Any = truths) -> None:
                 ref, floor, _ = truths[truth]
                 rows.append({"scene": scene.name, "candidate": name, "truth": truth,
                              "psnr": psnr(img, ref), "floor": floor, "seconds": seconds,

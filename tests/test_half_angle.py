@@ -74,8 +74,9 @@ def test_slicing_geometry_flips_with_the_light():
     """Half vector of the view and the light's propagation; under (front to back) when the
     light shines from the viewer's side, over (back to front) when it shines at the viewer."""
     v = np.array([0.0, 0.0, -1.0])
-    s, under = slicing_geometry(v, np.array([0.0, -0.6, -0.8]))
-    assert under and np.allclose(s, (v + [0, -0.6, -0.8]) / np.linalg.norm(v + [0, -0.6, -0.8]))
+    lit = np.array([0.0, -0.6, -0.8])
+    s, under = slicing_geometry(v, lit)
+    assert under and np.allclose(s, (v + lit) / np.linalg.norm(v + lit))
     s, under = slicing_geometry(v, np.array([0.0, -0.6, 0.8]))
     assert not under and np.allclose(s, [0, -0.6, 1.8] / np.linalg.norm([0, -0.6, 1.8]))
     assert [frame_jitter(f) for f in range(3)] == pytest.approx([0.5, 0.118034, 0.736068],
@@ -144,7 +145,7 @@ def test_opacity_is_corrected_for_the_slice_spacing_along_each_ray():
     the coverage (1 − T) equals the exact integral along each ray (0.02 µm numpy march) within
     0.01 at 1 and 0.5 slices per voxel. Without Δ = d / cos θ the optical depth would be
     ≈ 30 % short (errors > 0.05)."""
-    rw, ren, _vol, host = half_angle_scene(opacity=((0.0, 0.0), (1.0, 0.4)))
+    _rw, ren, _vol, host = half_angle_scene(opacity=((0.0, 0.0), (1.0, 0.4)))
     cam = ren.GetActiveCamera()
     dop = np.array(cam.GetDirectionOfProjection())
     side = np.cross(dop, cam.GetViewUp())
@@ -164,22 +165,32 @@ def test_opacity_is_corrected_for_the_slice_spacing_along_each_ray():
 
 
 def test_jittered_frames_remove_the_slice_pattern():
-    """Coarse slices (0.5 per voxel): the average of 8 jittered frames is closer to a
-    fine-sliced image (4 per voxel) than one frame is (RMS at least 1.5× lower), and the
-    renderer reports convergence after its 8 frames."""
+    """Coarse slices (0.5 per voxel) leave a slice pattern: the high-pass part (image minus
+    its 5 × 5 box mean) of the difference to a fine-sliced image (4 per voxel). Averaging 16
+    jittered frames cuts its RMS to below 0.7 of one frame's (measured 0.55; without jitter
+    the frames would be equal and the ratio 1). The low-frequency bias of coarse slices stays
+    (the per-slice blur and light steps depend on the spacing). Convergence is reported after
+    the 16 frames, and a repaint after it adds none."""
+    from scipy.ndimage import uniform_filter
+
     rw, _ren, _vol, host = half_angle_scene(opacity=((0.0, 0.0), (0.5, 0.8), (1.0, 0.8)))
     fine = set_renderer(host, "half_angle", samples=1, slices_per_voxel=4)
     rw.Render()
     ref = fine.read_result()
-    coarse = set_renderer(host, "half_angle", samples=8, slices_per_voxel=0.5)
+    coarse = set_renderer(host, "half_angle", samples=16, slices_per_voxel=0.5)
     rw.Render()
     one = coarse.read_result()
-    assert host.converge(max_frames=20) == 7
-    assert coarse.iteration == 8 and coarse.converged
+    assert host.converge(max_frames=30) == 15
+    assert coarse.iteration == 16 and coarse.converged
     avg = coarse.read_result()
-    rms1 = float(np.sqrt(((one - ref) ** 2).mean()))
-    rms8 = float(np.sqrt(((avg - ref) ** 2).mean()))
-    assert rms8 < rms1 / 1.5, (rms1, rms8)
+    rw.Render()
+    assert coarse.iteration == 16
+
+    def pattern(x):
+        d = x - ref
+        return float(np.sqrt(((d - uniform_filter(d, size=(5, 5, 1))) ** 2).mean()))
+
+    assert pattern(avg) < 0.7 * pattern(one), (pattern(one), pattern(avg))
     host.release()
 
 
