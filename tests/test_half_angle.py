@@ -139,6 +139,31 @@ def test_light_behind_the_volume_darkens_its_visible_side():
     assert means[1] < 0.6 * means[0], means
 
 
+def test_direct_light_agrees_with_the_camera_path_tracer():
+    """The independent truth: with the indirect term off (w = 0) half-angle slicing renders the
+    direct light of the medium model, which the camera path tracer estimates in single
+    scattering (256 paths). Over the pixels the ball covers the mean signed difference of
+    the red channel (the brightest) falls from ~3 levels at 1 slice per voxel to within 1.25
+    levels at 4 (measured 3.0 → 0.7; the path tracer's noise leaves ~0.2 on the mean), and
+    the coverage agrees within 0.5 levels on average."""
+    _rw, _ren, _vol, host = half_angle_scene(opacity=((0.0, 0.0), (1.0, 0.6)))
+    pt = set_renderer(host, "path_tracer", scattering="single", samples=256, seed=3)
+    host.converge(max_frames=300)
+    truth = pt.read_result()
+    covered = truth[..., 3] > 0.05
+    assert covered.sum() > 300
+    bias = {}
+    for spv in (1, 4):
+        ha = set_renderer(host, "half_angle", samples=8, slices_per_voxel=spv,
+                          indirect_strength=0.0)
+        host.converge(max_frames=20)
+        diff = (ha.read_result() - truth)[covered] * 255
+        bias[spv] = float(diff[:, 0].mean())
+        assert abs(float(diff[:, 3].mean())) < 0.5, diff[:, 3].mean()
+    assert abs(bias[4]) < 1.25 and abs(bias[1]) > 2 * abs(bias[4]), bias
+    host.release()
+
+
 # -- slice spacing, jitter -------------------------------------------------------------------------
 def test_opacity_is_corrected_for_the_slice_spacing_along_each_ray():
     """With the light at right angles to the view the slices meet the camera rays at ≈ 45°:
