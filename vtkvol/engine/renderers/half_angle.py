@@ -38,7 +38,7 @@ in lockstep.
 Each frame jitters the slice origin j (a golden-ratio sequence) and the frames are averaged in
 the accumulation buffer (progressive: ``samples`` frames, then converged), which removes the
 slice pattern. The light buffer is orthographic, ``light_resolution``² texels over the volume
-box's bounding sphere.
+box's bounding sphere (default: about one texel per smallest voxel edge).
 
 **One light.** The slicing axis depends on the light, so a second light would need a second,
 differently oriented slicing whose eye contributions cannot be composited slice by slice with
@@ -174,7 +174,8 @@ void main() {
     blur *= 0.25;
     float au = inBox(p) ? clamp(alphaAt(p), 0.0, 0.999999) : 0.0;
     float tau = -log(1.0 - au) / unitDistance;
-    vec3 tauI = indirectK * tau * (1.0 - tint * colourAt(p));
+    // The colour only where there is extinction (most of the light buffer is empty space).
+    vec3 tauI = au > 0.0 ? indirectK * tau * (1.0 - tint * colourAt(p)) : vec3(0.0);
     imageStore(lightOut, px, vec4(blur * exp(-tauI * dl), prev.a * exp(-tau * dl)));
   }
 }
@@ -226,12 +227,12 @@ class HalfAngleSlicing(BesideRenderer):
     PROGRESSIVE: ClassVar[bool] = True
 
     def __init__(self, host: Illuminator, *, slices_per_voxel: float = 1.0,
-                 light_resolution: int = 128, samples: int = DEFAULT_SAMPLES,
+                 light_resolution: int | None = None, samples: int = DEFAULT_SAMPLES,
                  indirect_angle: float = 15.0, indirect_extinction: float = 0.5,
                  tint: float = 0.75, indirect_strength: float = 1.0) -> None:
         if not 0.05 <= slices_per_voxel <= 16:
             raise ValueError(f"slices_per_voxel must be in 0.05…16, not {slices_per_voxel}")
-        if not 8 <= light_resolution <= 2048:
+        if light_resolution is not None and not 8 <= light_resolution <= 2048:
             raise ValueError(f"light_resolution must be in 8…2048, not {light_resolution}")
         if samples < 1:
             raise ValueError(f"samples must be ≥ 1, not {samples}")
@@ -241,7 +242,11 @@ class HalfAngleSlicing(BesideRenderer):
             raise ValueError("indirect_extinction and indirect_strength must be ≥ 0 and tint "
                              "in 0…1")
         self.slices_per_voxel = float(slices_per_voxel)
-        self.light_resolution = int(light_resolution)
+        #: Light-buffer texels per side; None: one texel per smallest voxel edge across the
+        #: box's bounding sphere, rounded up to a power of two within 32…512 (the light pass
+        #: dominates a frame on llvmpipe: a 128² buffer for a 32³ volume cost ~3× a 64² one).
+        self.requested_light_resolution = light_resolution
+        self.light_resolution = int(light_resolution or 64)
         self.indirect_angle = float(indirect_angle)
         self.indirect_extinction = float(indirect_extinction)
         self.tint = float(tint)
@@ -257,7 +262,7 @@ class HalfAngleSlicing(BesideRenderer):
         self.target_iterations = int(samples)
 
     def settings_signature(self) -> tuple:
-        return (self.slices_per_voxel, self.light_resolution, self.indirect_angle,
+        return (self.slices_per_voxel, self.requested_light_resolution, self.indirect_angle,
                 self.indirect_extinction, self.tint, self.indirect_strength)
 
     def result_scale(self) -> float:
@@ -301,6 +306,10 @@ class HalfAngleSlicing(BesideRenderer):
         hi = origin + (np.array(img.GetDimensions(), float) - 1) * spacing
         centre = (origin + hi) / 2
         radius = max(float(np.linalg.norm(hi - origin)) / 2, 1e-6)
+        if self.requested_light_resolution is None:
+            texels = 2 * radius / float(spacing.min())
+            self.light_resolution = int(min(512, max(32, 2 ** math.ceil(math.log2(
+                max(texels, 1.0))))))
 
         def unproject(z: float) -> np.ndarray:
             q = ndc_to_data @ np.array([0.0, 0.0, z, 1.0])
@@ -352,8 +361,8 @@ class HalfAngleSlicing(BesideRenderer):
                                 ) if post else CS
             self._program = ComputeProgram(window, source, "half-angle slicing")
             self._program_post = post
-        self._ensure_targets(window)
         geo = self.frame_geometry(uniforms["ndcToData"], self.iteration)
+        self._ensure_targets(window)
         self.geometry = geo
         self.under = geo["under"]
         self.slices = len(geo["sigmas"])
