@@ -20,8 +20,8 @@ PSNR(A, B) + 6.02 dB (as the bench's medium reference).
 **Candidates** (the same view, light, data and transfer function; exposure 1, fill 0):
 
 * ``half_angle``: its defaults (θ = 15°, k = 0.5, tint 0.75, w = 1, normalised), 1 slice per
-  voxel, 128² light buffer, 8 jittered frames; and w = 0 (direct only). It shades the medium
-  model itself (a·colour·(E·L + k_a)).
+  voxel, its default light buffer (64² at 32³), 8 jittered frames; and w = 0 (direct only). It
+  shades the medium model itself (a·colour·(E·L + k_a)).
 * ``translucency`` on the ray caster: its own surface model; to light the medium as the path
   tracer does, the surface factor is switched off (g₀ = g₁ = 1: every sample unoriented, S = 0)
   and the property's diffuse is a, ambient a·k_a, specular 0, so that its colour is

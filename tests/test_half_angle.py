@@ -164,6 +164,33 @@ def test_direct_light_agrees_with_the_camera_path_tracer():
     host.release()
 
 
+def test_host_exposure_and_fill_are_honoured():
+    """As the path tracer: the exposure scales the radiance (×2 → ×2, coverage unchanged) and
+    the sky fill F adds to the ambient k_a (k_a 0.2 with F 0.3 renders as k_a 0.5 without
+    fill), to 1e-5."""
+    rw, _ren, vol, host = half_angle_scene()
+    host.set_exposure(1.0, 0.0)
+
+    def frame():
+        r = set_renderer(host, "half_angle", samples=1)
+        rw.Render()
+        return r.read_result()
+
+    base = frame()
+    host.set_exposure(2.0, 0.0)
+    brighter = frame()
+    assert base[..., :3].max() > 0.1
+    np.testing.assert_allclose(brighter[..., :3], 2 * base[..., :3], atol=1e-5)
+    np.testing.assert_allclose(brighter[..., 3], base[..., 3], atol=1e-6)
+    host.set_exposure(1.0, 0.3)
+    filled = frame()
+    host.set_exposure(1.0, 0.0)
+    vol.GetProperty().SetAmbient(0.5)
+    np.testing.assert_allclose(filled, frame(), atol=1e-5)
+    assert (filled[..., 0] - base[..., 0]).max() > 0.05
+    host.release()
+
+
 # -- slice spacing, jitter -------------------------------------------------------------------------
 def test_opacity_is_corrected_for_the_slice_spacing_along_each_ray():
     """With the light at right angles to the view the slices meet the camera rays at ≈ 45°:
