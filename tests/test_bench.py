@@ -522,7 +522,14 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
         rows = [r for r in camera if r["lights"] == lights]
         assert [r["iteration"] for r in rows] == [1, 2, 4, 8, 16] and rows[-1]["final"]
         assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"] and rows[0]["short"] == "camera PT"
-    recs = [r for r in result["records"] if r["method"] != "camera_path_tracer"]
+    # Half-angle slicing (one light only: it refuses more) beside them, its frames as
+    # iterations.
+    half = [r for r in result["records"] if r["method"] == "half_angle_slicing"]
+    assert [(r["lights"], r["iteration"]) for r in half] == [(1, 1), (1, 2), (1, 4), (1, 8)]
+    assert half[-1]["final"] and half[0]["short"] == "half-angle"
+    assert all(0 < r["psnr_ms"] < 99 for r in half)
+    recs = [r for r in result["records"]
+            if r["method"] not in ("camera_path_tracer", "half_angle_slicing")]
     assert {(r["method"], r["lights"]) for r in recs} == {
         (m, n) for m in ("convection_diffusion", "hybrid_diffusion") for n in (1, 3)}
     for method, lights in {(r["method"], r["lights"]) for r in recs}:
@@ -544,10 +551,10 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     # KD keeps a light volume per light; HD's memory does not grow with the lights
     assert mem[("convection_diffusion", 3)] > mem[("convection_diffusion", 1)]
     assert mem[("hybrid_diffusion", 3)] == mem[("hybrid_diffusion", 1)]
-    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 6
+    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 7
     md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
     assert "## Multiple scattering: convergence (test," in md and "| KD | " in md
-    assert "| camera PT | " in md
+    assert "| camera PT | " in md and "| half-angle | " in md
     assert result["paths"]["scattering"].exists()
     doc = report.load(tmp_path / "benchmarks.json")
     assert len(doc["scattering"]) == len(result["records"]) and len(doc["scattering_runs"]) == 1

@@ -458,7 +458,9 @@ def test_renderer_chooser_greys_unsupported_choices_with_the_reason(window, qtbo
     choices = [combo.itemData(i) for i in range(combo.count())]
     assert choices == ["raycast", "path_tracer", "half_angle", "slicing"]
     enabled = {n: combo.model().item(i).isEnabled() for i, n in enumerate(choices)}
-    assert enabled == {"raycast": True, "path_tracer": True, "half_angle": False,
+    assert enabled == {"raycast": True, "path_tracer": True,
+                       "half_angle": sum(1 for li in window.model.lights
+                                         if li.enabled and li.intensity > 0) == 1,
                        "slicing": window.model.illumination.method == "local"}
     window.model.illumination.method = "shadow_volume"
     i = combo.findData("slicing")

@@ -41,7 +41,9 @@ RENDERER_TIPS = {
     "raycast": "VTK's GPU ray caster, lit by the illumination method",
     "path_tracer": "Progressive camera path tracer of the medium material (albedo, g) and "
                    "the lights; refines over frames, restarts when the view or scene changes",
-    "half_angle": "Half-angle slicing with chromatic indirect light",
+    "half_angle": "Half-angle slicing (seed 001, Kniss): one light, direct plus blurred, "
+                  "colour-shifted indirect light of the medium material; refines over 8 "
+                  "jittered frames",
     "slicing": "View-aligned slices composited front to back, local lighting",
 }
 

@@ -15,7 +15,9 @@ compared with three reference images of the same view, shaded by the same host m
   shown closer to the truth than that.
 
 The camera path tracer (``camera_path_tracer``, :func:`study_camera_paths`) is measured the same
-way: the second, independent estimator of the ``ms`` image.
+way: the second, independent estimator of the ``ms`` image. Half-angle slicing
+(``half_angle_slicing``, :func:`study_half_angle`) too, with one light only (it refuses more):
+its jittered frames are its iterations.
 
 Time is the wall-clock time of the iterations alone (frames with the volume hidden, as the
 recompute timing does, then ``glFinish``): what refining costs on this renderer, without the
@@ -60,6 +62,8 @@ class StudyConfig:
     max_seconds: float = 120.0
     #: Paths per pixel of the camera path tracer (the second, independent truth); 0: not run.
     camera_paths: int = 256
+    #: Jittered frames of half-angle slicing (one-light runs only); 0: not run.
+    half_angle_frames: int = 8
 
 
 def checkpoints(limit: int) -> list[int]:
@@ -165,6 +169,13 @@ def study_scene(rig: Any, cache: ReferenceCache, scene: Scene, methods: Sequence
                 if stream is not None:
                     print(f"vtkvol bench --scattering: the camera path tracer on {scene.name} "
                           f"({count} lights) failed: {exc}", file=stream)
+        if config.half_angle_frames and count == 1:
+            try:
+                records += study_half_angle(rig, refs, config, common)
+            except Exception as exc:
+                if stream is not None:
+                    print(f"vtkvol bench --scattering: half-angle slicing on {scene.name} "
+                          f"failed: {exc}", file=stream)
         cache.clear_scene(lit)
     return records
 
@@ -243,6 +254,49 @@ def study_camera_paths(rig: Any, refs: dict[str, np.ndarray], config: StudyConfi
             })
             if spent > config.max_seconds:
                 break
+    finally:
+        set_renderer(rig.illuminator, "raycast")
+    return records
+
+
+#: Half-angle slicing's name in the study's records (a renderer, not a technique).
+HALF_ANGLE = "half_angle_slicing"
+
+
+def study_half_angle(rig: Any, refs: dict[str, np.ndarray], config: StudyConfig,
+                     common: dict[str, Any]) -> list[dict[str, Any]]:
+    """Half-angle slicing (:mod:`vtkvol.engine.renderers.half_angle`, its defaults, the
+    scene's material and light) compared with the references after 1, 2, 4, … jittered frames
+    up to ``config.half_angle_frames``. Time: whole frames, ``glFinish`` before the clock
+    stops."""
+    from vtkvol.engine.gl import gl
+    from vtkvol.engine.renderers import set_renderer
+
+    limit = int(config.half_angle_frames)
+    rig.reset_view()
+    ha = set_renderer(rig.illuminator, "half_angle", samples=limit)
+    records: list[dict[str, Any]] = []
+    spent = 0.0
+    try:
+        for target in checkpoints(limit):
+            t0 = time.perf_counter()
+            while ha.iteration < target - 1:
+                rig.rw.Render()
+            gl(rig.rw).glFinish()
+            spent += time.perf_counter() - t0
+            image = rig.image()  # renders the target-th frame
+            if ha.last_error is not None:
+                raise RuntimeError(ha.last_error)
+            ms = image_metrics(image, refs["ms"])
+            ss = image_metrics(image, refs["ss"])
+            records.append({
+                **common, "method": HALF_ANGLE, "short": "half-angle",
+                "iteration": int(ha.iteration), "seconds": spent,
+                "iterations_per_s": ha.iteration / spent if spent > 0 else None,
+                "rmse_ms": ms["rmse"], "psnr_ms": ms["psnr"], "rmse_ss": ss["rmse"],
+                "psnr_ss": ss["psnr"], "texture_bytes": None, "bytes_per_voxel": None,
+                "final": target == limit,
+            })
     finally:
         set_renderer(rig.illuminator, "raycast")
     return records

@@ -77,8 +77,9 @@ def illuminate(
         ``renderer`` is the ``vtkRenderer``): None (default) keeps the current one (VTK's ray
         caster at the first call); ``"raycast"``; ``"path_tracer"`` (progressive camera path
         tracer of the medium material, ``converge()`` refines it); ``"slicing"``
-        (view-aligned slicing, ``method="local"``); ``"half_angle"`` is refused in this
-        version. An unsupported combination is a ``ValueError`` naming the reason
+        (view-aligned slicing, ``method="local"``); ``"half_angle"`` (half-angle slicing
+        with chromatic, blurred indirect light; exactly one light). An unsupported
+        combination is a ``ValueError`` naming the reason
         (:func:`vtkvol.model.renderers.unsupported_reason`). Later:
         ``vtkvol.engine.renderers.set_renderer(il, name)``.
     **parameters

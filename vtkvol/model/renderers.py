@@ -10,7 +10,10 @@ caster"):
   (``render.albedo``, ``render.phase_g``) and the lights are.
 * ``"slicing"``: view-aligned slicing (seed 002), unshaded or with the host's local
   (Phong) lighting; only the ``local`` method.
-* ``"half_angle"``: half-angle slicing (seed 001 §2). Not built in this version: refused.
+* ``"half_angle"``: half-angle slicing (seed 001 §2.3.1, Kniss et al.) with direct and
+  chromatic, blurred indirect light. Like the path tracer it is its own light transport (the
+  medium material and the light are used, not the method); exactly one enabled light, since
+  the slicing axis is the half vector between the view and that light.
 
 :func:`unsupported_reason` is the one place that says what is refused and why; the engine
 raises it as an error, the app greys the choice with it as the tooltip.
@@ -36,14 +39,14 @@ def unsupported_reason(renderer: str, *, method: str = "local", blend_mode: str 
         return (f"renderer must be one of {', '.join(RENDERERS)}, not {renderer!r}")
     if renderer == "raycast":
         return None
-    if renderer == "half_angle":
-        return ("the half_angle renderer is not available in this version of vtkvol; "
-                "use translucency with the raycast renderer")
     if blend_mode != "composite":
         return (f"the {renderer} renderer composites emission and absorption only; "
                 f"blend mode {blend_mode!r} needs the raycast renderer")
     if not 1 <= channels <= 4:
         return f"the {renderer} renderer takes 1 to 4 channels, not {channels}"
+    if renderer == "half_angle" and lights != 1:
+        return (f"the half_angle renderer slices along the half vector of one light and the "
+                f"view, so it takes exactly one enabled light, not {lights}")
     if lights > MAX_LIGHTS:
         return f"the {renderer} renderer takes at most {MAX_LIGHTS} lights, not {lights}"
     if renderer == "path_tracer" and lights < 1:

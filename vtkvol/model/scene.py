@@ -355,8 +355,8 @@ class RenderSettings(EventedModel):
     #: What draws the volume (vtkvol.model.renderers): VTK's ray caster with the illumination
     #: method (``raycast``), or a renderer beside it — ``path_tracer`` (progressive camera path
     #: tracer of the medium material), ``slicing`` (view-aligned slices, local lighting),
-    #: ``half_angle`` (refused in this version). docs/architecture.md, "Renderers beside the
-    #: ray caster".
+    #: ``half_angle`` (half-angle slicing, one light). docs/architecture.md, "Renderers beside
+    #: the ray caster".
     renderer: RendererName = "raycast"
 
     @field_validator("blend_mode", mode="before")

@@ -22,16 +22,20 @@ __all__ = ["RENDERERS", "apply_renderer", "check_renderer", "renderer_class", "s
 
 
 def renderer_class(name: str) -> type[BesideRenderer]:
+    from vtkvol.engine.renderers.half_angle import HalfAngleSlicing
     from vtkvol.engine.renderers.path_tracer import PathTracer
     from vtkvol.engine.renderers.slicing import ViewAlignedSlicing
 
-    return {"path_tracer": PathTracer, "slicing": ViewAlignedSlicing}[name]
+    return {"path_tracer": PathTracer, "slicing": ViewAlignedSlicing,
+            "half_angle": HalfAngleSlicing}[name]
 
 
 def set_renderer(host: Illuminator, name: str, **options: Any) -> BesideRenderer | None:
     """Draw ``host``'s volume with renderer ``name`` from the next frame on (``"raycast"``:
     VTK's ray caster, the default). ``options`` go to the renderer (the path tracer's
-    ``scattering``, ``samples``, ``seed``; slicing's ``slices_per_voxel``). Refused with a
+    ``scattering``, ``samples``, ``seed``; slicing's ``slices_per_voxel``; half-angle
+    slicing's ``slices_per_voxel``, ``light_resolution``, ``samples``, ``indirect_angle``,
+    ``indirect_extinction``, ``tint``, ``indirect_strength``). Refused with a
     ``ValueError`` naming the reason when the combination is unsupported; the previous
     renderer then stays. Returns the renderer (None for ``"raycast"``)."""
     check_renderer(host, name)
