@@ -265,9 +265,10 @@ def optical_depth(
 
     ``origins`` (M, 3) and unit ``directions`` (M, 3) are world space (x, y, z); t and
     ``step_um`` are µm. Midpoint rule with steps of ``step_um`` and a final partial step that ends
-    exactly at the segment's end: exact where σ is constant or linear within a step (σ of the
-    interpolated α is linear along a ray only where α is constant), O(step²) otherwise. All rays advance in lock-step; rays are sorted by their
-    number of steps so the still-running ones are always a prefix of the arrays (no masking).
+    exactly at the segment's end: exact where σ is constant within a step, O(step²) otherwise
+    (σ of the interpolated α is not linear along a ray where α varies). All rays advance in
+    lock-step; rays are sorted by their number of steps so the still-running ones are always
+    a prefix of the arrays (no masking).
     Rays whose τ passes :data:`TAU_MAX` are retired early (T error < 2e-22).
     """
     if not (step_um > 0 and math.isfinite(step_um)):
