@@ -806,8 +806,8 @@ def scattering_chart(path: Path, records: Sequence[Mapping[str, Any]]) -> None:
                                              else "references"))
             ax.set_title(scene, fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
-            if row == 0 and col in (0, 2):
-                ax.legend(fontsize=6, ncol=2)
+            if row == 0 and col in (0, 2) and ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=6, ncol=2)  # (studies before issue 23 have no psnr_pt)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
