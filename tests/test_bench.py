@@ -512,24 +512,38 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     scene = phantom_scenes(16)[0]
     result = run(StudyConfig(mode="test", size=16, image_size=64, max_seconds=30.0,
                              camera_paths=16), tmp_path,
-                 [scene], ["convection_diffusion", "hybrid_diffusion"],
+                 [scene], ["convection_diffusion", "hybrid_diffusion", "translucency"],
                  budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
                  stream=io.StringIO())
-    # The camera path tracer (the second truth) is measured beside the techniques.
+    # The camera path tracer (the second truth) is measured beside the techniques, and the
+    # two truths compared: its two runs' mean against the reference, with both noise floors.
     camera = [r for r in result["records"] if r["method"] == "camera_path_tracer"]
     assert {r["lights"] for r in camera} == {1, 3}
     for lights in (1, 3):
         rows = [r for r in camera if r["lights"] == lights]
         assert [r["iteration"] for r in rows] == [1, 2, 4, 8, 16] and rows[-1]["final"]
         assert rows[-1]["psnr_ms"] > rows[0]["psnr_ms"] and rows[0]["short"] == "camera PT"
+        last = rows[-1]
+        # the mean of the two runs is closer to the reference than run A alone
+        assert last["psnr_two_truths"] > last["psnr_ms"]
+        assert last["combined_floor_psnr"] < min(last["floor_psnr"], last["camera_floor_psnr"])
+        assert last["agree"] == (last["psnr_two_truths"] >= last["floor_psnr"] - 1.0)
+        assert "psnr_two_truths" not in rows[0]
     # Half-angle slicing (one light only: it refuses more) beside them, its frames as
     # iterations.
     half = [r for r in result["records"] if r["method"] == "half_angle_slicing"]
     assert [(r["lights"], r["iteration"]) for r in half] == [(1, 1), (1, 2), (1, 4), (1, 8)]
     assert half[-1]["final"] and half[0]["short"] == "half-angle"
     assert all(0 < r["psnr_ms"] < 99 for r in half)
-    recs = [r for r in result["records"]
-            if r["method"] not in ("camera_path_tracer", "half_angle_slicing")]
+    # translucency (not progressive, the surface model) is charted beside them: one checkpoint
+    trans = [r for r in result["records"] if r["method"] == "translucency"]
+    assert [(r["lights"], r["iteration"], r["final"]) for r in trans] == [(1, 1, True),
+                                                                          (3, 1, True)]
+    assert all(r["seconds"] > 0 and r["short"] == "T + indirect" for r in trans)
+    # every technique's checkpoint is also measured against the camera path tracer
+    techniques = [r for r in result["records"] if r["method"] != "camera_path_tracer"]
+    assert all(10.0 < r["psnr_pt"] < 80.0 for r in techniques)
+    recs = [r for r in techniques if r["method"] not in ("translucency", "half_angle_slicing")]
     assert {(r["method"], r["lights"]) for r in recs} == {
         (m, n) for m in ("convection_diffusion", "hybrid_diffusion") for n in (1, 3)}
     for method, lights in {(r["method"], r["lights"]) for r in recs}:
@@ -551,11 +565,12 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     # KD keeps a light volume per light; HD's memory does not grow with the lights
     assert mem[("convection_diffusion", 3)] > mem[("convection_diffusion", 1)]
     assert mem[("hybrid_diffusion", 3)] == mem[("hybrid_diffusion", 1)]
-    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 7
+    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 9
     md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
     assert "## Multiple scattering: convergence (test," in md and "| KD | " in md
-    assert "| camera PT | " in md and "| half-angle | " in md
-    assert result["paths"]["scattering"].exists()
+    assert "| camera PT | " in md and "| T + indirect | " in md and "| half-angle | " in md
+    assert "**The two truths**" in md and f"| {scene.name} | 3 | 16 | " in md
+    assert result["paths"]["scattering"].exists() and result["paths"]["two_truths"].exists()
     doc = report.load(tmp_path / "benchmarks.json")
     assert len(doc["scattering"]) == len(result["records"]) and len(doc["scattering_runs"]) == 1
     # a matrix run merged later keeps the study

@@ -81,13 +81,14 @@ def _crossing(xs: np.ndarray, values: np.ndarray, level: float) -> float:
 
 
 def test_penumbra_behind_an_edge_widens_with_distance_times_tan_radius() -> None:
-    # An opaque half-plane (x < 47.5 µm, one voxel layer at z = 60 µm), the light straight above
+    # An opaque half-plane (x < 47.5 µm, three voxel layers at z = 59–61 µm: one layer of α
+    # 0.999 with interpolated α on both sides transmits 13 %), the light straight above
     # with angular radius ρ. At depth D below it the light's disc, seen from the point, is cut
     # by the edge; its projection on the plane has radius r = D·tan ρ, so T(x) is the disc's
     # uncovered fraction at (x − edge)/r: the penumbra is 2·D·tan ρ wide.
     nz, nx, z_edge = 64, 96, 60
     alpha = np.zeros((nz, 24, nx), np.float32)
-    alpha[z_edge, :, :48] = 0.999
+    alpha[z_edge - 1:z_edge + 2, :, :48] = 0.999
     light = DirectionalLight((0.0, 0.0, 1.0))
     xs = np.arange(24.0, 72.0, 0.25)
 

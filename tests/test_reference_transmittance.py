@@ -61,22 +61,39 @@ def test_homogeneous_volume_along_axis_and_at_45_degrees(spacing: tuple[float, .
 
 @pytest.mark.parametrize("theta_deg", [0.0, 45.0])
 def test_thin_slab_obeys_beer_lambert(theta_deg: float) -> None:
-    # A slab of n_f voxel layers: trilinear σ rises over half a voxel on each side, so the optical
-    # depth along the normal is exactly n_f·σ₀·sz and along an oblique ray n_f·σ₀·sz / cos θ.
+    # A slab of n_f voxel layers of opacity α₀. α (not σ) is trilinear, as the ray caster and
+    # the camera path tracer sample it: inside the slab σ₀ = −ln(1 − α₀) over n_f − 1 voxels,
+    # and on each side a one-voxel ramp where α rises linearly, whose optical depth is
+    # ∫₀¹ −ln(1 − α₀s) ds = 1 + (1 − α₀)·ln(1 − α₀)/α₀ (less than σ₀/2: −ln(1 − α) is convex).
+    # Along an oblique ray everything is divided by cos θ.
     n, layers, alpha = 40, 3, 0.4
     vol = phantom_slab(n, thickness=layers, axis="z", opacity=alpha)
     sigma0 = -math.log(1.0 - alpha)
+    ramp = 1.0 + (1.0 - alpha) * math.log(1.0 - alpha) / alpha
+    assert ramp < 0.93 * sigma0 / 2  # the two conventions differ by more than the tolerance
     th = math.radians(theta_deg)
     light = DirectionalLight((math.sin(th), 0.0, math.cos(th)))
     # Points below the slab, far enough from the −x/+x faces that the ray crosses the slab.
     pts = np.array([[5.0, 20.0, 3.0], [12.0, 7.0, 10.0], [8.0, 30.0, 15.0]])
-    expected = math.exp(-layers * sigma0 / math.cos(th))
+    expected = math.exp(-((layers - 1) * sigma0 + 2.0 * ramp) / math.cos(th))
     np.testing.assert_allclose(
-        transmittance(vol, (1, 1, 1), light, points=pts), expected, atol=1e-3
+        transmittance(vol, (1, 1, 1), light, points=pts, step=0.1), expected, atol=1e-3
     )
     # Above the slab nothing is in the way.
     above = np.array([[10.0, 10.0, 25.0]])
     assert transmittance(vol, (1, 1, 1), light, points=above)[0] == 1.0
+
+
+def test_extinction_field_interpolates_opacity_like_the_renderers() -> None:
+    # Halfway between a clear voxel and one of α 0.9 the renderers see α 0.45, σ = −ln(0.55)
+    # per unit distance (0.598), not the mean of the voxels' σ (−ln(0.1)/2 = 1.151).
+    vol = np.zeros((1, 1, 2))
+    vol[0, 0, 1] = 0.9
+    field = ExtinctionField(vol, (1.0, 1.0, 1.0), unit_distance=2.0)
+    s = field.sample(np.array([[0.5, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0]]))
+    np.testing.assert_allclose(s, [-math.log(0.55) / 2.0, 0.0, -math.log(0.1) / 2.0],
+                               rtol=1e-12)
+    assert field.majorant == pytest.approx(-math.log(0.1) / 2.0)
 
 
 def _exit_distance(origin: np.ndarray, direction: np.ndarray, box_max: np.ndarray) -> float:
@@ -91,12 +108,11 @@ def _exit_distance(origin: np.ndarray, direction: np.ndarray, box_max: np.ndarra
 
 def test_random_field_matches_independent_quadrature() -> None:
     # Non-cubic, anisotropic volume: catches any x/z or spacing mix-up. The independent check
-    # integrates scipy's trilinear interpolation with a fine trapezoid rule.
+    # integrates σ of scipy's trilinear interpolation of α with a fine trapezoid rule.
     rng = np.random.default_rng(1)
     shape = (5, 7, 9)  # z, y, x
     spacing = np.array([0.7, 1.1, 1.6])  # x, y, z
-    vol = rng.uniform(0.0, 0.6, shape)
-    sigma = extinction(vol, spacing.min())
+    vol = rng.uniform(0.0, 0.95, shape)
     box_max = (np.array(shape[::-1]) - 1) * spacing
     light = DirectionalLight((0.4, -0.7, 0.6))
     d = np.asarray(light.unit())
@@ -105,7 +121,8 @@ def test_random_field_matches_independent_quadrature() -> None:
     for p, g in zip(pts, got, strict=True):
         s = np.linspace(0.0, _exit_distance(p, d, box_max), 20001)
         xyz = (p + s[:, None] * d) / spacing
-        samples = map_coordinates(sigma, xyz[:, ::-1].T, order=1, mode="nearest")
+        alpha = map_coordinates(vol, xyz[:, ::-1].T, order=1, mode="nearest")
+        samples = extinction(alpha, spacing.min())
         assert g == pytest.approx(math.exp(-np.trapezoid(samples, s)), abs=2e-4)
 
 

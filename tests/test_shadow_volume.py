@@ -195,7 +195,10 @@ def sv_point(position):
 #: RMSE bounds over all voxels of phantom_sphere_over_slab(32) (measured, plus margin; the
 #: numbers for 64³ are in docs/shadow-volume.md).
 ACCURACY_BOUNDS = {
-    ("transmittance", 0.0): 0.002,
+    # Along the axis the propagation integrates per-voxel σ exactly as a σ-interpolated medium;
+    # the reference's medium interpolates α (what the renderers draw), which transmits more
+    # at the phantom's hard edges: measured 0.0056 (0.002 against the σ-interpolated one).
+    ("transmittance", 0.0): 0.007,
     ("transmittance", 22.5): 0.05,
     ("transmittance", 45.0): 0.01,
     ("seed000", 0.0): 0.25,

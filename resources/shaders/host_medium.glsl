@@ -13,8 +13,17 @@
 //   vtkVolumeProperty. The bracket also holds the sky fill F (vv_fill, never attenuated), and C
 //   is multiplied by the exposure (vv_exposure). With vv_exposureProbe = 1: T_i = A = 1, S = 0
 //   (the automatic exposure's reference, vtkvol/engine/exposure.py).
+//
+// Range: VTK clamps every shaded sample to [0, 1] (computeColor: clamp(computeLighting(..))),
+// which darkens the image wherever a * albedo * (ka + sum T E + S + F) exceeds 1 per sample
+// (a lit sample with in-scattered light: measured 30 levels darker in red than the camera path
+// tracer at a = 1, ka = 0.8). The model has no such clamp, and only the composite should meet
+// the display's range: C is handed to VTK divided by VV_MEDIUM_RANGE, and the composite is
+// multiplied by it again once the ray ends (finalizeRayCast), where the framebuffer clamps it.
 
 //@inject //VTK::ComputeLighting::Dec pre before
+// Headroom of a shaded sample above VTK's [0, 1] clamp (see "Range" above).
+#define VV_MEDIUM_RANGE 64.0
 // 4pi times the Henyey-Greenstein phase function: 1 for g = 0, normalised over the sphere.
 float vv_phase4pi(float cosTheta, float g)
 {
@@ -38,8 +47,13 @@ vec3 vv_shade_medium(vec3 albedo, int c)
   // Diffusion-type techniques hand back scattered light that can be negative where it moves
   // light away from a peak; the total received is never negative.
   vec3 scattered = probe ? vec3(0.0) : vv_irradiance(g_dataPos);
-  return vv_exposure * vv_albedo * albedo * max(light + scattered, vec3(0.0));
+  return vv_exposure * vv_albedo * albedo * max(light + scattered, vec3(0.0))
+    * (1.0 / VV_MEDIUM_RANGE);
 }
 
 //@inject //VTK::ComputeLighting::Exit post replace
   finalColor.rgb = vv_shade_medium(color.rgb, lightingComponent);
+
+//@inject //VTK::Base::Exit pre before
+  // the composite of samples shaded at 1/VV_MEDIUM_RANGE (alpha is untouched)
+  g_fragColor.rgb *= VV_MEDIUM_RANGE;

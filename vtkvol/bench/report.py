@@ -698,6 +698,9 @@ def regenerate(out_dir: Path, doc: Mapping[str, Any] | None = None) -> dict[str,
             path = out_dir / scattering_chart_path(r)
             scattering_chart(path, recs)
             paths["scattering"] = path
+            if two_truths_rows(recs):
+                paths["two_truths"] = out_dir / two_truths_chart_path(r)
+                two_truths_chart(paths["two_truths"], recs)
     _atomic_write(paths["md"], markdown(doc) + _kept_sections(paths["md"]))
     return paths
 
@@ -710,29 +713,83 @@ def scattering_chart_path(run: Mapping[str, Any]) -> str:
     return f"benchmarks/scattering-{run['mode']}-{slug(run['renderer'])}.png"
 
 
+def two_truths_chart_path(run: Mapping[str, Any]) -> str:
+    """The two-truths chart's file name (relative to the output folder) of one study."""
+    return f"benchmarks/two-truths-{run['mode']}-{slug(run['renderer'])}.png"
+
+
+def two_truths_rows(records: Sequence[Mapping[str, Any]]) -> list[Mapping[str, Any]]:
+    """The camera path tracer's last record per scene × light count (it carries the
+    comparison of the two truths, :func:`vtkvol.bench.convergence.two_truths`)."""
+    rows: dict[tuple, Mapping[str, Any]] = {}
+    for r in records:
+        if r["method"] == "camera_path_tracer" and "psnr_two_truths" in r:
+            rows[(r["scene"], r["lights"])] = r
+    return list(rows.values())
+
+
+def two_truths_chart(path: Path, records: Sequence[Mapping[str, Any]]) -> None:
+    """Per scene and light count: PSNR of the camera path tracer's image (two runs averaged)
+    against the multiple-scattering reference (bar), the reference's noise floor − 1 dB (the
+    acceptance, black tick) and the combined noise floor of the two (grey tick)."""
+    rows = two_truths_rows(records)
+    if not rows:
+        return
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(max(5.0, 1.3 * len(rows) + 2), 3.6))
+    xs = list(range(len(rows)))
+    values = [float(r["psnr_two_truths"]) for r in rows]
+    colors = ["#4c9a2a" if r.get("agree") else "#c0392b" for r in rows]
+    ax.bar(xs, values, color=colors, width=0.6, label="PSNR(camera PT, reference)")
+    for x, r in zip(xs, rows, strict=True):
+        ax.plot([x - 0.35, x + 0.35], [r["floor_psnr"] - 1.0] * 2, color="k", lw=2,
+                label="reference noise floor − 1 dB" if x == 0 else None)
+        ax.plot([x - 0.35, x + 0.35], [r["combined_floor_psnr"] - 1.0] * 2, color="0.55",
+                lw=2, ls="--", label="combined noise floor − 1 dB" if x == 0 else None)
+    ax.set_xticks(xs, [f"{r['scene']}\n{r['lights']} light{'s' if r['lights'] > 1 else ''}"
+                       for r in rows], fontsize=7)
+    ax.set_ylabel("PSNR (dB)")
+    ax.set_title("The two truths: camera path tracer vs object-space reference "
+                 "(green: agree)", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
+    ax.grid(True, axis="y", alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+
+
 def scattering_chart(path: Path, records: Sequence[Mapping[str, Any]]) -> None:
-    """PSNR against the multiple-scattering reference (solid) and the single-scattering one
-    (dotted), per iteration and per second, one row per scene; the reference's noise floor
-    dashed grey."""
+    """Per iteration and per second, one row per scene: PSNR against the multiple-scattering
+    reference (solid) and the single-scattering one (dotted), the reference's noise floor
+    dashed grey (left two panels); PSNR against the camera path tracer's image (right two
+    panels, every technique incl. those of :data:`vtkvol.bench.convergence.ALSO_CHARTED`)."""
     plt = _pyplot()
     scenes = list(dict.fromkeys(r["scene"] for r in records))
     curves = list(dict.fromkeys((r["method"], r["lights"]) for r in records))
     colors = method_colors([f"{m} {n}" for m, n in curves])
-    fig, axes = plt.subplots(len(scenes), 2, figsize=(13, 3.6 * len(scenes)), squeeze=False)
+    fig, axes = plt.subplots(len(scenes), 4, figsize=(24, 3.6 * len(scenes)), squeeze=False)
+    panels = (("iteration", "iterations", "psnr_ms"),
+              ("seconds", "wall-clock seconds (iterations only)", "psnr_ms"),
+              ("iteration", "iterations", "psnr_pt"),
+              ("seconds", "wall-clock seconds (iterations only)", "psnr_pt"))
     for row, scene in enumerate(scenes):
-        for col, (key, label) in enumerate((("iteration", "iterations"),
-                                            ("seconds", "wall-clock seconds (iterations only)"))):
+        for col, (key, label, metric) in enumerate(panels):
             ax = axes[row][col]
             floors: dict[int, float] = {}
             for method, lights in curves:
                 pts = [r for r in records if r["scene"] == scene and r["method"] == method
-                       and r["lights"] == lights and _finite(r.get("psnr_ms"))
+                       and r["lights"] == lights and _finite(r.get(metric))
                        and _finite(r.get(key)) and float(r[key]) > 0]
                 if not pts:
                     continue
                 color = colors[f"{method} {lights}"]
                 name = f"{pts[0].get('short', method)}, {lights} light{'s' if lights > 1 else ''}"
                 xs = [float(r[key]) for r in pts]
+                if metric == "psnr_pt":
+                    ax.plot(xs, [r["psnr_pt"] for r in pts], "-o", ms=3, color=color,
+                            label=f"{name}: vs camera PT")
+                    continue
                 ax.plot(xs, [r["psnr_ms"] for r in pts], "-o", ms=3, color=color,
                         label=f"{name}: vs multiple")
                 ax.plot(xs, [r["psnr_ss"] for r in pts], ":", color=color,
@@ -745,15 +802,41 @@ def scattering_chart(path: Path, records: Sequence[Mapping[str, Any]]) -> None:
                             color="0.4", va="bottom")
             ax.set_xscale("log")
             ax.set_xlabel(label)
-            ax.set_ylabel("PSNR (dB)")
+            ax.set_ylabel("PSNR (dB) vs " + ("camera path tracer" if metric == "psnr_pt"
+                                             else "references"))
             ax.set_title(scene, fontsize=9)
             ax.grid(True, which="both", alpha=0.3)
-            if row == 0 and col == 0:
-                ax.legend(fontsize=6, ncol=2)
+            if row == 0 and col in (0, 2) and ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=6, ncol=2)  # (studies before issue 23 have no psnr_pt)
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=90)
     plt.close(fig)
+
+
+def _two_truths_markdown(run: Mapping[str, Any], recs: Sequence[Mapping[str, Any]]
+                         ) -> list[str]:
+    """The two-truths table of one study (empty without camera path tracer records)."""
+    rows = two_truths_rows(recs)
+    if not rows:
+        return []
+    out = ["**The two truths** (issue 23's acceptance): the camera path tracer's image (two "
+           "runs of different seeds averaged) against the multiple-scattering reference. They "
+           "agree when the PSNR reaches the reference's noise floor − 1 dB; the combined floor "
+           "adds the camera image's own noise (two runs: PSNR(A, B) + 6 dB) to the "
+           "reference's, the most an unbiased pair of this many paths can reach.", "",
+           f"![The two truths]({two_truths_chart_path(run)})", "",
+           "| scene | lights | paths per pixel (× 2 runs) | PSNR camera PT vs reference | "
+           "reference floor − 1 dB | agree | camera floor | combined floor − 1 dB | "
+           "agree within combined noise |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        out.append(
+            f"| {r['scene']} | {r['lights']} | {r['iteration']} | "
+            f"{_fmt(r['psnr_two_truths'], 1)} | {_fmt(r['floor_psnr'] - 1.0, 1)} | "
+            f"{'yes' if r.get('agree') else 'no'} | {_fmt(r.get('camera_floor_psnr'), 1)} | "
+            f"{_fmt(r['combined_floor_psnr'] - 1.0, 1)} | "
+            f"{'yes' if r.get('agree_combined') else 'no'} |")
+    return [*out, ""]
 
 
 def scattering_markdown(doc: Mapping[str, Any]) -> list[str]:
@@ -784,11 +867,12 @@ def scattering_markdown(doc: Mapping[str, Any]) -> list[str]:
                 "PSNR(A, B) + 6 dB); no technique can be shown closer than that. Time counts "
                 "the iterations only. Method details: "
                 "[multiple-scattering.md](multiple-scattering.md).", "",
-                f"![PSNR against iterations and seconds]({scattering_chart_path(run)})", "",
-                "| scene | method | lights | iterations | seconds | iterations/s | PSNR vs "
+                f"![PSNR against iterations and seconds]({scattering_chart_path(run)})", ""]
+        out += _two_truths_markdown(run, recs)
+        out += ["| scene | method | lights | iterations | seconds | iterations/s | PSNR vs "
                 "multiple (best at it.) | noise floor | within 1 dB of floor | PSNR vs single "
-                "| single vs multiple reference | bytes/voxel |",
-                "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                "| single vs multiple reference | PSNR vs camera PT | bytes/voxel |",
+                "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in rows:
             near = (f"{_fmt(r['within_1db_s'], 2)} s (it. {r['within_1db_iteration']})"
                     if r.get("within_1db_s") is not None else "not reached")
@@ -798,7 +882,7 @@ def scattering_markdown(doc: Mapping[str, Any]) -> list[str]:
                 f" | {_fmt(r['psnr_ms'], 1)} ({_fmt(r['best_psnr_ms'], 1)} at "
                 f"{r['best_iteration']}) | {_fmt(r['floor_psnr'], 1)} | {near} | "
                 f"{_fmt(r['psnr_ss'], 1)} | {_fmt(r.get('single_vs_multiple_psnr'), 1)} | "
-                f"{_fmt(r.get('bytes_per_voxel'), 0)} |")
+                f"{_fmt(r.get('psnr_pt'), 1)} | {_fmt(r.get('bytes_per_voxel'), 0)} |")
         out += ["", "Seed 003's Table 1 analogue (median over scenes of the iterations per "
                 "second to each technique's end). The paper's 3 ÷ 1-light ratios, on a GTX "
                 "1080: KD 0.306, HD 0.771.", "",

@@ -2,7 +2,7 @@
 
 Every GPU technique (precomputed shadow volumes, cone-traced AO and soft shadows, multiple
 scattering) is measured against these. They are deliberately simple and brute-force: dense ray
-marching and Monte Carlo on the trilinearly interpolated extinction field, vectorised with numpy.
+marching and Monte Carlo through the medium the renderers draw, vectorised with numpy.
 
 Conventions (``docs/architecture.md``):
 
@@ -10,7 +10,8 @@ Conventions (``docs/architecture.md``):
 * world space: voxel (i, j, k) at (i·sx, j·sy, k·sz); the volume is the box spanned by the voxel
   centres, with zero extinction outside;
 * the input is the transfer-function opacity α of a slab ``unit_distance`` µm thick (default the
-  smallest voxel edge); σ = −ln(1 − α)/unit_distance per µm, interpolated trilinearly;
+  smallest voxel edge); α is interpolated trilinearly (as VTK's ray caster and the camera path
+  tracer sample it) and σ(x) = −ln(1 − α(x))/unit_distance per µm;
 * a :class:`DirectionalLight` ``direction`` points from the scene towards the light; a
   :class:`PointLight` ``position`` is in world µm and may be inside the box;
 * per-voxel results are float32 ``[z, y, x]``; with ``points=`` (world (N, 3)) they are (N,).

@@ -97,8 +97,9 @@ def phantom_slab(
 
     The layers are indices (n − thickness)//2 … (n − thickness)//2 + thickness − 1 along the
     axis, the full extent along the other two; α = ``opacity`` there and 0 elsewhere (no
-    anti-aliasing). With trilinear σ the optical depth across the slab along its normal is
-    exactly thickness · spacing · σ.
+    anti-aliasing). With trilinear α (the references' medium) the optical depth across the slab
+    along its normal is spacing · ((thickness − 1)·σ + 2·(1 + (1 − α)·ln(1 − α)/α)) per unit
+    distance: σ inside, and a one-voxel ramp of α on each side.
     """
     if int(thickness) != thickness or not (1 <= thickness <= n):
         raise ValueError(f"thickness must be an integer in [1, n], got {thickness}")
