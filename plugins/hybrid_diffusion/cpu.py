@@ -101,17 +101,48 @@ def trilinear(sigma: np.ndarray, grid: Grid, px: np.ndarray, py: np.ndarray,
     return lerp(lerp(c00, c01, wy), lerp(c10, c11, wy), wz)
 
 
-def _towards(grid: Grid, light: LightSource, x: np.ndarray, y: np.ndarray,
-             z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(dx, dy, dz, t_end): unit direction to the light and the tracking distance (µm)."""
+def around(w: np.ndarray, c: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit vectors ``[3, n]`` at cosine ``c`` and azimuth ``phi`` about the unit vectors ``w``
+    (``[3, n]`` or ``[3]``), float32 — ``around`` in ``direct.comp.glsl``."""
     f = np.float32
+    w = np.broadcast_to(np.asarray(w, f).reshape(3, -1), (3, c.size))
+    s = np.sqrt(np.maximum(f(0.0), f(1.0) - c * c))
+    a = np.where(np.abs(w[0]) < f(0.9), np.array([[1.0], [0.0], [0.0]], f),
+                 np.array([[0.0], [1.0], [0.0]], f))
+    t1 = np.cross(w, a, axis=0)
+    t1 = t1 / np.linalg.norm(t1, axis=0)
+    t2 = np.cross(w, t1, axis=0)
+    v = s * np.cos(phi) * t1 + s * np.sin(phi) * t2 + c * w
+    return (v / np.linalg.norm(v, axis=0)).astype(f)
+
+
+def _towards(grid: Grid, light: LightSource, x: np.ndarray, y: np.ndarray,
+             z: np.ndarray, keys: np.ndarray | None = None, first_draw: int = 0,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(dx, dy, dz, t_end): unit direction to the light and the tracking distance (µm). A
+    sized light is sampled per path with draws ``first_draw`` + 4094, 4095 of ``keys``: a
+    point on its sphere (point light, radius ``size`` µm) or a direction in its cone
+    (directional, half-angle ``size`` rad) — uniform, as the camera path tracer samples them."""
+    f = np.float32
+    size = f(light.size) if keys is not None else f(0.0)
+    if size > 0:
+        u1, u2 = uniform(keys, first_draw + 4094), uniform(keys, first_draw + 4095)
+        phi = f(2.0 * np.pi) * u2
     if light.kind == "point":
-        dx, dy, dz = (f(v) - c for v, c in zip(light.vector, (x, y, z), strict=True))
+        target = np.asarray(light.vector, f).reshape(3, 1)
+        if size > 0:
+            target = target + size * around(np.array([0.0, 0.0, 1.0], f), f(1.0) - f(2.0) * u1,
+                                            phi)
+        dx, dy, dz = (t - c for t, c in zip(target, (x, y, z), strict=True))
         dist = np.sqrt(dx * dx + dy * dy + dz * dz)
         inv = np.float32(1.0) / np.maximum(dist, np.float32(1e-12))
         dx, dy, dz = dx * inv, dy * inv, dz * inv
     else:
-        dx, dy, dz = (np.full_like(x, c) for c in unit(light.vector))
+        if size > 0:
+            cone = f(1.0) - u1 * (f(1.0) - f(np.cos(float(size))))
+            dx, dy, dz = around(unit(light.vector), cone, phi)
+        else:
+            dx, dy, dz = (np.full_like(x, c) for c in unit(light.vector))
         dist = None
     exit_t = np.full_like(x, np.float32(np.inf))
     for p, d, o, s, n in zip((x, y, z), (dx, dy, dz), grid.origin, grid.spacing,
@@ -130,8 +161,12 @@ def direct_sample(
     sigma_t: np.ndarray, grid: Grid, lights: Sequence[LightSource],
     colors: Sequence[tuple[float, float, float]], *, iteration: int, seed: int,
     estimator: Estimator, light_sampling: LightSampling,
+    layers: tuple[int, int] | None = None,
 ) -> np.ndarray:
-    """One sample of the direct light at every voxel centre, ``[z, y, x, 3]`` float32."""
+    """One sample of the direct light at every voxel centre, ``[z, y, x, 3]`` float32; with
+    ``layers`` (z0, z1) only the voxels of z layers z0 ≤ z < z1 are sampled (the others stay 0):
+    each voxel's random stream depends only on its index, so a sample drawn in z slabs equals
+    the whole one (the GPU's bounded chunks, ``direct.comp.glsl``'s ``vv_firstLayer``)."""
     shape = grid.shape_zyx
     out = np.zeros((*shape, 3), np.float32)
     if not lights:
@@ -140,11 +175,15 @@ def direct_sample(
     xs, ys, zs = centres32(grid)
     majorant = np.float32(sigma_t.max())
     n = len(lights)
+    region = np.ones(shape, bool)
+    if layers is not None:
+        region[:] = False
+        region[layers[0]:layers[1]] = True
     if light_sampling == "one":
         pick = np.minimum((uniform(keys, 0) * np.float32(n)).astype(np.int64), n - 1)
-        chosen = [(index, pick == index, np.float32(n)) for index in range(n)]
+        chosen = [(index, (pick == index) & region, np.float32(n)) for index in range(n)]
     else:
-        chosen = [(index, np.ones(shape, bool), np.float32(1.0)) for index in range(n)]
+        chosen = [(index, region, np.float32(1.0)) for index in range(n)]
     for index, mask, weight in chosen:
         if not mask.any():
             continue
@@ -160,7 +199,7 @@ def direct_sample(
 def _track(sigma_t: np.ndarray, grid: Grid, light: LightSource, keys: np.ndarray,
            x: np.ndarray, y: np.ndarray, z: np.ndarray, majorant: np.float32,
            estimator: Estimator, first_draw: int) -> np.ndarray:
-    dx, dy, dz, t_end = _towards(grid, light, x, y, z)
+    dx, dy, dz, t_end = _towards(grid, light, x, y, z, keys, first_draw)
     throughput = np.ones_like(x)
     if majorant <= 0:
         return throughput

@@ -32,6 +32,7 @@ from vtkvol.engine.diffusion import (
 )
 from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl
 from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.technique import finish_gl
 from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -64,7 +65,7 @@ class Setup:
         lights = [
             kd.LightSource(s.kind, tuple(float(v) for v in (
                 s.vector if s.kind == "point" else cpu.unit(s.vector))),
-                float(getattr(s, "falloff_distance", 0.0)))
+                float(getattr(s, "falloff_distance", 0.0)), float(getattr(s, "size", 0.0)))
             for s in specs
         ]
         colors = [tuple(float(c) for c in getattr(s, "color", (1.0, 1.0, 1.0))) for s in specs]
@@ -89,39 +90,98 @@ class HybridDiffusion(GridScattering):
         self._rho_s: np.ndarray | None = None
         #: Source model: relative residual of the scattered light's equation (inf before).
         self.residual = float("inf")
+        #: The current sample's next z layer (> 0 while a sample is drawn in slabs).
+        self._next_layer = 0
+        #: Measured cost (ms) of one z layer of one sample: sizes the next slab.
+        self._layer_ms: float | None = None
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuHybrid:
         return GpuHybrid(window)
 
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+        """Up to ``iterations_per_frame`` samples before this frame. With the host's
+        :attr:`~vtkvol.engine.technique.TechniqueHost.work_budget_ms` (the app sets one), the
+        work stops once the budget is spent: a sample is drawn in z slabs sized from the
+        measured cost per layer, and the finishing sweeps in batches, each resumed next frame
+        — one frame never holds the event loop for a whole sample of a large stack."""
         if changes.reset_accumulation or self.setup is None:
             self._restart(values)
         setup = self.setup
         assert setup is not None
         samples = int(values["max_iterations"])
-        steps = int(values["diffusion_steps"])
         count = min(int(values["iterations_per_frame"]), samples - self.iteration)
-        if count > 0:
-            t0 = time.perf_counter()
-            for _ in range(count):
-                self._iterate(values)
-                self.iteration += 1
-            if setup.model == "source" and steps:
-                if self._gpu is not None:
-                    self.residual = self._gpu.residual()
-                if self.iteration >= samples:
-                    self._finish_source(values)
+        budget = self.host.work_budget_ms
+        t0 = time.perf_counter()
+        worked = False
+        done = 0
+        while done < count:
+            spent = (time.perf_counter() - t0) * 1e3
+            if budget is not None and worked and spent >= budget:
+                break
+            worked = True
+            left = None if budget is None else max(budget - spent, 0.0)
+            if self._sample_layers(values, left):
+                done += 1
+        if self._finishing(values):
+            spent = (time.perf_counter() - t0) * 1e3
+            if budget is None or not worked or spent < budget:
+                worked = True
+                self._finish_source(values, None if budget is None else budget - spent)
+        if worked:
             if self._gpu is None:
                 self._upload_cpu_state()
             self._last_ms = (time.perf_counter() - t0) * 1e3
-        self.converged = self.iteration >= samples
+        self.converged = self.iteration >= samples and not self._finishing(values)
         gpu = self._gpu
         self._bind((gpu.rho_d, gpu.rho_s) if gpu is not None else None)
 
-    def _finish_source(self, values: Mapping[str, Any]) -> None:
+    def _finishing(self, values: Mapping[str, Any]) -> bool:
+        """All samples are drawn and the source model's sweeps have not reached the tolerance."""
+        setup = self.setup
+        assert setup is not None
+        return (self.iteration >= int(values["max_iterations"]) and setup.model == "source"
+                and int(values["diffusion_steps"]) > 0
+                and self.residual >= float(values["tolerance"]))
+
+    def _sample_layers(self, values: Mapping[str, Any], budget_ms: float | None) -> bool:
+        """Draw the current sample's next z layers (all of them without a budget, else as many
+        as ``budget_ms`` allows at the measured cost per layer, at least one work-group's);
+        True when the sample is complete (its diffusion steps then ran and the iteration
+        advanced)."""
+        setup = self.setup
+        assert setup is not None
+        nz = setup.grid.shape_zyx[0]
+        z0 = self._next_layer
+        if budget_ms is None:
+            z1 = nz
+        elif self._layer_ms is None:
+            z1 = min(nz, z0 + GROUP[2])
+        else:
+            fit = int(budget_ms / max(self._layer_ms, 1e-6))
+            z1 = min(nz, z0 + max(GROUP[2], fit - fit % GROUP[2]))
+        t0 = time.perf_counter()
+        if self._gpu is not None:
+            self._gpu.sample(self.iteration, values, (z0, z1))
+            if budget_ms is not None:
+                finish_gl(self.host.render_window)  # the cost must be measured, not queued
+        else:
+            self._sample_cpu(values, (z0, z1))
+        self._layer_ms = (time.perf_counter() - t0) * 1e3 / (z1 - z0)
+        self._next_layer = z1 if z1 < nz else 0
+        if z1 < nz:
+            return False
+        self._iterate(values, sample=False)  # the diffusion steps of the complete sample
+        self.iteration += 1
+        if self._gpu is not None and setup.model == "source" and int(values["diffusion_steps"]):
+            self.residual = self._gpu.residual()
+        return True
+
+    def _finish_source(self, values: Mapping[str, Any], budget_ms: float | None = None) -> None:
         """After the last sample, the source model's sweeps until the residual tolerance (the
-        last iteration ends the solve: the result is final when the samples are)."""
+        last iteration ends the solve: the result is final when the samples are), in batches
+        of ``FINISH_BATCH``; with ``budget_ms`` it stops after the batch that spends it."""
         tolerance = float(values["tolerance"])
+        t0 = time.perf_counter()
         for _ in range(MAX_FINISHING_SWEEPS // FINISH_BATCH):
             if self.residual < tolerance:
                 return
@@ -129,6 +189,8 @@ class HybridDiffusion(GridScattering):
                 self._iterate(values, sample=False)
             if self._gpu is not None:
                 self.residual = self._gpu.residual()
+            if budget_ms is not None and (time.perf_counter() - t0) * 1e3 >= budget_ms:
+                return
 
     def stats(self) -> dict[str, Any]:
         return {**super().stats(), "residual": self.residual}
@@ -163,6 +225,7 @@ class HybridDiffusion(GridScattering):
         self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
                                  str(values["diffusion_model"]), self.host.phase_g)
         self.iteration = 0
+        self._next_layer = 0
         self.residual = float("inf")
         self.converged = False
         self._restarts += 1
@@ -179,8 +242,22 @@ class HybridDiffusion(GridScattering):
         self._backend = "cpu"
         self._upload_cpu_state()
 
+    def _sample_cpu(self, values: Mapping[str, Any], layers: tuple[int, int]) -> None:
+        """The numpy path's sample ``iteration`` of the direct light in z ``layers``, into
+        the running mean ρ_d."""
+        setup = self.setup
+        assert setup is not None and self._rho_d is not None
+        z0, z1 = layers
+        draw = cpu.direct_sample(
+            setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
+            seed=int(values["seed"]), estimator=values["estimator"],
+            light_sampling=values["light_sampling"], layers=layers,
+        )
+        mean = self._rho_d[z0:z1]
+        self._rho_d[z0:z1] = mean + (draw[z0:z1] - mean) / np.float32(self.iteration + 1)
+
     def _iterate(self, values: Mapping[str, Any], sample: bool = True) -> None:
-        """One iteration: a sample of the direct light (while ``sample``), then
+        """One iteration: a whole sample of the direct light (while ``sample``), then
         ``diffusion_steps`` steps of the model."""
         setup = self.setup
         assert setup is not None
@@ -189,12 +266,7 @@ class HybridDiffusion(GridScattering):
             return
         assert self._rho_d is not None and self._rho_s is not None
         if sample:
-            draw = cpu.direct_sample(
-                setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
-                seed=int(values["seed"]), estimator=values["estimator"],
-                light_sampling=values["light_sampling"],
-            )
-            self._rho_d = self._rho_d + (draw - self._rho_d) / np.float32(self.iteration + 1)
+            self._sample_cpu(values, (0, setup.grid.shape_zyx[0]))
         steps = int(values["diffusion_steps"])
         if setup.model == "source":
             assert setup.coefficients is not None
@@ -294,7 +366,7 @@ class GpuHybrid:
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         steps = int(values["diffusion_steps"])
         if sample:
-            self._sample(iteration, values)
+            self.sample(iteration, values, (0, setup.grid.shape_zyx[0]))
         if not steps:
             return
         if setup.model == "source":
@@ -302,7 +374,9 @@ class GpuHybrid:
         else:
             self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
 
-    def _sample(self, iteration: int, values: Mapping[str, Any]) -> None:
+    def sample(self, iteration: int, values: Mapping[str, Any],
+               layers: tuple[int, int]) -> None:
+        """Sample ``iteration`` of the direct light in z ``layers`` (z0, z1) into ρ_d."""
         setup = self._setup
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         GL = gl(self.render_window)
@@ -324,6 +398,8 @@ class GpuHybrid:
         for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
             set_uniform(self._locations, prog, name, unit)
         set_uniform(self._locations, prog, "vv_dims", nx, ny, nz)
+        set_uniform(self._locations, prog, "vv_firstLayer", layers[0])
+        set_uniform(self._locations, prog, "vv_endLayer", layers[1])
         set_uniform(self._locations, prog, "vv_origin", *grid.origin, integer=False)
         set_uniform(self._locations, prog, "vv_spacing", *grid.spacing, integer=False)
         set_uniform(self._locations, prog, "vv_majorant", float(setup.sigma_t.max()),
@@ -335,9 +411,12 @@ class GpuHybrid:
         program.SetUniform4fv("vv_lightVec", 4, vecs)
         program.SetUniform3fv("vv_color", 4, colors)
         program.SetUniform4fv("vv_falloff", 4, falloffs)
+        sizes = [float(light.size) for light in setup.lights]
+        program.SetUniform1fv("vv_lightSize", 4, sizes + [0.0] * (4 - len(sizes)))
         self._sigma.bind_image(0, "read")
         self.rho_d.bind_image(1, "readwrite")
-        prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2])))
+        prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]),
+                       -(-(layers[1] - layers[0]) // GROUP[2])))
         unbind_images(GL, 2)
         prog.done()
 

@@ -13,6 +13,8 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 layout(r32f) uniform readonly image3D vv_sigma;        // extinction sigma_t per µm
 layout(rgba32f) uniform image3D vv_direct;             // rho_d (rgb), read and written
 uniform ivec3 vv_dims;
+uniform int vv_firstLayer;      // z layers vv_firstLayer <= z < vv_endLayer are sampled
+uniform int vv_endLayer;        // (bounded chunks: one sample drawn in z slabs)
 uniform vec3 vv_origin;
 uniform vec3 vv_spacing;
 uniform float vv_majorant;      // max sigma_t (per µm)
@@ -21,6 +23,7 @@ uniform uint vv_seed;
 uniform int vv_numLights;
 uniform vec4 vv_lightVec[4];    // xyz: direction towards the light (unit) or position; w = point
 uniform vec3 vv_color[4];
+uniform float vv_lightSize[4];  // angular radius (rad, directional) or sphere radius (µm, point)
 uniform vec4 vv_falloff[4];     // position (µm) and d0 (µm; 0 = none): irradiance * (d0/r)^2
 
 uint pcg(uint v)
@@ -67,20 +70,37 @@ float sigmaAt(vec3 p)
   return lerp(lerp(c00, c01, w.y), lerp(c10, c11, w.y), w.z);
 }
 
-// Throughput from pos towards light l (draws start at firstDraw).
+// Unit vector at cosine c and azimuth phi about the unit vector w (as the numpy twin's).
+vec3 around(vec3 w, float c, float phi)
+{
+  float s = sqrt(max(0.0, 1.0 - c * c));
+  vec3 a = abs(w.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 t1 = normalize(cross(w, a));
+  vec3 t2 = cross(w, t1);
+  return normalize(s * cos(phi) * t1 + s * sin(phi) * t2 + c * w);
+}
+
+// Throughput from pos towards light l (draws start at firstDraw). A sized light is sampled
+// per path: a point on its sphere, or a direction in its cone (draws firstDraw + 4094, 4095).
 float track(uint key, vec3 pos, int l, uint firstDraw)
 {
   vec3 d;
   float dist = 1e30;
+  float size = vv_lightSize[l];
+  float u1 = uniformDraw(key, firstDraw + 4094u);
+  float u2 = uniformDraw(key, firstDraw + 4095u);
   if (vv_lightVec[l].w > 0.5)
   {
-    d = vv_lightVec[l].xyz - pos;
+    vec3 target = vv_lightVec[l].xyz;
+    if (size > 0.0) target += size * around(vec3(0.0, 0.0, 1.0), 1.0 - 2.0 * u1, 6.2831853 * u2);
+    d = target - pos;
     dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     d = d * (1.0 / max(dist, 1e-12));
   }
   else
   {
     d = vv_lightVec[l].xyz;
+    if (size > 0.0) d = around(d, 1.0 - u1 * (1.0 - cos(size)), 6.2831853 * u2);
   }
   float exitT = 1e30;
   for (int a = 0; a < 3; ++a)
@@ -116,8 +136,8 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
 
 void main()
 {
-  ivec3 p = ivec3(gl_GlobalInvocationID);
-  if (any(greaterThanEqual(p, vv_dims))) return;
+  ivec3 p = ivec3(gl_GlobalInvocationID) + ivec3(0, 0, vv_firstLayer);
+  if (any(greaterThanEqual(p, vv_dims)) || p.z >= vv_endLayer) return;
   uint index = uint(p.x + vv_dims.x * (p.y + vv_dims.y * p.z));
   uint key = pcg(index ^ pcg(vv_iteration + pcg(vv_seed)));
   vec3 pos = vv_origin + vv_spacing * vec3(p);
