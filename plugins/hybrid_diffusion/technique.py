@@ -53,14 +53,18 @@ class Setup:
 
     def __init__(self, grid: kd.Grid, sigma_t: np.ndarray, lights: list[kd.LightSource],
                  colors: list[tuple[float, float, float]], lam: np.ndarray, model: str = "source",
-                 coefficients: np.ndarray | None = None) -> None:
+                 coefficients: np.ndarray | None = None,
+                 bricks: np.ndarray | None = None) -> None:
         self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
             grid, sigma_t, lights, colors, lam)
         self.model, self.coefficients = model, coefficients
+        #: The per-brick majorant grid (``majorant = "bricks"``), None for the global one.
+        self.bricks = bricks
 
     @classmethod
     def build(cls, grid: kd.Grid, sigma_t: np.ndarray, specs: list[Any],
-              albedo: float, model: str = "source", phase_g: float = 0.0) -> Setup:
+              albedo: float, model: str = "source", phase_g: float = 0.0,
+              majorant: str = "global") -> Setup:
         specs = specs[:4]
         lights = [
             kd.LightSource(s.kind, tuple(float(v) for v in (
@@ -71,8 +75,9 @@ class Setup:
         colors = [tuple(float(c) for c in getattr(s, "color", (1.0, 1.0, 1.0))) for s in specs]
         coefficients = (kd.source_coefficients(sigma_t, grid, albedo, phase_g)
                         if model == "source" else None)
+        bricks = cpu.brick_majorants(sigma_t) if majorant == "bricks" else None
         return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo),
-                   model, coefficients)
+                   model, coefficients, bricks)
 
 
 class HybridDiffusion(GridScattering):
@@ -208,10 +213,12 @@ class HybridDiffusion(GridScattering):
         merged = {**self.defaults(), **values}
         grid = kd.Grid(opacity.shape, spacing, self._origin())
         sigma_t = kd.extinction(opacity, self.host.unit_distance)
-        setup = Setup.build(grid, sigma_t, [light], self.host.albedo)
+        setup = Setup.build(grid, sigma_t, [light], self.host.albedo,
+                            majorant=str(merged["majorant"]))
         mean = np.zeros((*grid.shape_zyx, 3), np.float32)
         for k in range(int(merged["max_iterations"])):
             sample = cpu.direct_sample(sigma_t, grid, setup.lights, [(1.0, 1.0, 1.0)],
+                                       bricks=setup.bricks,
                                        iteration=k, seed=int(merged["seed"]),
                                        estimator=merged["estimator"], light_sampling="all")
             mean += (sample - mean) / np.float32(k + 1)
@@ -223,7 +230,8 @@ class HybridDiffusion(GridScattering):
         grid = kd.Grid((nz, ny, nx), self.host.spacing, self._origin())
         sigma_t = kd.extinction(self.host.opacity_volume(), self.host.unit_distance)
         self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
-                                 str(values["diffusion_model"]), self.host.phase_g)
+                                 str(values["diffusion_model"]), self.host.phase_g,
+                                 str(values["majorant"]))
         self.iteration = 0
         self._next_layer = 0
         self.residual = float("inf")
@@ -251,7 +259,7 @@ class HybridDiffusion(GridScattering):
         draw = cpu.direct_sample(
             setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
             seed=int(values["seed"]), estimator=values["estimator"],
-            light_sampling=values["light_sampling"], layers=layers,
+            light_sampling=values["light_sampling"], layers=layers, bricks=setup.bricks,
         )
         mean = self._rho_d[z0:z1]
         self._rho_d[z0:z1] = mean + (draw[z0:z1] - mean) / np.float32(self.iteration + 1)
@@ -309,14 +317,15 @@ class GpuHybrid:
         self._locations: dict[tuple[int, str], int] = {}
         self.rho_d: Texture3D | None = None  # type: ignore[assignment]
         self._sigma: Texture3D | None = None
+        self._bricks: Texture3D | None = None
         self.diffusion = GpuDiffusion(render_window)
         self.source = GpuSourceDiffusion(render_window)
         self._setup: Setup | None = None
-        self.program("ratio", "one")  # fail now, not mid-frame, when compute cannot work
+        self.program("ratio", "one", False)  # fail now, not mid-frame, when compute cannot work
 
     @property
     def textures(self) -> list[Texture3D]:
-        own = [t for t in (self.rho_d, self._sigma) if t is not None]
+        own = [t for t in (self.rho_d, self._sigma, self._bricks) if t is not None]
         return own + self.diffusion.textures + self.source.textures
 
     @property
@@ -329,8 +338,8 @@ class GpuHybrid:
         """The source model's relative residual after the last sweep's start."""
         return relative_residual(*self.source.residual())
 
-    def program(self, estimator: str, light_sampling: str) -> ComputeProgram:
-        key = (estimator, light_sampling)
+    def program(self, estimator: str, light_sampling: str, bricks: bool) -> ComputeProgram:
+        key = (estimator, light_sampling, bricks)
         prog = self._programs.get(key)
         if prog is None:
             defines = {
@@ -338,6 +347,8 @@ class GpuHybrid:
                 "VV_ALL_LIGHTS": "1" if light_sampling == "all" else "0",
                 "VV_MAX_STEPS": str(cpu.MAX_STEPS),
                 "VV_MIN_THROUGHPUT": repr(cpu.MIN_THROUGHPUT),
+                "VV_BRICKS": "1" if bricks else "0",
+                "VV_BRICK": str(cpu.BRICK),
             }
             source = compute_source("direct.comp.glsl", defines, __package__)
             prog = ComputeProgram(self.render_window, source, f"hybrid direct {key}")
@@ -350,6 +361,9 @@ class GpuHybrid:
         shape = setup.grid.shape_zyx
         self.rho_d = Texture3D(rw, shape, channels=4, data=np.zeros((*shape, 4), np.float32))
         self._sigma = Texture3D(rw, shape, data=setup.sigma_t)
+        if setup.bricks is not None:
+            self._bricks = Texture3D(rw, setup.bricks.shape, data=setup.bricks)
+            self._bricks.tex.Deactivate()
         for tex in (self.rho_d, self._sigma):
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self.diffusion.reset(setup.grid, setup.lam, channels=4)
@@ -382,7 +396,8 @@ class GpuHybrid:
         GL = gl(self.render_window)
         grid = setup.grid
         nz, ny, nx = grid.shape_zyx
-        prog = self.program(values["estimator"], values["light_sampling"])
+        bricks = self._bricks if setup.bricks is not None else None
+        prog = self.program(values["estimator"], values["light_sampling"], bricks is not None)
         program = prog.use()
         vecs: list[float] = []
         for light in setup.lights:
@@ -415,9 +430,14 @@ class GpuHybrid:
         program.SetUniform1fv("vv_lightSize", 4, sizes + [0.0] * (4 - len(sizes)))
         self._sigma.bind_image(0, "read")
         self.rho_d.bind_image(1, "readwrite")
+        if bricks is not None:
+            set_uniform(self._locations, prog, "vv_bricks", 2)
+            nbz, nby, nbx = setup.bricks.shape
+            set_uniform(self._locations, prog, "vv_brickDims", nbx, nby, nbz)
+            bricks.bind_image(2, "read")
         prog.dispatch((-(-nx // GROUP[0]), -(-ny // GROUP[1]),
                        -(-(layers[1] - layers[0]) // GROUP[2])))
-        unbind_images(GL, 2)
+        unbind_images(GL, 3)
         prog.done()
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
@@ -426,10 +446,10 @@ class GpuHybrid:
         return self.rho_d.download()[..., :3], self.rho_s.download()[..., :3]
 
     def _release_textures(self) -> None:
-        for tex in (self.rho_d, self._sigma):
+        for tex in (self.rho_d, self._sigma, self._bricks):
             if tex is not None:
                 tex.release()
-        self.rho_d = self._sigma = None
+        self.rho_d = self._sigma = self._bricks = None
 
     def release(self) -> None:
         self._release_textures()
