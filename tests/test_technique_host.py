@@ -22,6 +22,7 @@ class FakeHost:
 
     render_window = None
     profiling = False
+    work_budget_ms = None
 
     def __init__(self, opacity: np.ndarray, light: LightSpec) -> None:
         self._opacity = opacity

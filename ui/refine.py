@@ -44,6 +44,9 @@ import numpy as np
 #: A frame should take at most this long (ms): the event loop then runs at least twice a
 #: second even on a slow machine (issue 25's 0.5 s, with room for the frame's overhead).
 FRAME_BUDGET_MS = 250.0
+#: Progressive illumination work (a technique's iterations) a frame may add before it renders,
+#: ms: the engine's ``work_budget_ms``; the rest of the frame keeps to :data:`FRAME_BUDGET_MS`.
+WORK_BUDGET_MS = 0.5 * FRAME_BUDGET_MS
 #: Image sample distances (view pixels per cast ray, along each side) a coarse frame may use.
 FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
 #: The first coarse frame, before any frame was measured.

@@ -62,7 +62,7 @@ from vtkvol.model.scene import ClipPlane, SceneModel
 from vtkvol.model.techniques import get_spec
 from vtkvol.ui.light_handle import handle_sphere
 from vtkvol.ui.progress import ChunkProgress
-from vtkvol.ui.refine import Frame, Refiner
+from vtkvol.ui.refine import WORK_BUDGET_MS, Frame, Refiner
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -655,6 +655,10 @@ class Viewport(QWidget):
         if self._measuring:
             return
         self._frame_start = time.perf_counter()
+        if self.scene is not None and self.scene.illuminator is not None:
+            # Progressive iterations in bounded chunks: a hybrid-diffusion sample of a large
+            # stack is drawn over several frames instead of holding the event loop for it.
+            self.scene.illuminator.work_budget_ms = WORK_BUDGET_MS
         self._apply_frame()
 
     def _on_frame_end(self, *_: Any) -> None:

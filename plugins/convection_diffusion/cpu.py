@@ -47,6 +47,7 @@ from vtkvol.engine.diffusion import (  # noqa: F401  (re-exported: KD's numpy AP
     falloff,
     iterations_to_cross,
     jacobi_sweep,
+    light_quadrature,
     propagation,
     propagation_sweeps,
     relative_residual,
@@ -134,11 +135,22 @@ class Transport:
                                   [falloff(self.grid, light) for light in self.lights])
 
     def warm_start(self) -> None:
-        """The converged convected light of every light, in one propagation pass."""
-        for i, (u, source) in enumerate(zip(self._u, self._sources, strict=True)):
-            for _ in range(propagation_sweeps(self.grid)):
-                self.rho[i] = steady_convection_sweep(self.rho[i], self.sigma_a, u, self.grid,
-                                                      source)
+        """The converged convected light of every light, in one propagation pass (a sized
+        light: the weighted passes of :func:`~vtkvol.engine.diffusion.light_quadrature`)."""
+        for i, light in enumerate(self.lights):
+            quadrature = light_quadrature(light)
+            if len(quadrature) == 1:
+                parts = [(self._u[i], self._sources[i], 1.0)]
+            else:
+                parts = [(propagation(self.grid, ideal), source_mask(self.grid, ideal), weight)
+                         for ideal, weight in quadrature]
+            total = np.zeros(self.grid.shape_zyx, np.float32)
+            for u, source, weight in parts:
+                rho = self.rho[i].copy()
+                for _ in range(propagation_sweeps(self.grid)):
+                    rho = steady_convection_sweep(rho, self.sigma_a, u, self.grid, source)
+                total += np.float32(weight) * rho
+            self.rho[i] = total
 
     def direct_rgb(self) -> np.ndarray:
         """Σ_l E_l ρ_l, ``[z, y, x, 3]`` (without fall-off)."""

@@ -48,6 +48,14 @@ PARAMETERS: tuple[Param, ...] = (
         choice_labels=("One, chosen at random", "All"),
     ),
     Param(
+        "majorant", "bricks", "Majorant",
+        "bricks: each 8³-voxel brick tracks against its own largest extinction, so paths cross "
+        "empty and thin regions in few steps (unbiased: the same mean); global: one majorant, "
+        "the densest voxel's, as in the paper.",
+        kind="choice", choices=("bricks", "global"), invalidates=_RESTART, uniform=False,
+        choice_labels=("Per brick", "Global (paper)"),
+    ),
+    Param(
         "seed", 0, "Seed", "Random seed of the sample streams.",
         kind="int", range=(0, 2**31 - 1), step=1, invalidates=_RESTART, uniform=False,
     ),
@@ -70,6 +78,7 @@ TECHNIQUE = TechniqueSpec(
     bench=(
         BenchSetting({}, "HD", quick=True),
         BenchSetting({"estimator": "delta"}, "HD delta tracking"),
+        BenchSetting({"majorant": "global"}, "HD global majorant"),
         BenchSetting({"diffusion_model": "published"}, "HD published"),
     ),
     stability=(BenchSetting({"max_iterations": 16}, "HD 16 samples", quick=True),

@@ -33,6 +33,8 @@ from vtkvol.engine.diffusion import Grid, LightSource, falloff
 MAX_STEPS = 512
 #: Ratio tracking stops once the throughput is this small (its remaining contribution).
 MIN_THROUGHPUT = 1e-6
+#: Edge (voxels) of the bricks of the per-brick majorant grid.
+BRICK = 8
 
 Estimator = Literal["delta", "ratio"]
 LightSampling = Literal["one", "all"]
@@ -101,17 +103,48 @@ def trilinear(sigma: np.ndarray, grid: Grid, px: np.ndarray, py: np.ndarray,
     return lerp(lerp(c00, c01, wy), lerp(c10, c11, wy), wz)
 
 
-def _towards(grid: Grid, light: LightSource, x: np.ndarray, y: np.ndarray,
-             z: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """(dx, dy, dz, t_end): unit direction to the light and the tracking distance (µm)."""
+def around(w: np.ndarray, c: np.ndarray, phi: np.ndarray) -> np.ndarray:
+    """Unit vectors ``[3, n]`` at cosine ``c`` and azimuth ``phi`` about the unit vectors ``w``
+    (``[3, n]`` or ``[3]``), float32 — ``around`` in ``direct.comp.glsl``."""
     f = np.float32
+    w = np.broadcast_to(np.asarray(w, f).reshape(3, -1), (3, c.size))
+    s = np.sqrt(np.maximum(f(0.0), f(1.0) - c * c))
+    a = np.where(np.abs(w[0]) < f(0.9), np.array([[1.0], [0.0], [0.0]], f),
+                 np.array([[0.0], [1.0], [0.0]], f))
+    t1 = np.cross(w, a, axis=0)
+    t1 = t1 / np.linalg.norm(t1, axis=0)
+    t2 = np.cross(w, t1, axis=0)
+    v = s * np.cos(phi) * t1 + s * np.sin(phi) * t2 + c * w
+    return (v / np.linalg.norm(v, axis=0)).astype(f)
+
+
+def _towards(grid: Grid, light: LightSource, x: np.ndarray, y: np.ndarray,
+             z: np.ndarray, keys: np.ndarray | None = None, first_draw: int = 0,
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(dx, dy, dz, t_end): unit direction to the light and the tracking distance (µm). A
+    sized light is sampled per path with draws ``first_draw`` + 4094, 4095 of ``keys``: a
+    point on its sphere (point light, radius ``size`` µm) or a direction in its cone
+    (directional, half-angle ``size`` rad) — uniform, as the camera path tracer samples them."""
+    f = np.float32
+    size = f(light.size) if keys is not None else f(0.0)
+    if size > 0:
+        u1, u2 = uniform(keys, first_draw + 4094), uniform(keys, first_draw + 4095)
+        phi = f(2.0 * np.pi) * u2
     if light.kind == "point":
-        dx, dy, dz = (f(v) - c for v, c in zip(light.vector, (x, y, z), strict=True))
+        target = np.asarray(light.vector, f).reshape(3, 1)
+        if size > 0:
+            target = target + size * around(np.array([0.0, 0.0, 1.0], f), f(1.0) - f(2.0) * u1,
+                                            phi)
+        dx, dy, dz = (t - c for t, c in zip(target, (x, y, z), strict=True))
         dist = np.sqrt(dx * dx + dy * dy + dz * dz)
         inv = np.float32(1.0) / np.maximum(dist, np.float32(1e-12))
         dx, dy, dz = dx * inv, dy * inv, dz * inv
     else:
-        dx, dy, dz = (np.full_like(x, c) for c in unit(light.vector))
+        if size > 0:
+            cone = f(1.0) - u1 * (f(1.0) - f(np.cos(float(size))))
+            dx, dy, dz = around(unit(light.vector), cone, phi)
+        else:
+            dx, dy, dz = (np.full_like(x, c) for c in unit(light.vector))
         dist = None
     exit_t = np.full_like(x, np.float32(np.inf))
     for p, d, o, s, n in zip((x, y, z), (dx, dy, dz), grid.origin, grid.spacing,
@@ -130,8 +163,14 @@ def direct_sample(
     sigma_t: np.ndarray, grid: Grid, lights: Sequence[LightSource],
     colors: Sequence[tuple[float, float, float]], *, iteration: int, seed: int,
     estimator: Estimator, light_sampling: LightSampling,
+    layers: tuple[int, int] | None = None, bricks: np.ndarray | None = None,
 ) -> np.ndarray:
-    """One sample of the direct light at every voxel centre, ``[z, y, x, 3]`` float32."""
+    """One sample of the direct light at every voxel centre, ``[z, y, x, 3]`` float32; with
+    ``layers`` (z0, z1) only the voxels of z layers z0 ≤ z < z1 are sampled (the others stay 0):
+    each voxel's random stream depends only on its index, so a sample drawn in z slabs equals
+    the whole one (the GPU's bounded chunks, ``direct.comp.glsl``'s ``vv_firstLayer``). With
+    ``bricks`` (:func:`brick_majorants`) the tracking uses each brick's majorant instead of the
+    global one: the same mean, fewer steps through sparse data."""
     shape = grid.shape_zyx
     out = np.zeros((*shape, 3), np.float32)
     if not lights:
@@ -140,16 +179,21 @@ def direct_sample(
     xs, ys, zs = centres32(grid)
     majorant = np.float32(sigma_t.max())
     n = len(lights)
+    region = np.ones(shape, bool)
+    if layers is not None:
+        region[:] = False
+        region[layers[0]:layers[1]] = True
     if light_sampling == "one":
         pick = np.minimum((uniform(keys, 0) * np.float32(n)).astype(np.int64), n - 1)
-        chosen = [(index, pick == index, np.float32(n)) for index in range(n)]
+        chosen = [(index, (pick == index) & region, np.float32(n)) for index in range(n)]
     else:
-        chosen = [(index, np.ones(shape, bool), np.float32(1.0)) for index in range(n)]
+        chosen = [(index, region, np.float32(1.0)) for index in range(n)]
     for index, mask, weight in chosen:
         if not mask.any():
             continue
         throughput = _track(sigma_t, grid, lights[index], keys[mask], xs[mask], ys[mask],
-                            zs[mask], majorant, estimator, first_draw=1 + 4096 * index)
+                            zs[mask], majorant, estimator, first_draw=1 + 4096 * index,
+                            bricks=bricks)
         f = falloff(grid, lights[index])
         f_mask = np.float32(f) if np.isscalar(f) else np.asarray(f)[mask]
         out[mask] += (throughput * weight * f_mask)[:, None] * np.asarray(colors[index],
@@ -157,27 +201,95 @@ def direct_sample(
     return out
 
 
+def brick_majorants(sigma_t: np.ndarray) -> np.ndarray:
+    """The per-brick majorant grid ``[bz, by, bx]`` (float32, per µm): the largest σ_t any
+    trilinear sample inside each brick of :data:`BRICK`³ voxels can take — the maximum over the
+    brick's voxels and the next voxel along each axis (a sample between the brick's last voxel
+    centre and the next one interpolates both)."""
+    out = sigma_t.astype(np.float32)
+    for axis in range(3):
+        n = out.shape[axis]
+        bricks = -(-n // BRICK)
+        pad = bricks * BRICK + 1 - n  # room for the next voxel of the last brick
+        padded = np.concatenate([out, np.take(out, [n - 1] * pad, axis=axis)], axis=axis)
+        # Brick b covers voxels [B·b, B·b + B]: a sliding maximum over B + 1 voxels, every B.
+        windows = np.lib.stride_tricks.sliding_window_view(padded, BRICK + 1, axis=axis)
+        out = np.take(windows.max(axis=-1), np.arange(bricks) * BRICK, axis=axis)
+    return np.ascontiguousarray(out, np.float32)
+
+
+def _brick_step(grid: Grid, bricks: np.ndarray, px: np.ndarray, py: np.ndarray, pz: np.ndarray,
+                dx: np.ndarray, dy: np.ndarray, dz: np.ndarray,
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """(majorant, distance µm to the brick's exit along d) of the brick holding each point
+    (``direct.comp.glsl``'s ``brickAt``): the brick is looked up a thousandth of a voxel
+    further along d, so a point on a face belongs to the brick the path enters."""
+    f = np.float32
+    nb = bricks.shape[::-1]  # x, y, z
+    index = []
+    exit_t = np.full_like(px, f(np.inf))
+    nudge = f(1e-3)
+    for p, d, o, s, n, count in zip((px, py, pz), (dx, dy, dz), grid.origin, grid.spacing,
+                                    grid.shape_zyx[::-1], nb, strict=True):
+        v = (p - f(o)) / f(s) + nudge * d / f(s) * f(min(grid.spacing))
+        b = np.clip(np.floor(v / f(BRICK)), 0, count - 1).astype(np.int64)
+        index.append(b)
+        lo = f(o) + f(s) * (b * BRICK).astype(f)
+        hi = f(o) + f(s) * np.minimum((b + 1) * BRICK, n - 1).astype(f)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(d > 0, (hi - p) / d, np.where(d < 0, (lo - p) / d, f(np.inf)))
+        exit_t = np.minimum(exit_t, np.maximum(t.astype(f), f(0.0)))
+    return bricks[index[2], index[1], index[0]], exit_t
+
+
 def _track(sigma_t: np.ndarray, grid: Grid, light: LightSource, keys: np.ndarray,
            x: np.ndarray, y: np.ndarray, z: np.ndarray, majorant: np.float32,
-           estimator: Estimator, first_draw: int) -> np.ndarray:
-    dx, dy, dz, t_end = _towards(grid, light, x, y, z)
+           estimator: Estimator, first_draw: int,
+           bricks: np.ndarray | None = None) -> np.ndarray:
+    """Throughput from each point towards ``light``: tracking against the global
+    ``majorant``, or with ``bricks`` (:func:`brick_majorants`) against each brick's own —
+    a flight that would leave its brick stops at the face without an event (the exponential
+    flight is memoryless, so restarting it there with the next brick's majorant is exact) and
+    an empty brick is crossed in one step."""
+    dx, dy, dz, t_end = _towards(grid, light, x, y, z, keys, first_draw)
     throughput = np.ones_like(x)
     if majorant <= 0:
         return throughput
     t = np.zeros_like(x)
     alive = np.ones(x.shape, bool)
     draw = first_draw
-    inv_majorant = np.float32(1.0) / majorant
+    f = np.float32
+    inv_majorant = f(1.0) / majorant
+    min_step = f(1e-4 * min(grid.spacing))
     for _ in range(MAX_STEPS):
         if not alive.any():
             break
         xi = uniform(keys, draw)
         draw += 1
-        t = np.where(alive, t - np.log(np.float32(1.0) - xi) * inv_majorant, t)
+        if bricks is None:  # as before the bricks, operation for operation (GPU twin)
+            local = np.full_like(x, majorant)
+            flight = t - np.log(f(1.0) - xi) * inv_majorant
+            event = alive
+        else:
+            local, to_face = _brick_step(grid, bricks, x + t * dx, y + t * dy, z + t * dz,
+                                         dx, dy, dz)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                free = np.where(local > 0, -np.log(f(1.0) - xi) / local, f(np.inf))
+            # At least a ten-thousandth of a voxel per face: float rounding can leave a
+            # point a hair before a face (or the box's exit) that it cannot then leave.
+            to_face = np.maximum(to_face, min_step)
+            event = alive & (free < to_face)
+            flight = t + np.where(event, free, to_face)
+        t = np.where(alive, flight, t)
         escaped = alive & (t >= t_end)
         alive &= ~escaped
+        event &= alive
         sigma = trilinear(sigma_t, grid, x + t * dx, y + t * dy, z + t * dz)
-        ratio = np.minimum(sigma * inv_majorant, np.float32(1.0))
+        if bricks is None:
+            ratio = np.minimum(sigma * inv_majorant, f(1.0))
+        else:
+            ratio = np.where(event, np.minimum(sigma / np.maximum(local, f(1e-30)), f(1.0)),
+                             f(0.0))
         if estimator == "ratio":
             throughput = np.where(alive, throughput * (np.float32(1.0) - ratio), throughput)
             alive &= throughput >= np.float32(MIN_THROUGHPUT)

@@ -23,6 +23,7 @@ import vtk
 
 from vtkvol.engine import diffusion as kd
 from vtkvol.engine.diffusion import (
+    GROUP,
     GpuDiffusion,
     GpuSourceDiffusion,
     GridScattering,
@@ -31,7 +32,7 @@ from vtkvol.engine.diffusion import (
 )
 from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import TechniqueStats
+from vtkvol.engine.technique import TechniqueStats, finish_gl
 from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -52,26 +53,31 @@ class Setup:
 
     def __init__(self, grid: kd.Grid, sigma_t: np.ndarray, lights: list[kd.LightSource],
                  colors: list[tuple[float, float, float]], lam: np.ndarray, model: str = "source",
-                 coefficients: np.ndarray | None = None) -> None:
+                 coefficients: np.ndarray | None = None,
+                 bricks: np.ndarray | None = None) -> None:
         self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
             grid, sigma_t, lights, colors, lam)
         self.model, self.coefficients = model, coefficients
+        #: The per-brick majorant grid (``majorant = "bricks"``), None for the global one.
+        self.bricks = bricks
 
     @classmethod
     def build(cls, grid: kd.Grid, sigma_t: np.ndarray, specs: list[Any],
-              albedo: float, model: str = "source", phase_g: float = 0.0) -> Setup:
+              albedo: float, model: str = "source", phase_g: float = 0.0,
+              majorant: str = "global") -> Setup:
         specs = specs[:4]
         lights = [
             kd.LightSource(s.kind, tuple(float(v) for v in (
                 s.vector if s.kind == "point" else cpu.unit(s.vector))),
-                float(getattr(s, "falloff_distance", 0.0)))
+                float(getattr(s, "falloff_distance", 0.0)), float(getattr(s, "size", 0.0)))
             for s in specs
         ]
         colors = [tuple(float(c) for c in getattr(s, "color", (1.0, 1.0, 1.0))) for s in specs]
         coefficients = (kd.source_coefficients(sigma_t, grid, albedo, phase_g)
                         if model == "source" else None)
+        bricks = cpu.brick_majorants(sigma_t) if majorant == "bricks" else None
         return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo),
-                   model, coefficients)
+                   model, coefficients, bricks)
 
 
 class HybridDiffusion(GridScattering):
@@ -89,39 +95,98 @@ class HybridDiffusion(GridScattering):
         self._rho_s: np.ndarray | None = None
         #: Source model: relative residual of the scattered light's equation (inf before).
         self.residual = float("inf")
+        #: The current sample's next z layer (> 0 while a sample is drawn in slabs).
+        self._next_layer = 0
+        #: Measured cost (ms) of one z layer of one sample: sizes the next slab.
+        self._layer_ms: float | None = None
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuHybrid:
         return GpuHybrid(window)
 
     def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+        """Up to ``iterations_per_frame`` samples before this frame. With the host's
+        :attr:`~vtkvol.engine.technique.TechniqueHost.work_budget_ms` (the app sets one), the
+        work stops once the budget is spent: a sample is drawn in z slabs sized from the
+        measured cost per layer, and the finishing sweeps in batches, each resumed next frame
+        — one frame never holds the event loop for a whole sample of a large stack."""
         if changes.reset_accumulation or self.setup is None:
             self._restart(values)
         setup = self.setup
         assert setup is not None
         samples = int(values["max_iterations"])
-        steps = int(values["diffusion_steps"])
         count = min(int(values["iterations_per_frame"]), samples - self.iteration)
-        if count > 0:
-            t0 = time.perf_counter()
-            for _ in range(count):
-                self._iterate(values)
-                self.iteration += 1
-            if setup.model == "source" and steps:
-                if self._gpu is not None:
-                    self.residual = self._gpu.residual()
-                if self.iteration >= samples:
-                    self._finish_source(values)
+        budget = self.host.work_budget_ms
+        t0 = time.perf_counter()
+        worked = False
+        done = 0
+        while done < count:
+            spent = (time.perf_counter() - t0) * 1e3
+            if budget is not None and worked and spent >= budget:
+                break
+            worked = True
+            left = None if budget is None else max(budget - spent, 0.0)
+            if self._sample_layers(values, left):
+                done += 1
+        if self._finishing(values):
+            spent = (time.perf_counter() - t0) * 1e3
+            if budget is None or not worked or spent < budget:
+                worked = True
+                self._finish_source(values, None if budget is None else budget - spent)
+        if worked:
             if self._gpu is None:
                 self._upload_cpu_state()
             self._last_ms = (time.perf_counter() - t0) * 1e3
-        self.converged = self.iteration >= samples
+        self.converged = self.iteration >= samples and not self._finishing(values)
         gpu = self._gpu
         self._bind((gpu.rho_d, gpu.rho_s) if gpu is not None else None)
 
-    def _finish_source(self, values: Mapping[str, Any]) -> None:
+    def _finishing(self, values: Mapping[str, Any]) -> bool:
+        """All samples are drawn and the source model's sweeps have not reached the tolerance."""
+        setup = self.setup
+        assert setup is not None
+        return (self.iteration >= int(values["max_iterations"]) and setup.model == "source"
+                and int(values["diffusion_steps"]) > 0
+                and self.residual >= float(values["tolerance"]))
+
+    def _sample_layers(self, values: Mapping[str, Any], budget_ms: float | None) -> bool:
+        """Draw the current sample's next z layers (all of them without a budget, else as many
+        as ``budget_ms`` allows at the measured cost per layer, at least one work-group's);
+        True when the sample is complete (its diffusion steps then ran and the iteration
+        advanced)."""
+        setup = self.setup
+        assert setup is not None
+        nz = setup.grid.shape_zyx[0]
+        z0 = self._next_layer
+        if budget_ms is None:
+            z1 = nz
+        elif self._layer_ms is None:
+            z1 = min(nz, z0 + GROUP[2])
+        else:
+            fit = int(budget_ms / max(self._layer_ms, 1e-6))
+            z1 = min(nz, z0 + max(GROUP[2], fit - fit % GROUP[2]))
+        t0 = time.perf_counter()
+        if self._gpu is not None:
+            self._gpu.sample(self.iteration, values, (z0, z1))
+            if budget_ms is not None:
+                finish_gl(self.host.render_window)  # the cost must be measured, not queued
+        else:
+            self._sample_cpu(values, (z0, z1))
+        self._layer_ms = (time.perf_counter() - t0) * 1e3 / (z1 - z0)
+        self._next_layer = z1 if z1 < nz else 0
+        if z1 < nz:
+            return False
+        self._iterate(values, sample=False)  # the diffusion steps of the complete sample
+        self.iteration += 1
+        if self._gpu is not None and setup.model == "source" and int(values["diffusion_steps"]):
+            self.residual = self._gpu.residual()
+        return True
+
+    def _finish_source(self, values: Mapping[str, Any], budget_ms: float | None = None) -> None:
         """After the last sample, the source model's sweeps until the residual tolerance (the
-        last iteration ends the solve: the result is final when the samples are)."""
+        last iteration ends the solve: the result is final when the samples are), in batches
+        of ``FINISH_BATCH``; with ``budget_ms`` it stops after the batch that spends it."""
         tolerance = float(values["tolerance"])
+        t0 = time.perf_counter()
         for _ in range(MAX_FINISHING_SWEEPS // FINISH_BATCH):
             if self.residual < tolerance:
                 return
@@ -129,6 +194,8 @@ class HybridDiffusion(GridScattering):
                 self._iterate(values, sample=False)
             if self._gpu is not None:
                 self.residual = self._gpu.residual()
+            if budget_ms is not None and (time.perf_counter() - t0) * 1e3 >= budget_ms:
+                return
 
     def stats(self) -> TechniqueStats:
         """:meth:`GridScattering.stats`; ``extra``: the source model's relative ``residual``."""
@@ -147,10 +214,12 @@ class HybridDiffusion(GridScattering):
         merged = {**self.defaults(), **values}
         grid = kd.Grid(opacity.shape, spacing, self._origin())
         sigma_t = kd.extinction(opacity, self.host.unit_distance)
-        setup = Setup.build(grid, sigma_t, [light], self.host.albedo)
+        setup = Setup.build(grid, sigma_t, [light], self.host.albedo,
+                            majorant=str(merged["majorant"]))
         mean = np.zeros((*grid.shape_zyx, 3), np.float32)
         for k in range(int(merged["max_iterations"])):
             sample = cpu.direct_sample(sigma_t, grid, setup.lights, [(1.0, 1.0, 1.0)],
+                                       bricks=setup.bricks,
                                        iteration=k, seed=int(merged["seed"]),
                                        estimator=merged["estimator"], light_sampling="all")
             mean += (sample - mean) / np.float32(k + 1)
@@ -162,8 +231,10 @@ class HybridDiffusion(GridScattering):
         grid = kd.Grid((nz, ny, nx), self.host.spacing, self._origin())
         sigma_t = kd.extinction(self.host.opacity_volume(), self.host.unit_distance)
         self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
-                                 str(values["diffusion_model"]), self.host.phase_g)
+                                 str(values["diffusion_model"]), self.host.phase_g,
+                                 str(values["majorant"]))
         self.iteration = 0
+        self._next_layer = 0
         self.residual = float("inf")
         self.converged = False
         self._restarts += 1
@@ -180,8 +251,22 @@ class HybridDiffusion(GridScattering):
         self._backend = "cpu"
         self._upload_cpu_state()
 
+    def _sample_cpu(self, values: Mapping[str, Any], layers: tuple[int, int]) -> None:
+        """The numpy path's sample ``iteration`` of the direct light in z ``layers``, into
+        the running mean ρ_d."""
+        setup = self.setup
+        assert setup is not None and self._rho_d is not None
+        z0, z1 = layers
+        draw = cpu.direct_sample(
+            setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
+            seed=int(values["seed"]), estimator=values["estimator"],
+            light_sampling=values["light_sampling"], layers=layers, bricks=setup.bricks,
+        )
+        mean = self._rho_d[z0:z1]
+        self._rho_d[z0:z1] = mean + (draw[z0:z1] - mean) / np.float32(self.iteration + 1)
+
     def _iterate(self, values: Mapping[str, Any], sample: bool = True) -> None:
-        """One iteration: a sample of the direct light (while ``sample``), then
+        """One iteration: a whole sample of the direct light (while ``sample``), then
         ``diffusion_steps`` steps of the model."""
         setup = self.setup
         assert setup is not None
@@ -190,12 +275,7 @@ class HybridDiffusion(GridScattering):
             return
         assert self._rho_d is not None and self._rho_s is not None
         if sample:
-            draw = cpu.direct_sample(
-                setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
-                seed=int(values["seed"]), estimator=values["estimator"],
-                light_sampling=values["light_sampling"],
-            )
-            self._rho_d = self._rho_d + (draw - self._rho_d) / np.float32(self.iteration + 1)
+            self._sample_cpu(values, (0, setup.grid.shape_zyx[0]))
         steps = int(values["diffusion_steps"])
         if setup.model == "source":
             assert setup.coefficients is not None
@@ -237,14 +317,15 @@ class GpuHybrid:
         self._programs: dict[tuple[str, str], ComputeProgram] = {}
         self.rho_d: Texture3D | None = None  # type: ignore[assignment]
         self._sigma: Texture3D | None = None
+        self._bricks: Texture3D | None = None
         self.diffusion = GpuDiffusion(render_window)
         self.source = GpuSourceDiffusion(render_window)
         self._setup: Setup | None = None
-        self.program("ratio", "one")  # fail now, not mid-frame, when compute cannot work
+        self.program("ratio", "one", False)  # fail now, not mid-frame, when compute cannot work
 
     @property
     def textures(self) -> list[Texture3D]:
-        own = [t for t in (self.rho_d, self._sigma) if t is not None]
+        own = [t for t in (self.rho_d, self._sigma, self._bricks) if t is not None]
         return own + self.diffusion.textures + self.source.textures
 
     @property
@@ -257,8 +338,8 @@ class GpuHybrid:
         """The source model's relative residual after the last sweep's start."""
         return relative_residual(*self.source.residual())
 
-    def program(self, estimator: str, light_sampling: str) -> ComputeProgram:
-        key = (estimator, light_sampling)
+    def program(self, estimator: str, light_sampling: str, bricks: bool) -> ComputeProgram:
+        key = (estimator, light_sampling, bricks)
         prog = self._programs.get(key)
         if prog is None:
             defines = {
@@ -266,6 +347,8 @@ class GpuHybrid:
                 "VV_ALL_LIGHTS": "1" if light_sampling == "all" else "0",
                 "VV_MAX_STEPS": str(cpu.MAX_STEPS),
                 "VV_MIN_THROUGHPUT": repr(cpu.MIN_THROUGHPUT),
+                "VV_BRICKS": "1" if bricks else "0",
+                "VV_BRICK": str(cpu.BRICK),
             }
             source = compute_source("direct.comp.glsl", defines, __package__)
             prog = ComputeProgram(self.render_window, source, f"hybrid direct {key}")
@@ -278,6 +361,9 @@ class GpuHybrid:
         shape = setup.grid.shape_zyx
         self.rho_d = Texture3D(rw, shape, channels=4, data=np.zeros((*shape, 4), np.float32))
         self._sigma = Texture3D(rw, shape, data=setup.sigma_t)
+        if setup.bricks is not None:
+            self._bricks = Texture3D(rw, setup.bricks.shape, data=setup.bricks)
+            self._bricks.tex.Deactivate()
         for tex in (self.rho_d, self._sigma):
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self.diffusion.reset(setup.grid, setup.lam, channels=4)
@@ -294,7 +380,7 @@ class GpuHybrid:
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         steps = int(values["diffusion_steps"])
         if sample:
-            self._sample(iteration, values)
+            self.sample(iteration, values, (0, setup.grid.shape_zyx[0]))
         if not steps:
             return
         if setup.model == "source":
@@ -302,12 +388,15 @@ class GpuHybrid:
         else:
             self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
 
-    def _sample(self, iteration: int, values: Mapping[str, Any]) -> None:
+    def sample(self, iteration: int, values: Mapping[str, Any],
+               layers: tuple[int, int]) -> None:
+        """Sample ``iteration`` of the direct light in z ``layers`` (z0, z1) into ρ_d."""
         setup = self._setup
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         grid = setup.grid
         nz, ny, nx = grid.shape_zyx
-        prog = self.program(values["estimator"], values["light_sampling"])
+        bricks = self._bricks if setup.bricks is not None else None
+        prog = self.program(values["estimator"], values["light_sampling"], bricks is not None)
         prog.use()
         vecs: list[float] = []
         for light in setup.lights:
@@ -323,6 +412,8 @@ class GpuHybrid:
         for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
             prog.set_uniform(name, unit)
         prog.set_uniform("vv_dims", nx, ny, nz)
+        prog.set_uniform("vv_firstLayer", layers[0])
+        prog.set_uniform("vv_endLayer", layers[1])
         prog.set_uniform("vv_origin", *grid.origin, kind="f")
         prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
         prog.set_uniform("vv_majorant", float(setup.sigma_t.max()), kind="f")
@@ -332,10 +423,18 @@ class GpuHybrid:
         prog.set_uniform_array("vv_lightVec", vecs, size=4)
         prog.set_uniform_array("vv_color", colors, size=3)
         prog.set_uniform_array("vv_falloff", falloffs, size=4)
+        sizes = [float(light.size) for light in setup.lights]
+        prog.set_uniform_array("vv_lightSize", sizes + [0.0] * (4 - len(sizes)), size=1)
         self._sigma.bind_image(0, "read")
         self.rho_d.bind_image(1, "readwrite")
-        prog.dispatch(dispatch_groups(grid))
-        unbind_images(self.render_window, 2)
+        if bricks is not None:
+            prog.set_uniform("vv_bricks", 2)
+            nbz, nby, nbx = setup.bricks.shape
+            prog.set_uniform("vv_brickDims", nbx, nby, nbz)
+            bricks.bind_image(2, "read")
+        groups = dispatch_groups(grid)
+        prog.dispatch((groups[0], groups[1], -(-(layers[1] - layers[0]) // GROUP[2])))
+        unbind_images(self.render_window, 3)
         prog.done()
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
@@ -344,10 +443,10 @@ class GpuHybrid:
         return self.rho_d.download()[..., :3], self.rho_s.download()[..., :3]
 
     def _release_textures(self) -> None:
-        for tex in (self.rho_d, self._sigma):
+        for tex in (self.rho_d, self._sigma, self._bricks):
             if tex is not None:
                 tex.release()
-        self.rho_d = self._sigma = None
+        self.rho_d = self._sigma = self._bricks = None
 
     def release(self) -> None:
         self._release_textures()

@@ -161,6 +161,8 @@ class Illuminator(ServedTechniqueHost):
         self.last_prepare_ms = 0.0
         self.render_window: vtk.vtkRenderWindow | None = None
         self.profiling = False
+        #: Progressive work per frame, ms (None: unbounded; the app sets one; TechniqueHost).
+        self.work_budget_ms: float | None = None
         #: Multi-channel data: classify and shade the components with constant indices and
         #: shared gradient fetches (host_multichannel.glsl; the same image as VTK's loop, at a
         #: fraction of its cost on llvmpipe). False keeps VTK's own per-component loop: the

@@ -203,6 +203,11 @@ class TechniqueHost(Protocol):
     render_window: vtk.vtkRenderWindow | None
     #: Techniques time their GPU work with timer queries only while this is True.
     profiling: bool
+    #: Milliseconds of progressive work a frame may hold the thread for (None: no bound, as
+    #: batch rendering wants). An application sets it so that large stacks keep it alive:
+    #: progressive techniques split their iterations into chunks that fit (hybrid diffusion
+    #: draws a sample in z slabs) and resume them next frame.
+    work_budget_ms: float | None
 
     @property
     def volume(self) -> vtk.vtkVolume: ...

@@ -5,7 +5,8 @@
 // test oracle). Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
 // Defines: VV_RATIO (1 = ratio tracking, 0 = delta tracking), VV_ALL_LIGHTS (1 = every light
-// per iteration, 0 = one chosen at random), VV_MAX_STEPS, VV_MIN_THROUGHPUT.
+// per iteration, 0 = one chosen at random), VV_MAX_STEPS, VV_MIN_THROUGHPUT, VV_BRICKS (1 = the
+// per-brick majorant grid vv_bricks, bricks of VV_BRICK voxels; 0 = the global vv_majorant).
 // Grid: the data's voxel centres (dataset µm: vv_origin + vv_spacing * index).
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
@@ -13,6 +14,12 @@ layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 layout(r32f) uniform readonly image3D vv_sigma;        // extinction sigma_t per µm
 layout(rgba32f) uniform image3D vv_direct;             // rho_d (rgb), read and written
 uniform ivec3 vv_dims;
+#if VV_BRICKS
+layout(r32f) uniform readonly image3D vv_bricks;       // majorant per brick (per µm)
+uniform ivec3 vv_brickDims;
+#endif
+uniform int vv_firstLayer;      // z layers vv_firstLayer <= z < vv_endLayer are sampled
+uniform int vv_endLayer;        // (bounded chunks: one sample drawn in z slabs)
 uniform vec3 vv_origin;
 uniform vec3 vv_spacing;
 uniform float vv_majorant;      // max sigma_t (per µm)
@@ -21,6 +28,7 @@ uniform uint vv_seed;
 uniform int vv_numLights;
 uniform vec4 vv_lightVec[4];    // xyz: direction towards the light (unit) or position; w = point
 uniform vec3 vv_color[4];
+uniform float vv_lightSize[4];  // angular radius (rad, directional) or sphere radius (µm, point)
 uniform vec4 vv_falloff[4];     // position (µm) and d0 (µm; 0 = none): irradiance * (d0/r)^2
 
 uint pcg(uint v)
@@ -67,20 +75,59 @@ float sigmaAt(vec3 p)
   return lerp(lerp(c00, c01, w.y), lerp(c10, c11, w.y), w.z);
 }
 
-// Throughput from pos towards light l (draws start at firstDraw).
+#if VV_BRICKS
+// (majorant, distance in µm to the brick's exit along d) of the brick holding p, looked up a
+// thousandth of the smallest voxel edge further along d (a point on a face belongs to the
+// brick the path enters) — cpu.py's _brick_step.
+vec2 brickAt(vec3 p, vec3 d)
+{
+  float h = min(vv_spacing.x, min(vv_spacing.y, vv_spacing.z));
+  ivec3 b;
+  float exitT = 1e30;
+  for (int a = 0; a < 3; ++a)
+  {
+    float v = (p[a] - vv_origin[a]) / vv_spacing[a] + 1e-3 * d[a] / vv_spacing[a] * h;
+    b[a] = clamp(int(floor(v / float(VV_BRICK))), 0, vv_brickDims[a] - 1);
+    float lo = vv_origin[a] + vv_spacing[a] * float(b[a] * VV_BRICK);
+    float hi = vv_origin[a] + vv_spacing[a] * float(min((b[a] + 1) * VV_BRICK, vv_dims[a] - 1));
+    float t = d[a] > 0.0 ? (hi - p[a]) / d[a] : (d[a] < 0.0 ? (lo - p[a]) / d[a] : 1e30);
+    exitT = min(exitT, max(t, 0.0));
+  }
+  return vec2(imageLoad(vv_bricks, b).r, exitT);
+}
+#endif
+
+// Unit vector at cosine c and azimuth phi about the unit vector w (as the numpy twin's).
+vec3 around(vec3 w, float c, float phi)
+{
+  float s = sqrt(max(0.0, 1.0 - c * c));
+  vec3 a = abs(w.x) < 0.9 ? vec3(1.0, 0.0, 0.0) : vec3(0.0, 1.0, 0.0);
+  vec3 t1 = normalize(cross(w, a));
+  vec3 t2 = cross(w, t1);
+  return normalize(s * cos(phi) * t1 + s * sin(phi) * t2 + c * w);
+}
+
+// Throughput from pos towards light l (draws start at firstDraw). A sized light is sampled
+// per path: a point on its sphere, or a direction in its cone (draws firstDraw + 4094, 4095).
 float track(uint key, vec3 pos, int l, uint firstDraw)
 {
   vec3 d;
   float dist = 1e30;
+  float size = vv_lightSize[l];
+  float u1 = uniformDraw(key, firstDraw + 4094u);
+  float u2 = uniformDraw(key, firstDraw + 4095u);
   if (vv_lightVec[l].w > 0.5)
   {
-    d = vv_lightVec[l].xyz - pos;
+    vec3 target = vv_lightVec[l].xyz;
+    if (size > 0.0) target += size * around(vec3(0.0, 0.0, 1.0), 1.0 - 2.0 * u1, 6.2831853 * u2);
+    d = target - pos;
     dist = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
     d = d * (1.0 / max(dist, 1e-12));
   }
   else
   {
     d = vv_lightVec[l].xyz;
+    if (size > 0.0) d = around(d, 1.0 - u1 * (1.0 - cos(size)), 6.2831853 * u2);
   }
   float exitT = 1e30;
   for (int a = 0; a < 3; ++a)
@@ -93,6 +140,7 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
   float tEnd = min(max(exitT, 0.0), dist);
   if (vv_majorant <= 0.0) return 1.0;
   float invMajorant = 1.0 / vv_majorant;
+  float minStep = 1e-4 * min(vv_spacing.x, min(vv_spacing.y, vv_spacing.z));
   float throughput = 1.0;
   float t = 0.0;
   uint draw = firstDraw;
@@ -100,9 +148,22 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
   {
     float xi = uniformDraw(key, draw);
     draw += 1u;
+#if VV_BRICKS
+    // A flight that would leave its brick stops at the face without an event (the exponential
+    // flight is memoryless); an empty brick is crossed in one step.
+    vec2 brick = brickAt(pos + t * d, d);
+    float local = brick.x;
+    float toFace = max(brick.y, minStep);
+    float freeFlight = local > 0.0 ? -log(1.0 - xi) / local : 1e30;
+    bool event = freeFlight < toFace;
+    t = t + (event ? freeFlight : toFace);
+    if (t >= tEnd) return throughput;
+    float ratio = event ? min(sigmaAt(pos + t * d) / max(local, 1e-30), 1.0) : 0.0;
+#else
     t = t - log(1.0 - xi) * invMajorant;
     if (t >= tEnd) return throughput;
     float ratio = min(sigmaAt(pos + t * d) * invMajorant, 1.0);
+#endif
 #if VV_RATIO
     throughput = throughput * (1.0 - ratio);
     if (throughput < VV_MIN_THROUGHPUT) return throughput;
@@ -116,8 +177,8 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
 
 void main()
 {
-  ivec3 p = ivec3(gl_GlobalInvocationID);
-  if (any(greaterThanEqual(p, vv_dims))) return;
+  ivec3 p = ivec3(gl_GlobalInvocationID) + ivec3(0, 0, vv_firstLayer);
+  if (any(greaterThanEqual(p, vv_dims)) || p.z >= vv_endLayer) return;
   uint index = uint(p.x + vv_dims.x * (p.y + vv_dims.y * p.z));
   uint key = pcg(index ^ pcg(vv_iteration + pcg(vv_seed)));
   vec3 pos = vv_origin + vv_spacing * vec3(p);
