@@ -12,7 +12,7 @@ from setuptools import find_namespace_packages, setup
 ROOT = Path(__file__).resolve().parent
 #: Source folder → installed package (pyproject.toml's package-dir says the same).
 FOLDERS = {"vtkvol": "vtkvol", "ui": "vtkvol.ui", "plugins": "vtkvol.plugins",
-           "resources": "vtkvol.resources", "napari_plugin": "vtkvol.napari"}
+           "resources": "vtkvol.resources"}
 
 
 def packages() -> list[str]:

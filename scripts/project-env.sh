@@ -102,13 +102,17 @@ vtkvol_env_install() {
   local prefix key
   prefix="$(dirname "$VTKVOL_BIN")"
   key="$(cat "$VTKVOL_ROOT/pyproject.toml" "$VTKVOL_ROOT/setup.py" | cksum | cut -d' ' -f1)"
-  key="$key $VTKVOL_ROOT"
+  key="$key $VTKVOL_ROOT compat"
   local stamp="$prefix/.vtkvol-installed-$extra"
   if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$key" ] &&
      "$VTKVOL_PY" -c 'import vtkvol' >/dev/null 2>&1; then
     return 0
   fi
   vtkvol_say "installing vtkvol[$extra] into $(dirname "$VTKVOL_BIN") (a few minutes the first time)"
-  "$VTKVOL_PY" -m pip install -q -e "$VTKVOL_ROOT[$extra]"
+  # compat: the editable install is the checkout's root on sys.path (a .pth line), not an
+  # import finder that runs after the path search — with a finder, Python started in the
+  # folder that holds a clone named vtkvol took the clone's root for an empty namespace
+  # package (issue 21). vtkvol/__init__.py finds ui/, plugins/ and resources/ from there.
+  "$VTKVOL_PY" -m pip install -q -e "$VTKVOL_ROOT[$extra]" --config-settings editable_mode=compat
   echo "$key" > "$stamp" 2>/dev/null || true  # a read-only environment reinstalls each time
 }

@@ -250,7 +250,7 @@ def test_many_labels_keep_exact_colours_in_the_renderer():
 def test_the_napari_reader_shares_the_detection():
     """A label image named like anything else becomes a napari Labels layer, as the app
     opens it in labels mode; intensities stay an image layer."""
-    from napari_plugin._reader import layer_data
+    from vtkvol.napari._reader import layer_data
 
     seg = VolumeData.from_array(blobs()[None], (1.0, 1.0, 1.0), ["stack"])
     raw = VolumeData.from_array(confocal_phantom((32, 48, 48)).array[:1], (1.0, 1.0, 1.0),

@@ -366,7 +366,7 @@ def test_readers_and_mapping_import_no_qt_and_the_widget_no_pyside6():
 
     loaded = imported_after(["vtkvol.napari._reader", "vtkvol.napari._mapping"])
     assert sorted(m for m in loaded if m.startswith(("PySide6", "PyQt", "qtpy", "napari"))) == []
-    root = Path(__file__).resolve().parents[1] / "napari_plugin"
+    root = Path(__file__).resolve().parents[1] / "vtkvol" / "napari"
     imports = re.compile(r"^\s*(from|import)\s+(PySide6|PyQt5|PyQt6)\b", re.M)
     for source in root.glob("*.py"):
         assert not imports.search(source.read_text(encoding="utf-8")), source

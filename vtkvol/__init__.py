@@ -14,9 +14,19 @@ stays free of VTK::
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 __version__ = "0.1.0"
+
+# The design card's layout keeps ui/, plugins/ and resources/ beside this folder; installed,
+# they are vtkvol.ui, vtkvol.plugins and vtkvol.resources (pyproject.toml's package-dir). Run
+# from a source checkout — the project's editable install (a path to the checkout), or Python
+# started inside the clone, where its vtkvol/ comes first — the checkout's root is searched
+# for vtkvol's subpackages too, so they are found without any installed finder.
+_checkout = Path(__file__).resolve().parent.parent
+if (_checkout / "pyproject.toml").is_file() and (_checkout / "plugins").is_dir():
+    __path__.append(str(_checkout))  # noqa: F821 (the package's own search path)
 
 _LAZY = {
     "read_volume": ("vtkvol.io", "read_volume"),
