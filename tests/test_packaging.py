@@ -4,10 +4,13 @@ Issue 21's defect: after ``git clone … vtkvol`` and the README's editable inst
 from the folder that *contains* the clone found the clone's root (a folder named ``vtkvol``
 without ``__init__.py``, first on ``sys.path`` as ``''``) as an empty namespace package, because
 the remapped layout was installed through a meta-path finder that runs after the path search:
-``vtkvol.__file__`` was None and ``from vtkvol import __version__`` failed. These tests copy the
-checkout into a folder named ``vtkvol``, install it into throwaway virtual environments (one
-editable, one from a wheel built with ``pip wheel --no-deps``) and import it from the clone's
-parent, from inside the clone and from an unrelated folder.
+``vtkvol.__file__`` was None and ``from vtkvol import __version__`` failed. The project's
+install (``scripts/project-env.sh``) is now the checkout's root on ``sys.path``
+(``editable_mode=compat``), and ``vtkvol/__init__.py`` finds ``ui/``, ``plugins/`` and
+``resources/`` beside itself. These tests copy the checkout into a folder named ``vtkvol``,
+install it into throwaway virtual environments (one editable as the project's scripts do, one
+from a wheel built with ``pip wheel --no-deps``) and import it from the clone's parent, from
+inside the clone and from an unrelated folder.
 
 The environments see the project's dependencies through a folder of links to the test
 environment's site-packages without vtkvol itself, so nothing is downloaded but setuptools
@@ -112,7 +115,7 @@ def installs(tmp_path_factory):
                               str(dist), str(clone)], stdout=subprocess.PIPE,
                              stderr=subprocess.STDOUT, text=True)
     editable = _venv(tmp / "venv-editable", deps)
-    _pip(editable, "install", "-e", str(clone))
+    _pip(editable, "install", "-e", str(clone), "--config-settings", "editable_mode=compat")
     output, _ = build.communicate(timeout=300)
     assert build.returncode == 0, output
     wheel = _venv(tmp / "venv-wheel", deps)
