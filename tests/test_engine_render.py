@@ -218,13 +218,25 @@ def test_light_direction_changes_shading(viewer_factory):
     assert right_minus_left(lit_left) < -0.1
 
 
-def test_nan_data_renders_finite(viewer_factory):
+def test_nan_voxels_render_as_empty(viewer_factory):
+    """A row of NaN through the blob's centre is classified as empty space (finite opacity,
+    zero there) and draws exactly what the same row of zeros draws."""
     arr = blob(radius=8.0).astype(np.float32)
-    arr[0, 0, :] = np.nan
-    v = viewer_factory(VolumeData.from_array(arr))
-    v.model.channels[0].tf = gray_tf(200.0)
-    img = v.image()
-    assert img.max() > 100
+    zeros = arr.copy()
+    zeros[16, 16, :] = 0.0
+    arr[16, 16, :] = np.nan
+    images, opacities = [], []
+    for values in (arr, zeros):
+        v = viewer_factory(VolumeData.from_array(values))
+        v.model.channels[0].tf = gray_tf(200.0)
+        v.model.render.jitter = False
+        images.append(v.image())
+        opacities.append(v.scene.illuminator.opacity_volume())
+    assert np.isfinite(opacities[0]).all()
+    assert (opacities[0][16, 16, :] == 0).all() and opacities[0].max() > 0.5
+    np.testing.assert_array_equal(opacities[0], opacities[1])
+    assert foreground(images[1]).max() > 100
+    np.testing.assert_array_equal(images[0], images[1])
 
 
 def test_unshaded_rendering_compiles_and_shows_the_volume(viewer_factory):

@@ -13,7 +13,6 @@ CPU light visibility within [0, 1]. The error against the reference is recorded 
 from __future__ import annotations
 
 import json
-import math
 from dataclasses import replace
 
 import pytest
@@ -101,11 +100,11 @@ def test_every_case_gives_finite_bounded_output(method: str,
     for r in rows:
         assert r["shader_ok"] and r["image_ok"] and r["volumes_ok"]
         assert r["reference"] == rows[0]["reference"]  # one reference for every case
-        # The recorded error is the image's: PSNR and RMSE agree (8-bit peak 255) ...
-        assert r["rmse"] > 0 and r["psnr"] == pytest.approx(20 * math.log10(255 / r["rmse"]))
-        # ... and every method shows the reference's structure in every case (a blank,
+        # No method reproduces the reference exactly (PSNR from RMSE is test_reference_metrics'),
+        # and every method shows the reference's structure in every case (a blank,
         # garbled or misplaced image scores near 0; the worst seen here is about 0.62, VTK's
         # scattering on noisy data).
+        assert r["rmse"] > 0
         assert r["ssim"] > 0.5, (r["sweep"], r["value_label"], r["setting"], r["ssim"])
 
 

@@ -582,11 +582,6 @@ class MovieDialog(QDialog):
             + note, 15000)
         return written
 
-    def cancel_export(self) -> None:
-        """What the progress dialog's Cancel does (the export stops before the next frame)."""
-        if self.progress is not None:
-            self.progress.cancel()
-
     def _confirm_replace(self, existing: list[Path]) -> bool:
         box = QMessageBox(self)
         box.setWindowTitle("Export movie")

@@ -201,10 +201,6 @@ class FunctionEditor(QWidget):
     def curve(self, name: str) -> Curve:
         return self._curves[name]
 
-    @property
-    def curve_names(self) -> list[str]:
-        return list(self._curves)
-
     def set_points(self, name: str, points: Sequence[tuple[float, float]]) -> None:
         """Show new points for ``name``; ignored for the curve being dragged (its own state is
         newer than the model's echo of a throttled edit)."""

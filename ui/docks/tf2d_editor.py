@@ -113,10 +113,6 @@ class TF2DEditor(QWidget):
     def tool(self) -> str:
         return self._tool
 
-    @property
-    def stroking(self) -> bool:
-        return self._stroke is not None
-
     def set_tool(self, tool: str) -> None:
         """``"regions"`` (move and resize primitives), ``"paint"`` or ``"erase"``."""
         if tool not in TOOLS:

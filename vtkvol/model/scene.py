@@ -31,7 +31,6 @@ ChannelMixing = Literal["additive", "composite"]
 #: nearest voxel, for label images (vtkvol.model.labels): a trilinear sample between labels 3 and
 #: 40 is some label in between, which would colour the boundary with labels that are not there.
 Interpolation = Literal["trilinear", "corrected", "nearest"]
-INTERPOLATIONS: tuple[str, ...] = Interpolation.__args__  # type: ignore[attr-defined]
 #: How two to four channels are lit (RenderSettings.multichannel_lighting).
 MultichannelLighting = Literal["per_channel", "shared"]
 MULTICHANNEL_LIGHTINGS: tuple[str, ...] = MultichannelLighting.__args__  # type: ignore[attr-defined]
