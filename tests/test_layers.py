@@ -45,3 +45,22 @@ def test_slice_views_do_not_import_vtk():
     loaded = imported_after(["vtkvol.engine.slices", "vtkvol.ui.docks.slice_views"])
     assert "vtkvol.ui.docks.slice_views" in loaded
     assert not any(m == "vtk" or m.startswith("vtkmodules") for m in loaded)
+
+
+def test_only_the_viewport_and_the_app_load_vtk_in_the_ui():
+    """Every ui module but the viewport (and the app, which holds it) binds widgets to the
+    model without VTK: the error dialogs catch ``GLUnavailableError`` from the VTK-free
+    ``vtkvol.engine.errors``, so the docks that show errors load no VTK either."""
+    from pathlib import Path
+
+    ui = Path(__file__).resolve().parents[1] / "vtkvol" / "ui"
+    modules = sorted(
+        "vtkvol." + ".".join(p.relative_to(ui.parent).with_suffix("").parts).removesuffix(
+            ".__init__")
+        for p in ui.rglob("*.py"))
+    others = [m for m in modules if m not in ("vtkvol.ui.viewport", "vtkvol.ui.app")]
+    assert {"vtkvol.ui.errors", "vtkvol.ui.docks.transfer_function",
+            "vtkvol.ui.movie_dialog"} <= set(others)
+    loaded = imported_after(others)
+    assert not any(m == "vtk" or m.startswith("vtkmodules") for m in loaded)
+    assert "vtkmodules.vtkRenderingCore" in imported_after(["vtkvol.ui.viewport"])

@@ -18,7 +18,7 @@ from types import TracebackType
 
 from PySide6.QtWidgets import QMessageBox, QWidget
 
-from vtkvol.engine.gl import GLUnavailableError
+from vtkvol.engine.errors import GLUnavailableError
 from vtkvol.io.errors import VolumeReadError
 from vtkvol.model.session import MissingDataError, SessionError
 

@@ -20,30 +20,60 @@ from typing import Any, ClassVar
 import numpy as np
 import vtk
 
+# Defined without VTK (engine/errors.py) so the app's dialogs can catch it; re-exported here.
+from vtkvol.engine.errors import GLUnavailableError as GLUnavailableError
+
 _GL: Any = None
+#: The platforms PyOpenGL can be loaded for: EGL (offscreen, Wayland) and GLX (an X context).
+GL_PLATFORMS = ("egl", "glx")
+#: The platform chosen by :func:`configure_gl_platform`; None lets the first render window decide.
+_PLATFORM: str | None = None
 
 
-class GLUnavailableError(RuntimeError):
-    """The GL feature needed (compute shaders, PyOpenGL) is not available in this context."""
+def configure_gl_platform(platform: str) -> None:
+    """Load PyOpenGL for ``platform`` (``"egl"`` or ``"glx"``) when :func:`gl` first runs.
+
+    The one place that decides PyOpenGL's platform: the app calls it with the platform of Qt's
+    context (GLX under X's ``xcb``, EGL under Wayland), which overrides a ``PYOPENGL_PLATFORM``
+    of the environment (a headless habit of EGL would break GLX). PyOpenGL fixes its platform
+    at first import, so once :func:`gl` has run another platform is refused.
+    """
+    global _PLATFORM
+    if platform not in GL_PLATFORMS:
+        raise ValueError(f"GL platform must be one of {', '.join(GL_PLATFORMS)}, got {platform!r}")
+    if _GL is not None and platform != _PLATFORM:
+        raise GLUnavailableError(
+            f"PyOpenGL is already loaded for {_PLATFORM}; it cannot switch to {platform}")
+    _PLATFORM = platform
 
 
 def gl(render_window: vtk.vtkRenderWindow | None = None) -> Any:
     """PyOpenGL's ``OpenGL.GL`` bound to the platform of ``render_window`` (EGL or GLX).
 
-    PyOpenGL fixes its platform at first import, so the first render window decides. With
-    glvnd both dispatch to whatever context is current, which is what VTK made current.
+    The platform is :func:`configure_gl_platform`'s, else ``PYOPENGL_PLATFORM``, else the first
+    render window's (EGL for an EGL window or without ``DISPLAY``). PyOpenGL reads the variable
+    once, at import, so it is set for that import only: child processes (batch workers) and
+    the environment stay as they were. With glvnd both dispatch to whatever context is
+    current, which is what VTK made current.
     """
-    global _GL
+    global _GL, _PLATFORM
     if _GL is None:
-        if "PYOPENGL_PLATFORM" not in os.environ:
+        platform = _PLATFORM or os.environ.get("PYOPENGL_PLATFORM")
+        if platform is None:
             name = type(render_window).__name__ if render_window is not None else ""
-            egl = "EGL" in name or not os.environ.get("DISPLAY")
-            os.environ["PYOPENGL_PLATFORM"] = "egl" if egl else "glx"
+            platform = "egl" if "EGL" in name or not os.environ.get("DISPLAY") else "glx"
+        before = os.environ.get("PYOPENGL_PLATFORM")
+        os.environ["PYOPENGL_PLATFORM"] = platform
         try:
             from OpenGL import GL
         except Exception as exc:  # ImportError, or a platform that cannot load
             raise GLUnavailableError(f"PyOpenGL could not be loaded: {exc}") from exc
-        _GL = GL
+        finally:
+            if before is None:
+                del os.environ["PYOPENGL_PLATFORM"]
+            else:
+                os.environ["PYOPENGL_PLATFORM"] = before
+        _GL, _PLATFORM = GL, platform
     return _GL
 
 
