@@ -14,6 +14,7 @@ import tifffile
 import tomllib
 
 import vtkvol.io as vio
+from vtkvol.bench.loadbench import time_load
 from vtkvol.io import (
     ReadCancelled,
     ReaderSpec,
@@ -25,7 +26,6 @@ from vtkvol.io import (
     registry,
     reload_readers,
 )
-from vtkvol.io.loadbench import time_load
 
 ROOT = Path(__file__).parents[1]
 

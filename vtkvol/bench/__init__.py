@@ -9,6 +9,8 @@
 * :mod:`~vtkvol.bench.measure`: offscreen rigs, timing, checks;
 * :mod:`~vtkvol.bench.report`: ``benchmarks.json``, ``.csv``, ``.md`` and charts in the output
   folder;
+* :mod:`~vtkvol.bench.loadbench`: how long :func:`~vtkvol.io.read_volume` takes on a typical
+  confocal stack (the load-time row of the report);
 * :func:`choose` (re-exported from the product module :mod:`vtkvol.engine.auto_quality`,
   which the app's Auto quality uses): the cheapest method that meets an error budget for a
   given scene.

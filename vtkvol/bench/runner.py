@@ -771,7 +771,7 @@ def _time_load() -> dict[str, Any]:
     (the foundation's load-time goal: ≤ 1 s), in a temporary folder removed afterwards."""
     import tempfile
 
-    from vtkvol.io.loadbench import time_load
+    from vtkvol.bench.loadbench import time_load
 
     with tempfile.TemporaryDirectory(prefix="vtkvol-loadbench-") as tmp:
         result = time_load(tmp)

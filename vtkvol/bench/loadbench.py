@@ -91,7 +91,7 @@ def time_load(
     }
 
 
-if __name__ == "__main__":  # python -m vtkvol.io.loadbench [tmpdir]
+if __name__ == "__main__":  # python -m vtkvol.bench.loadbench [tmpdir]
     import sys
     import tempfile
 
