@@ -45,7 +45,7 @@ def source_and_run(checkout: Path, call: str, path: str, **env: str) -> subproce
     scripts = checkout / "scripts"
     scripts.mkdir(parents=True, exist_ok=True)
     shutil.copy(SCRIPT, scripts / "project-env.sh")
-    for name in ("pyproject.toml", "setup.py"):
+    for name in ("pyproject.toml",):
         (checkout / name).write_text(f"# {name}\n")
     environment = {"HOME": str(checkout), "PATH": f"{path}:{_bash_only(checkout.parent)}", **env}
     return subprocess.run(
