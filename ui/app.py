@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import base64
 import contextlib
+import logging
 import os
 import sys
 from collections.abc import Callable
@@ -103,10 +104,17 @@ def configure_gl_platform(app: QApplication) -> None:
     first import, so this must run before the first frame.
     """
     platform = app.platformName()
-    if platform == "xcb":
-        os.environ["PYOPENGL_PLATFORM"] = "glx"
-    elif platform.startswith("wayland"):
-        os.environ["PYOPENGL_PLATFORM"] = "egl"
+    gl_platform = "glx" if platform == "xcb" else ("egl" if platform.startswith("wayland")
+                                                   else None)
+    if gl_platform is None:
+        return
+    from vtkvol.engine.errors import GLUnavailableError
+    from vtkvol.engine.gl import configure_gl_platform as use_gl_platform
+
+    try:
+        use_gl_platform(gl_platform)  # the one place that decides it (vtkvol.engine.gl)
+    except GLUnavailableError as exc:  # PyOpenGL already loaded in this process (tests)
+        logging.getLogger(__name__).warning("vtkvol: %s", exc)
 
 
 class MainWindow(QMainWindow):

@@ -26,7 +26,7 @@ __version__ = "0.1.0"
 # for vtkvol's subpackages too, so they are found without any installed finder.
 _checkout = Path(__file__).resolve().parent.parent
 if (_checkout / "pyproject.toml").is_file() and (_checkout / "plugins").is_dir():
-    __path__.append(str(_checkout))  # noqa: F821 (the package's own search path)
+    __path__.append(str(_checkout))
 
 _LAZY = {
     "read_volume": ("vtkvol.io", "read_volume"),
