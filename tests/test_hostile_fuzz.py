@@ -31,9 +31,8 @@ from hypothesis import strategies as st  # noqa: E402
 from tests_support_hostile import lying_tiff, npy_with_header  # noqa: E402
 
 from vtkvol.io import VolumeData, VolumeReadError, read_volume  # noqa: E402
-from vtkvol.model.scene import SceneModel  # noqa: E402
+from vtkvol.model.scene import MAX_COORDINATE_UM, SceneModel  # noqa: E402
 from vtkvol.model.session import (  # noqa: E402
-    MAX_COORDINATE_UM,
     MAX_NESTING,
     Session,
     SessionError,

@@ -54,9 +54,9 @@ def test_reading_declarations_and_sessions_loads_no_vtk():
     code = (
         "import sys\n"
         "from vtkvol.model.techniques import technique_specs\n"
-        "from vtkvol.model.session import _technique_parameters\n"
+        "from vtkvol.model.session_checks import technique_parameters\n"
         "assert technique_specs()\n"
-        "assert _technique_parameters('shadow_volume')[0]\n"
+        "assert technique_parameters('shadow_volume')[0]\n"
         "print(any(m == 'vtk' or m.startswith('vtkmodules') for m in sys.modules))\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

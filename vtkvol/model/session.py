@@ -24,11 +24,10 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import stat
 import warnings
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
@@ -41,10 +40,21 @@ from vtkvol.io.atomic import write_atomic
 from vtkvol.io.remote import is_remote
 from vtkvol.model import strict_json
 from vtkvol.model.migrations import FORMAT, VERSION, migrate
-from vtkvol.model.params import Param
-from vtkvol.model.scene import MAX_COORDINATE_UM, SceneModel
-from vtkvol.model.techniques import get_spec
-from vtkvol.model.transfer_function import MAX_POINTS
+from vtkvol.model.scene import MAX_COORDINATE_UM, SceneModel  # noqa: F401 (the limit it enforces)
+from vtkvol.model.session_checks import (
+    check_parameters,
+    check_view,
+    describe_validation_error,
+    reduce_transfer_functions,
+    show_value,
+    technique_known,
+)
+from vtkvol.model.session_errors import (
+    DataMismatchError,
+    MissingDataError,
+    SessionError,
+    SessionWarning,
+)
 
 if TYPE_CHECKING:
     from vtkvol.io import VolumeData
@@ -76,92 +86,6 @@ HEAD_BYTES = 2**20
 
 _MAX_LISTED = 6  # problems / missing keys named in one message before "and N more"
 _TOP_LEVEL_KEYS = frozenset({"format", "version", "vtkvol", "saved", "data", "scene", "window"})
-
-
-# -- errors -------------------------------------------------------------------------------------
-class SessionError(ValueError):
-    """A session file cannot be read or written; the message names the file and the problem.
-
-    E.g. ``"view.vtkvol.json: lights[0].intensity = -2 is below 0"``. The app shows it
-    unchanged. ``path`` is the session file, ``problem`` the text after the file name.
-    """
-
-    def __init__(self, path: str | os.PathLike[str], problem: str) -> None:
-        self.path = Path(path)
-        self.problem = problem
-        super().__init__(f"{self.path.name}: {problem}")
-
-    @property
-    def session_path(self) -> Path:
-        """The session file (same as ``path``)."""
-        return self.path
-
-
-class MissingDataError(SessionError):
-    """The session's data file is gone (or the session names none); offer "Locate…".
-
-    Retry with ``load_session_with_data(session_path, data_path=<the located file>)``.
-    ``data_path`` is the absolute path that was looked for, or ``None`` when the session
-    records no data file (in-memory or sample data).
-    """
-
-    def __init__(
-        self,
-        session_path: str | os.PathLike[str],
-        data_path: Path | None,
-        *,
-        chosen: bool = False,
-    ) -> None:
-        self.data_path = data_path
-        if data_path is None:
-            problem = "the session names no data file (it was saved with in-memory data)"
-        elif chosen:
-            problem = f"the chosen data file {data_path} does not exist"
-        else:
-            beside = Path(session_path).absolute().parent / data_path.name
-            also = (
-                f" (also looked for {data_path.name} next to the session)"
-                if beside.resolve() != data_path
-                else ""
-            )
-            problem = f"the data file {data_path} is missing{also}"
-        super().__init__(session_path, problem)
-
-
-class DataMismatchError(SessionError):
-    """The data file no longer matches the session (shape or number of channels changed).
-
-    ``expected`` and ``found`` are ``{"shape_zyx": (z, y, x), "channels": n}``.
-    """
-
-    def __init__(
-        self,
-        session_path: str | os.PathLike[str],
-        data_path: Path,
-        expected: dict[str, Any],
-        found: dict[str, Any],
-    ) -> None:
-        self.data_path = data_path
-        self.expected = expected
-        self.found = found
-        super().__init__(
-            session_path,
-            f"the data no longer matches the session: {data_path.name} now has "
-            f"{_describe_shape(found)}, the session was saved with {_describe_shape(expected)}",
-        )
-
-
-class SessionWarning(UserWarning):
-    """Something in a session was repaired or ignored; the view still opens."""
-
-
-def _describe_shape(d: Mapping[str, Any]) -> str:
-    parts = []
-    if d.get("shape_zyx") is not None:
-        parts.append("shape (z, y, x) = ({})".format(", ".join(str(n) for n in d["shape_zyx"])))
-    if d.get("channels") is not None:
-        parts.append(f"{d['channels']} channel(s)")
-    return " and ".join(parts) or "an unknown shape"
 
 
 # -- the result of reading ----------------------------------------------------------------------
@@ -482,24 +406,24 @@ def read_session(path: str | os.PathLike[str]) -> Session:
     # -- data record
     data_raw = doc.get("data")
     if data_raw is not None and not isinstance(data_raw, dict):
-        raise SessionError(session_path, f'"data" must be an object, not {_show(data_raw)}')
+        raise SessionError(session_path, f'"data" must be an object, not {show_value(data_raw)}')
     try:
         record = _DataRecord.model_validate_json(json.dumps(data_raw or {}))
     except pydantic.ValidationError as exc:
-        raise SessionError(session_path, _describe_validation_error(exc, "data")) from exc
+        raise SessionError(session_path, describe_validation_error(exc, "data")) from exc
 
     # -- scene
     scene_raw = doc.get("scene", {})
     if "scene" not in doc:
         notes.append('no "scene" section: every setting takes its default')
     if not isinstance(scene_raw, dict):
-        raise SessionError(session_path, f'"scene" must be an object, not {_show(scene_raw)}')
+        raise SessionError(session_path, f'"scene" must be an object, not {show_value(scene_raw)}')
     try:
         # Strict JSON validation: "2" is not a number and 1 is not true, yet arrays are
         # accepted for tuples, as JSON has no tuples.
         model = SceneModel.model_validate_json(json.dumps(scene_raw), strict=True)
     except pydantic.ValidationError as exc:
-        raise SessionError(session_path, _describe_validation_error(exc)) from exc
+        raise SessionError(session_path, describe_validation_error(exc)) from exc
     missing = _missing_paths(scene_raw, model.model_dump(mode="json"))
     if "data" in doc:
         # These come from the "data" section, so their absence from the scene is no loss.
@@ -509,10 +433,10 @@ def read_session(path: str | os.PathLike[str]) -> Session:
         missing.sort(key=lambda p: p.count(".") + p.count("["))
         notes.append("missing from the file, defaults used: " + _listing(missing, 10))
 
-    _check_view(session_path, model, notes)
-    _reduce_transfer_functions(model, notes)
-    parameters = _check_parameters(session_path, model.illumination.parameters, notes)
-    if model.illumination.method not in parameters and not _technique_known(
+    check_view(session_path, model, notes)
+    reduce_transfer_functions(model, notes)
+    parameters = check_parameters(session_path, model.illumination.parameters, notes)
+    if model.illumination.method not in parameters and not technique_known(
         model.illumination.method
     ):
         notes.append(
@@ -536,12 +460,13 @@ def read_session(path: str | os.PathLike[str]) -> Session:
         except (ValueError, OSError) as exc:  # a NUL character, a name too long for the OS
             where = "data.path" if "data" in doc else "volume.path"
             raise SessionError(
-                session_path, f"{where} = {_show(stored)} is not a usable path ({_path_error(exc)})"
+                session_path,
+                f"{where} = {show_value(stored)} is not a usable path ({_path_error(exc)})"
             ) from exc
 
     window = doc.get("window", {})
     if not isinstance(window, dict):
-        notes.append(f"window layout is not an object ({_show(window)}); ignored")
+        notes.append(f"window layout is not an object ({show_value(window)}); ignored")
         window = {}
 
     with model.batch():  # a fresh model has no listeners; batch keeps it one logical step
@@ -663,258 +588,6 @@ def _listing(items: list[str], limit: int = _MAX_LISTED) -> str:
     return f"{shown} and {more} more" if more > 0 else shown
 
 
-# -- camera and lights --------------------------------------------------------------------------
-
-
-def _check_view(session_path: Path, model: SceneModel, notes: list[str]) -> None:
-    """Refuse a camera or light that cannot describe a view; repair a degenerate view-up.
-
-    Refused (:class:`SessionError` naming the field): a position, focal point or parallel
-    scale beyond :data:`MAX_COORDINATE_UM`, a light position beyond it, a camera at its own
-    focal point (it looks in no direction). Repaired with a note: a view-up that is zero or
-    along the view direction (VTK then builds a degenerate view matrix and renders nothing).
-    """
-    cam = model.camera
-    fields = [(f"camera.{name}", getattr(cam, name)) for name in ("position", "focal_point")]
-    fields += [(f"lights[{i}].position", light.position) for i, light in enumerate(model.lights)]
-    for where, value in fields:
-        if value is not None and max(abs(c) for c in value) > MAX_COORDINATE_UM:
-            raise SessionError(
-                session_path,
-                f"{where} = {_show(list(value))} lies beyond ±{MAX_COORDINATE_UM:g} µm; no view "
-                "of the data is that far away",
-            )
-    if cam.parallel_scale > MAX_COORDINATE_UM:
-        raise SessionError(
-            session_path,
-            f"camera.parallel_scale = {_show(cam.parallel_scale)} is above "
-            f"{MAX_COORDINATE_UM:g} µm; no view of the data is that wide",
-        )
-    forward = None
-    if cam.position is not None and cam.focal_point is not None:
-        back = [p - f for p, f in zip(cam.position, cam.focal_point, strict=True)]
-        distance = math.sqrt(sum(c * c for c in back))  # < 2e12·√3: finite
-        scale = max(1.0, *(abs(c) for c in cam.focal_point))
-        if not distance > 1e-9 * scale:
-            raise SessionError(
-                session_path,
-                f"camera.position = {_show(list(cam.position))} is the camera.focal_point: the "
-                "camera looks in no direction (move it away from the focal point, or remove "
-                "both to frame the data)",
-            )
-        forward = [c / distance for c in back]
-    up = _perpendicular_up(cam.view_up, forward)
-    if up is not None:
-        notes.append(
-            f"camera.view_up = {_show(list(cam.view_up))} is "
-            f"{'zero' if not any(cam.view_up) else 'along the view direction'}; replaced by "
-            f"{_show([round(c, 6) for c in up])}"
-        )
-        cam.view_up = up
-
-
-def _perpendicular_up(
-    up: tuple[float, float, float], forward: list[float] | None
-) -> tuple[float, float, float] | None:
-    """A usable view-up when ``up`` is zero or (nearly) along the unit ``forward``; else None.
-
-    The replacement is the default (0, 1, 0), or (0, 0, 1) when that is along ``forward``,
-    with its part along ``forward`` removed and normalised.
-    """
-    largest = max(abs(c) for c in up)
-    if largest > 0.0:
-        scaled = [c / largest for c in up]  # no overflow for 1e200 components
-        length = math.sqrt(sum(c * c for c in scaled))
-        unit = [c / length for c in scaled]
-        if forward is None or _cross_norm(unit, forward) > 1e-6:
-            return None
-    if forward is None:
-        return (0.0, 1.0, 0.0)
-    for candidate in ((0.0, 1.0, 0.0), (0.0, 0.0, 1.0)):
-        along = sum(a * b for a, b in zip(candidate, forward, strict=True))
-        rest = [a - along * b for a, b in zip(candidate, forward, strict=True)]
-        length = math.sqrt(sum(c * c for c in rest))
-        if length > 1e-3:
-            return (rest[0] / length, rest[1] / length, rest[2] / length)
-    return (1.0, 0.0, 0.0)  # unreachable: forward cannot be along both y and z
-
-
-def _cross_norm(a: list[float], b: list[float]) -> float:
-    x = a[1] * b[2] - a[2] * b[1]
-    y = a[2] * b[0] - a[0] * b[2]
-    z = a[0] * b[1] - a[1] * b[0]
-    return math.sqrt(x * x + y * y + z * z)
-
-
-def _reduce_transfer_functions(model: SceneModel, notes: list[str]) -> None:
-    """Sample transfer functions longer than :data:`MAX_POINTS` down to it, with a note (the
-    renderer could not use more, and the app's editor would draw every point)."""
-    for c, channel in enumerate(model.channels):
-        reduced = channel.tf.reduced(MAX_POINTS)
-        if reduced is None:
-            continue
-        counts = [f"{len(points)} {what}" for what, points, new in (
-            ("colour", channel.tf.colors, reduced.colors),
-            ("opacity", channel.tf.opacity, reduced.opacity)) if len(points) != len(new)]
-        lo, hi = reduced.value_span
-        notes.append(
-            f"channels[{c}].tf: {' and '.join(counts)} points reduced to {MAX_POINTS} "
-            f"(the function sampled evenly over {lo:g}…{hi:g}; the renderer's tables have "
-            f"{MAX_POINTS} entries)"
-        )
-        channel.tf = reduced
-
-
-# -- technique parameters -----------------------------------------------------------------------
-def _technique_parameters(name: str) -> tuple[tuple[Param, ...] | None, str]:
-    """The declared parameters of an installed technique, or ``(None, why not)``."""
-    try:
-        spec = get_spec(name)
-    except ValueError as exc:
-        return None, str(exc)
-    return spec.parameters, ""
-
-
-def _technique_known(name: str) -> bool:
-    return _technique_parameters(name)[0] is not None
-
-
-def _check_parameters(
-    session_path: Path, stored: Mapping[str, Mapping[str, Any]], notes: list[str]
-) -> dict[str, dict[str, Any]]:
-    """Validate each installed technique's stored values against its ``PARAMETERS``.
-
-    Values are checked one by one and only the stored ones are kept (the engine fills in
-    defaults), so a session round-trips exactly. Names the technique no longer declares are
-    dropped with a note; techniques not installed here keep their values, with a note.
-    """
-    out: dict[str, dict[str, Any]] = {}
-    for method, values in stored.items():
-        declared, why = _technique_parameters(method)
-        if declared is None:
-            notes.append(
-                f"illumination.parameters.{method}: technique not installed here ({why}); "
-                "its values are kept unchecked"
-            )
-            out[method] = dict(values)
-            continue
-        by_name = {p.name: p for p in declared}
-        unknown = sorted(set(values) - set(by_name))
-        if unknown:
-            notes.append(
-                f"illumination.parameters.{method}: ignored parameter(s) the technique does "
-                f"not declare: {', '.join(unknown)}"
-            )
-        checked: dict[str, Any] = {}
-        for name, value in values.items():
-            if name not in by_name:
-                continue
-            param = by_name[name]
-            try:
-                checked[name] = _check_value(param, value)
-            except ValueError as exc:
-                raise SessionError(
-                    session_path, f"illumination.parameters.{method}: {exc}"
-                ) from exc
-        out[method] = checked
-    return out
-
-
-def _check_value(param: Param, value: Any) -> Any:
-    # Param.validate is lenient (float("2") works, True counts as 1); a file is held to JSON
-    # types: numbers for numeric parameters.
-    numeric = isinstance(value, (int, float)) and not isinstance(value, bool)
-    if param.kind in ("float", "int") and not numeric:
-        raise ValueError(f"{param.name} must be a number, not {_show(value)}")
-    return param.validate(value)
-
-
-# -- messages -----------------------------------------------------------------------------------
-_TYPE_WORDS = {
-    "float_type": "a number",
-    "float_parsing": "a number",
-    "int_type": "a whole number",
-    "int_parsing": "a whole number",
-    "int_from_float": "a whole number",
-    "bool_type": "true or false",
-    "bool_parsing": "true or false",
-    "string_type": "text",
-    "list_type": "an array",
-    "tuple_type": "an array",
-    "dict_type": "an object",
-    "model_type": "an object",
-    "model_attributes_type": "an object",
-}
-
-
-def _describe_validation_error(exc: pydantic.ValidationError, prefix: str = "") -> str:
-    """pydantic's errors as one line of text with the place in the file of each."""
-    errors = exc.errors(include_url=False)
-    parts = [_describe_one(err, prefix) for err in errors[:_MAX_LISTED]]
-    if len(errors) > _MAX_LISTED:
-        parts.append(f"and {len(errors) - _MAX_LISTED} more problem(s)")
-    return "; ".join(parts)
-
-
-def _where(loc: Iterable[Any], prefix: str) -> str:
-    text = prefix
-    for part in loc:
-        if isinstance(part, int):
-            text += f"[{part}]"
-        else:
-            text = f"{text}.{part}" if text else str(part)
-    return text or "scene"
-
-
-def _describe_one(err: Mapping[str, Any], prefix: str) -> str:
-    kind, loc = err["type"], tuple(err["loc"])
-    ctx = err.get("ctx") or {}
-    where = _where(loc, prefix)
-    shown = _show(err.get("input"))
-    if kind == "missing" and loc and isinstance(loc[-1], int):
-        # A tuple with too few items reports its first absent index as a missing field.
-        return f"{_where(loc[:-1], prefix)} = {shown} has too few values"
-    if kind == "too_long":
-        return (
-            f"{where} = {shown} has {ctx.get('actual_length')} values, "
-            f"at most {ctx.get('max_length')} allowed"
-        )
-    if kind == "too_short":
-        return f"{where} = {shown} has too few values (at least {ctx.get('min_length')})"
-    if kind == "greater_than_equal":
-        return f"{where} = {shown} is below {_num(ctx['ge'])}"
-    if kind == "less_than_equal":
-        return f"{where} = {shown} is above {_num(ctx['le'])}"
-    if kind == "greater_than":
-        return f"{where} = {shown} must be greater than {_num(ctx['gt'])}"
-    if kind == "less_than":
-        return f"{where} = {shown} must be less than {_num(ctx['lt'])}"
-    if kind == "value_error":
-        return f"{where}: {ctx.get('error', err['msg'])}"
-    if kind == "extra_forbidden":
-        return f"{where} is not a known setting"
-    if kind == "literal_error":
-        return f"{where} = {shown} must be one of {ctx.get('expected')}"
-    if kind == "string_pattern_mismatch":
-        return f"{where} = {shown} is not in the expected form"
-    if kind in _TYPE_WORDS:
-        return f"{where} = {shown} should be {_TYPE_WORDS[kind]}"
-    return f"{where}: {err['msg']}"
-
-
-def _num(x: Any) -> str:
-    return f"{x:g}" if isinstance(x, float) else str(x)
-
-
-def _show(value: Any, limit: int = 60) -> str:
-    """A value as it appears in the file (JSON), shortened."""
-    try:
-        text = json.dumps(value, ensure_ascii=False)
-    except (TypeError, ValueError):
-        text = repr(value)
-    return text if len(text) <= limit else text[: limit - 1] + "…"
-
-
 # -- loading with the data ----------------------------------------------------------------------
 def load_session_with_data(
     path: str | os.PathLike[str],
@@ -970,7 +643,7 @@ def load_session_with_data(
     except (ValueError, OSError) as exc:  # a NUL character, a name too long for the OS
         raise SessionError(
             session.path,
-            f"the chosen data file {_show(str(data_path))} is not a usable path "
+            f"the chosen data file {show_value(str(data_path))} is not a usable path "
             f"({_path_error(exc)})",
         ) from exc
     if target is None or not exists:
