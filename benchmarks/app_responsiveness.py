@@ -141,8 +141,10 @@ def main() -> None:
         getattr so older versions, which have the same timers, are measured alike)."""
         vp = window.viewport
         timers = [getattr(vp, name, None) for name in ("_render_timer", "_settle_timer")]
+        player = getattr(window, "time_player", None)
         return any(t is not None and t.isActive() for t in timers) or bool(
-            getattr(vp, "busy", False) or getattr(vp.plotter, "needs_render", False))
+            getattr(vp, "busy", False) or getattr(vp.plotter, "needs_render", False)
+            or getattr(player, "pending", False))  # a time point still being read
 
     def wait_quiet(timeout_s: float) -> bool:
         """Run the loop until nothing is pending and no frame has been rendered for
