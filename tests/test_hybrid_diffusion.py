@@ -185,11 +185,12 @@ def test_a_transfer_function_edit_restarts_the_accumulation_a_camera_move_does_n
 
 @pytest.mark.gl
 @pytest.mark.parametrize("backend", ["auto", "cpu"])
-def test_a_work_budget_draws_samples_in_slabs_that_add_up_to_the_whole_sample(backend):
-    """The app's work budget: a frame draws only the z slabs the budget allows (here the
-    smallest, one work group of 4 layers, since a budget of ~0 ms is spent by the first), the
-    next frames resume the same sample, and the finished accumulation equals the unbounded
-    one bit for bit (each voxel's random stream depends only on its index and the sample)."""
+def test_a_work_budget_draws_samples_in_parts_that_add_up_to_the_whole_sample(backend):
+    """The app's work budget: a frame draws only the part of a sample the budget allows (here
+    the smallest, one work group: 4 z layers × 8 y rows, since a budget of ~0 ms is spent by
+    the first), the next frames resume the same sample, and the finished accumulation equals
+    the unbounded one bit for bit (each voxel's random stream depends only on its index and
+    the sample)."""
     from vtkvol.engine.offscreen import grab
 
     states = {}
@@ -202,10 +203,11 @@ def test_a_work_budget_draws_samples_in_slabs_that_add_up_to_the_whole_sample(ba
         if budget is None:
             assert tech.iteration == 2 and not il.wants_frame
         else:
-            # 20 layers: slabs 0–4 of sample 0 in the first frame, nothing complete yet.
-            assert tech.iteration == 0 and tech._next_layer == 4 and il.wants_frame
-            frames = 1 + il.converge(max_frames=50)
-            assert tech.iteration == 2 and frames == 2 * 5  # five slabs per sample
+            # 20³: z 0–4, y 0–8 of sample 0 in the first frame, nothing complete yet.
+            assert tech.iteration == 0 and tech._next_region == (0, 8) and il.wants_frame
+            frames = 1 + il.converge(max_frames=100)
+            # three bands of rows (8, 8, 4) in each of five slabs of 4 layers, per sample
+            assert tech.iteration == 2 and frames == 2 * 15
         rw.MakeCurrent()
         states[budget] = (tech._gpu.download() if tech._gpu is not None
                           else (tech._rho_d.copy(), tech._rho_s.copy()))

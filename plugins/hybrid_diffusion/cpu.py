@@ -163,12 +163,13 @@ def direct_sample(
     sigma_t: np.ndarray, grid: Grid, lights: Sequence[LightSource],
     colors: Sequence[tuple[float, float, float]], *, iteration: int, seed: int,
     estimator: Estimator, light_sampling: LightSampling,
-    layers: tuple[int, int] | None = None, bricks: np.ndarray | None = None,
+    region: tuple[int, int, int, int] | None = None, bricks: np.ndarray | None = None,
 ) -> np.ndarray:
     """One sample of the direct light at every voxel centre, ``[z, y, x, 3]`` float32; with
-    ``layers`` (z0, z1) only the voxels of z layers z0 ≤ z < z1 are sampled (the others stay 0):
+    ``region`` (z0, z1, y0, y1) only the voxels with z0 ≤ z < z1 and y0 ≤ y < y1 are sampled
+    (the others stay 0):
     each voxel's random stream depends only on its index, so a sample drawn in z slabs equals
-    the whole one (the GPU's bounded chunks, ``direct.comp.glsl``'s ``vv_firstLayer``). With
+    the whole one (the GPU's bounded chunks, ``direct.comp.glsl``'s ``vv_first``). With
     ``bricks`` (:func:`brick_majorants`) the tracking uses each brick's majorant instead of the
     global one: the same mean, fewer steps through sparse data."""
     shape = grid.shape_zyx
@@ -179,15 +180,15 @@ def direct_sample(
     xs, ys, zs = centres32(grid)
     majorant = np.float32(sigma_t.max())
     n = len(lights)
-    region = np.ones(shape, bool)
-    if layers is not None:
-        region[:] = False
-        region[layers[0]:layers[1]] = True
+    inside = np.ones(shape, bool)
+    if region is not None:
+        inside[:] = False
+        inside[region[0]:region[1], region[2]:region[3]] = True
     if light_sampling == "one":
         pick = np.minimum((uniform(keys, 0) * np.float32(n)).astype(np.int64), n - 1)
-        chosen = [(index, (pick == index) & region, np.float32(n)) for index in range(n)]
+        chosen = [(index, (pick == index) & inside, np.float32(n)) for index in range(n)]
     else:
-        chosen = [(index, region, np.float32(1.0)) for index in range(n)]
+        chosen = [(index, inside, np.float32(1.0)) for index in range(n)]
     for index, mask, weight in chosen:
         if not mask.any():
             continue

@@ -95,10 +95,12 @@ class HybridDiffusion(GridScattering):
         self._rho_s: np.ndarray | None = None
         #: Source model: relative residual of the scattered light's equation (inf before).
         self.residual = float("inf")
-        #: The current sample's next z layer (> 0 while a sample is drawn in slabs).
-        self._next_layer = 0
-        #: Measured cost (ms) of one z layer of one sample: sizes the next slab.
-        self._layer_ms: float | None = None
+        #: The current sample's next region's first (z layer, y row): not (0, 0) while a
+        #: sample is drawn in parts.
+        self._next_region = (0, 0)
+        #: Measured cost (ms) of one row (a y line of one z layer) of one sample: sizes the
+        #: next region.
+        self._row_ms: float | None = None
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuHybrid:
         return GpuHybrid(window)
@@ -125,7 +127,7 @@ class HybridDiffusion(GridScattering):
                 break
             worked = True
             left = None if budget is None else max(budget - spent, 0.0)
-            if self._sample_layers(values, left):
+            if self._sample_region(values, left):
                 done += 1
         if self._finishing(values):
             spent = (time.perf_counter() - t0) * 1e3
@@ -148,31 +150,41 @@ class HybridDiffusion(GridScattering):
                 and int(values["diffusion_steps"]) > 0
                 and self.residual >= float(values["tolerance"]))
 
-    def _sample_layers(self, values: Mapping[str, Any], budget_ms: float | None) -> bool:
-        """Draw the current sample's next z layers (all of them without a budget, else as many
-        as ``budget_ms`` allows at the measured cost per layer, at least one work-group's);
-        True when the sample is complete (its diffusion steps then ran and the iteration
-        advanced)."""
+    def _sample_region(self, values: Mapping[str, Any], budget_ms: float | None) -> bool:
+        """Draw the current sample's next region (all of it without a budget, else what
+        ``budget_ms`` allows at the measured cost per row — one y line of one z layer): whole
+        slabs of z layers while they fit, else bands of y rows of one slab, at least one work
+        group (4 layers × 8 rows). True when the sample is complete (its diffusion steps then
+        ran and the iteration advanced)."""
         setup = self.setup
         assert setup is not None
-        nz = setup.grid.shape_zyx[0]
-        z0 = self._next_layer
+        nz, ny, _nx = setup.grid.shape_zyx
+        z0, y0 = self._next_region
         if budget_ms is None:
-            z1 = nz
-        elif self._layer_ms is None:
-            z1 = min(nz, z0 + GROUP[2])
+            region = (0, nz, 0, ny)
         else:
-            fit = int(budget_ms / max(self._layer_ms, 1e-6))
-            z1 = min(nz, z0 + max(GROUP[2], fit - fit % GROUP[2]))
+            fit = (GROUP[1] * GROUP[2] if self._row_ms is None
+                   else int(budget_ms / max(self._row_ms, 1e-6)))
+            if y0 == 0 and fit >= ny * GROUP[2]:  # whole slabs
+                layers = (fit // ny) // GROUP[2] * GROUP[2]
+                region = (z0, min(nz, z0 + layers), 0, ny)
+            else:  # a band of rows of one slab
+                z1 = min(nz, z0 + GROUP[2])
+                rows = max(GROUP[1], fit // (z1 - z0) // GROUP[1] * GROUP[1])
+                region = (z0, z1, y0, min(ny, y0 + rows))
         t0 = time.perf_counter()
         if self._gpu is not None:
-            self._gpu.sample(self.iteration, values, (z0, z1))
+            self._gpu.sample(self.iteration, values, region)
             if budget_ms is not None:
                 finish_gl(self.host.render_window)  # the cost must be measured, not queued
         else:
-            self._sample_cpu(values, (z0, z1))
-        self._layer_ms = (time.perf_counter() - t0) * 1e3 / (z1 - z0)
-        self._next_layer = z1 if z1 < nz else 0
+            self._sample_cpu(values, region)
+        z0, z1, y0, y1 = region
+        self._row_ms = (time.perf_counter() - t0) * 1e3 / ((z1 - z0) * (y1 - y0))
+        if y1 < ny:
+            self._next_region = (z0, y1)
+            return False
+        self._next_region = (z1, 0) if z1 < nz else (0, 0)
         if z1 < nz:
             return False
         self._iterate(values, sample=False)  # the diffusion steps of the complete sample
@@ -234,7 +246,7 @@ class HybridDiffusion(GridScattering):
                                  str(values["diffusion_model"]), self.host.phase_g,
                                  str(values["majorant"]))
         self.iteration = 0
-        self._next_layer = 0
+        self._next_region = (0, 0)
         self.residual = float("inf")
         self.converged = False
         self._restarts += 1
@@ -251,19 +263,21 @@ class HybridDiffusion(GridScattering):
         self._backend = "cpu"
         self._upload_cpu_state()
 
-    def _sample_cpu(self, values: Mapping[str, Any], layers: tuple[int, int]) -> None:
-        """The numpy path's sample ``iteration`` of the direct light in z ``layers``, into
-        the running mean ρ_d."""
+    def _sample_cpu(self, values: Mapping[str, Any],
+                    region: tuple[int, int, int, int]) -> None:
+        """The numpy path's sample ``iteration`` of the direct light in ``region`` (z0, z1,
+        y0, y1), into the running mean ρ_d."""
         setup = self.setup
         assert setup is not None and self._rho_d is not None
-        z0, z1 = layers
+        z0, z1, y0, y1 = region
         draw = cpu.direct_sample(
             setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
             seed=int(values["seed"]), estimator=values["estimator"],
-            light_sampling=values["light_sampling"], layers=layers, bricks=setup.bricks,
+            light_sampling=values["light_sampling"], region=region, bricks=setup.bricks,
         )
-        mean = self._rho_d[z0:z1]
-        self._rho_d[z0:z1] = mean + (draw[z0:z1] - mean) / np.float32(self.iteration + 1)
+        mean = self._rho_d[z0:z1, y0:y1]
+        self._rho_d[z0:z1, y0:y1] = mean + (draw[z0:z1, y0:y1] - mean) / np.float32(
+            self.iteration + 1)
 
     def _iterate(self, values: Mapping[str, Any], sample: bool = True) -> None:
         """One iteration: a whole sample of the direct light (while ``sample``), then
@@ -275,7 +289,8 @@ class HybridDiffusion(GridScattering):
             return
         assert self._rho_d is not None and self._rho_s is not None
         if sample:
-            self._sample_cpu(values, (0, setup.grid.shape_zyx[0]))
+            nz, ny, _nx = setup.grid.shape_zyx
+            self._sample_cpu(values, (0, nz, 0, ny))
         steps = int(values["diffusion_steps"])
         if setup.model == "source":
             assert setup.coefficients is not None
@@ -380,7 +395,7 @@ class GpuHybrid:
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         steps = int(values["diffusion_steps"])
         if sample:
-            self.sample(iteration, values, (0, setup.grid.shape_zyx[0]))
+            self.sample(iteration, values, (0, setup.grid.shape_zyx[0], 0, setup.grid.shape_zyx[1]))
         if not steps:
             return
         if setup.model == "source":
@@ -389,8 +404,8 @@ class GpuHybrid:
             self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
 
     def sample(self, iteration: int, values: Mapping[str, Any],
-               layers: tuple[int, int]) -> None:
-        """Sample ``iteration`` of the direct light in z ``layers`` (z0, z1) into ρ_d."""
+               region: tuple[int, int, int, int]) -> None:
+        """Sample ``iteration`` of the direct light in ``region`` (z0, z1, y0, y1) into ρ_d."""
         setup = self._setup
         assert setup is not None and self.rho_d is not None and self._sigma is not None
         grid = setup.grid
@@ -412,8 +427,8 @@ class GpuHybrid:
         for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
             prog.set_uniform(name, unit)
         prog.set_uniform("vv_dims", nx, ny, nz)
-        prog.set_uniform("vv_firstLayer", layers[0])
-        prog.set_uniform("vv_endLayer", layers[1])
+        prog.set_uniform("vv_first", region[0], region[2])
+        prog.set_uniform("vv_end", region[1], region[3])
         prog.set_uniform("vv_origin", *grid.origin, kind="f")
         prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
         prog.set_uniform("vv_majorant", float(setup.sigma_t.max()), kind="f")
@@ -433,7 +448,8 @@ class GpuHybrid:
             prog.set_uniform("vv_brickDims", nbx, nby, nbz)
             bricks.bind_image(2, "read")
         groups = dispatch_groups(grid)
-        prog.dispatch((groups[0], groups[1], -(-(layers[1] - layers[0]) // GROUP[2])))
+        prog.dispatch((groups[0], -(-(region[3] - region[2]) // GROUP[1]),
+                       -(-(region[1] - region[0]) // GROUP[2])))
         unbind_images(self.render_window, 3)
         prog.done()
 

@@ -18,8 +18,8 @@ uniform ivec3 vv_dims;
 layout(r32f) uniform readonly image3D vv_bricks;       // majorant per brick (per µm)
 uniform ivec3 vv_brickDims;
 #endif
-uniform int vv_firstLayer;      // z layers vv_firstLayer <= z < vv_endLayer are sampled
-uniform int vv_endLayer;        // (bounded chunks: one sample drawn in z slabs)
+uniform ivec2 vv_first;         // the region drawn: vv_first <= (z, y) < vv_end (bounded
+uniform ivec2 vv_end;           // chunks: one sample drawn in z slabs and y bands)
 uniform vec3 vv_origin;
 uniform vec3 vv_spacing;
 uniform float vv_majorant;      // max sigma_t (per µm)
@@ -177,8 +177,8 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
 
 void main()
 {
-  ivec3 p = ivec3(gl_GlobalInvocationID) + ivec3(0, 0, vv_firstLayer);
-  if (any(greaterThanEqual(p, vv_dims)) || p.z >= vv_endLayer) return;
+  ivec3 p = ivec3(gl_GlobalInvocationID) + ivec3(0, vv_first.y, vv_first.x);
+  if (any(greaterThanEqual(p, vv_dims)) || p.z >= vv_end.x || p.y >= vv_end.y) return;
   uint index = uint(p.x + vv_dims.x * (p.y + vv_dims.y * p.z));
   uint key = pcg(index ^ pcg(vv_iteration + pcg(vv_seed)));
   vec3 pos = vv_origin + vv_spacing * vec3(p);
