@@ -257,3 +257,25 @@ def test_the_napari_reader_shares_the_detection():
                                 ["stack"])
     assert layer_data(seg, 0, seg.array[0], (1.0, 1.0, 1.0))[2] == "labels"
     assert layer_data(raw, 0, raw.array[0], (1.0, 1.0, 1.0))[2] == "image"
+
+
+def test_a_segmentation_file_beside_its_raw_stack_opens_over_it(tmp_path):
+    """A facility's segmentation is a file of its own: a folder holding the raw stack and its
+    label image opens as two channels (File → Open folder → "Open all as channels", or
+    ``vtkvol open --as-channels``), and only the label file's channel is shown as labels."""
+    import tifffile
+
+    from vtkvol.io.folder_channels import read_folder_as_channels
+
+    raw = confocal_phantom((32, 48, 48)).array[0]
+    tifffile.imwrite(tmp_path / "embryo.tif", raw, imagej=True, metadata={"axes": "ZYX"})
+    tifffile.imwrite(tmp_path / "embryo_labels.tif", blobs(), imagej=True,
+                     metadata={"axes": "ZYX"})
+    data = read_folder_as_channels(tmp_path)
+    assert data.n_channels == 2
+    model = scene_for(data)
+    shown = show_detected_labels(model, data)
+    labelled = [data.channel_names[c] for c, _ in shown]
+    assert labelled == [n for n in data.channel_names if "labels" in n]
+    raw_channel = 1 - shown[0][0]
+    assert model.channels[raw_channel].labels is None
