@@ -456,10 +456,13 @@ def test_folder_with_mismatched_slice(tmp_path):
         read_volume(tmp_path)
 
 
-def test_folder_of_stacks_is_rejected(tmp_path):
-    tifffile.imwrite(tmp_path / "a1.tif", np.zeros((5, 6, 6), np.uint8), photometric="minisblack")
+def test_a_stack_among_a_folders_slices_is_rejected(tmp_path):
+    """A folder of 2-D slices with one multi-page file among them is refused, naming it (a
+    folder of stacks only is a different case: tests/test_folder_stacks.py)."""
+    tifffile.imwrite(tmp_path / "a1.tif", np.zeros((6, 6), np.uint8), photometric="minisblack")
+    tifffile.imwrite(tmp_path / "a2.tif", np.zeros((5, 6, 6), np.uint8), photometric="minisblack")
     with pytest.raises(
-        VolumeReadError, match=r"a1\.tif: every file in a folder must hold one 2-D slice"
+        VolumeReadError, match=r"a2\.tif: every file in a folder must hold one 2-D slice"
     ):
         read_volume(tmp_path)
 
