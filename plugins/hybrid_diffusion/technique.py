@@ -98,6 +98,8 @@ class HybridDiffusion(GridScattering):
         #: The current sample's next region's first (z layer, y row): not (0, 0) while a
         #: sample is drawn in parts.
         self._next_region = (0, 0)
+        #: Measured cost (ms) of one finishing iteration (its sweeps and the residual check).
+        self._finish_ms: float | None = None
         #: Measured cost (ms) of one row (a y line of one z layer) of one sample: sizes the
         #: next region.
         self._row_ms: float | None = None
@@ -196,16 +198,24 @@ class HybridDiffusion(GridScattering):
     def _finish_source(self, values: Mapping[str, Any], budget_ms: float | None = None) -> None:
         """After the last sample, the source model's sweeps until the residual tolerance (the
         last iteration ends the solve: the result is final when the samples are), in batches
-        of ``FINISH_BATCH``; with ``budget_ms`` it stops after the batch that spends it."""
+        of up to ``FINISH_BATCH`` iterations between residual checks; with ``budget_ms`` each
+        batch is as many as fit at the measured cost of one (at least one), and it stops
+        once the budget is spent."""
         tolerance = float(values["tolerance"])
         t0 = time.perf_counter()
-        for _ in range(MAX_FINISHING_SWEEPS // FINISH_BATCH):
+        for _ in range(MAX_FINISHING_SWEEPS):
             if self.residual < tolerance:
                 return
-            for _ in range(FINISH_BATCH):
+            batch = FINISH_BATCH
+            if budget_ms is not None and self._finish_ms is not None:
+                left = budget_ms - (time.perf_counter() - t0) * 1e3
+                batch = max(1, min(FINISH_BATCH, int(left / max(self._finish_ms, 1e-6))))
+            t1 = time.perf_counter()
+            for _ in range(batch):
                 self._iterate(values, sample=False)
             if self._gpu is not None:
-                self.residual = self._gpu.residual()
+                self.residual = self._gpu.residual()  # reads back: the batch has run
+            self._finish_ms = (time.perf_counter() - t1) * 1e3 / batch
             if budget_ms is not None and (time.perf_counter() - t0) * 1e3 >= budget_ms:
                 return
 
