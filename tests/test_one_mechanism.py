@@ -7,6 +7,7 @@ from __future__ import annotations
 import ast
 import ctypes
 import pathlib
+import re
 
 import numpy as np
 import pytest
@@ -62,10 +63,13 @@ def test_compute_uniform_setters_live_in_one_place() -> None:
             if path.name == "gl.py":
                 continue
             text = path.read_text(encoding="utf-8")
-            for needle in ("glGetUniformLocation", "_locations", "def unbind_images",
-                           "def _unbind_images"):
+            for needle in ("glGetUniformLocation", "def unbind_images", "def _unbind_images"):
                 if needle in text:
                     offenders.append(f"{path.relative_to(ROOT)}: {needle}")
+            # a location cache: an attribute or a name ``_locations`` (not, say, importlib's
+            # ``submodule_search_locations``)
+            if re.search(r"(?<![A-Za-z0-9])_locations\b", text):
+                offenders.append(f"{path.relative_to(ROOT)}: _locations")
     assert offenders == []
 
 
