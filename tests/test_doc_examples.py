@@ -211,9 +211,16 @@ def test_python_example_runs(folder, page, line, text):
     for old, new in edits:
         assert old in text, f"{page}:{line}: the example no longer contains {old!r}"
         text = text.replace(old, new)
-    script = folder / f"example_{Path(page).stem}_{line}.py"
+    # Each block in a folder of its own that links the stand-in inputs: what one example
+    # writes (fly.mp4, say) is not there for the next, which would refuse to overwrite it.
+    work = folder / f"python_{Path(page).stem}_{line}"
+    work.mkdir(exist_ok=True)
+    for entry in folder.iterdir():
+        if not entry.name.startswith(("python_", "example_")) and not (work / entry.name).exists():
+            (work / entry.name).symlink_to(entry)
+    script = work / f"example_{Path(page).stem}_{line}.py"
     script.write_text(prelude + text, encoding="utf-8")
-    done = run([sys.executable, str(script)], folder)
+    done = run([sys.executable, str(script)], work)
     assert done.returncode == 0, f"{page}:{line}:\n{done.stderr}"
 
 

@@ -45,7 +45,7 @@ def source_and_run(checkout: Path, call: str, path: str, **env: str) -> subproce
     scripts = checkout / "scripts"
     scripts.mkdir(parents=True, exist_ok=True)
     shutil.copy(SCRIPT, scripts / "project-env.sh")
-    for name in ("pyproject.toml",):
+    for name in ("pyproject.toml", "setup.py"):
         (checkout / name).write_text(f"# {name}\n")
     environment = {"HOME": str(checkout), "PATH": f"{path}:{_bash_only(checkout.parent)}", **env}
     return subprocess.run(
@@ -66,7 +66,8 @@ def test_a_venv_is_made_in_the_checkout_with_the_first_python_3_10_or_newer(tmp_
     calls = log.read_text().splitlines()
     assert calls[0] == f"{newer} -m venv {checkout}/.venv"
     venv_python = checkout / ".venv" / "bin" / "python"
-    assert calls[1] == f"{venv_python} -m pip install -q -e {checkout}[test]"
+    assert calls[1] == (f"{venv_python} -m pip install -q -e {checkout}[test]"
+                        " --config-settings editable_mode=compat")
     assert f"PY={venv_python}" in done.stdout
 
 
@@ -115,7 +116,8 @@ def test_an_active_virtual_environment_is_used_as_it_is(tmp_path):
     assert f"PY={active}/bin/python" in done.stdout
     assert not (checkout / ".venv").exists()
     assert log.read_text().splitlines() == [
-        f"{active}/bin/python -m pip install -q -e {checkout}[test]"]
+        f"{active}/bin/python -m pip install -q -e {checkout}[test]"
+        " --config-settings editable_mode=compat"]
 
 
 def test_an_active_environment_older_than_3_10_is_refused(tmp_path):
