@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
@@ -290,22 +291,19 @@ def ambient_occlusion_cpu(
     cones: int = 6,
     ao_angle: float = 30.0,
     max_distance_um: float,
-    sigma: float = 1.0,
-    lod_width: float = 4.0,
-    h: float = 2.5,
-    h0: float = 3.0,
-    unit_distance: float | None = None,
+    **march: float | None,
 ) -> np.ndarray:
     """Cone-traced occlusion (0 = open, 1 = closed) at ``points``, as the shader computes it.
 
     ``normals`` (M, 3) are outward dataset-space normals (zero where undefined: the view
     direction is used instead); ``view_direction`` points from the scene towards the viewer.
+    ``march``: :func:`cone_trace_cpu`'s ``sigma``, ``lod_width``, ``h``, ``h0`` and
+    ``unit_distance`` (its defaults where not given), the same for every cone.
     """
     v = np.asarray(view_direction, dtype=np.float64)
     v = v / np.linalg.norm(v)
     m = len(points)
-    kw = dict(sigma=sigma, lod_width=lod_width, h=h, h0=h0, max_distance_um=max_distance_um,
-              unit_distance=unit_distance)
+    kw: dict[str, Any] = dict(march, max_distance_um=max_distance_um)
     if mode == "view_cone":
         dirs = np.broadcast_to(v, (m, 3))
         sin_a = math.sin(math.radians(ao_angle))
@@ -447,13 +445,10 @@ def baked_ao_cpu(
     max_distance_um: float,
     sigma: float = 1.0,
     span: float = 3.0,
-    lod_width: float = 4.0,
-    h: float = 2.5,
-    h0: float = 3.0,
-    unit_distance: float | None = None,
     pyramid: Sequence[np.ndarray] | None = None,
     source: Sequence[np.ndarray] | None = None,
     chunk: int = 1 << 17,
+    **march: float | None,
 ) -> np.ndarray:
     """Baked hemisphere AO (0 = open, 1 = closed) at every point of the AO grid,
     ``[z, y, x]`` float32: what ``shaders/bake_ao.comp.glsl`` computes.
@@ -464,7 +459,9 @@ def baked_ao_cpu(
     cosine-weighted cones about it (:func:`hemisphere_pattern`); where the normal is undefined
     (deep inside or far outside), the same pattern about +z and −z (the full sphere). Points whose
     neighbourhood is empty (:func:`ao_gate`) are 0. ``pyramid``/``source`` (the filtered
-    and the source pyramid) are computed from ``opacity`` when not given.
+    and the source pyramid) are computed from ``opacity`` when not given (filter ``sigma``,
+    ``span``). ``march``: :func:`cone_trace_cpu`'s ``lod_width``, ``h``, ``h0`` and
+    ``unit_distance`` (its defaults where not given); its ``sigma`` is this ``sigma``.
     """
     levels = mip_level_count(opacity.shape)
     if source is None:
@@ -476,8 +473,8 @@ def baked_ao_cpu(
     pts_all = ao_grid_points(data_dims, grid)
     pattern, half_angle = hemisphere_pattern(cones)
     sin_a = math.sin(math.radians(half_angle))
-    kw = dict(sin_angle=sin_a, sigma=sigma, lod_width=lod_width, h=h, h0=h0,
-              max_distance_um=max_distance_um, unit_distance=unit_distance)
+    kw: dict[str, Any] = dict(march, sin_angle=sin_a, sigma=sigma,
+                              max_distance_um=max_distance_um)
     out = np.zeros(len(pts_all))
     open_ = np.nonzero(ao_gate_open(source, pts_all, resolution))[0]
     for start in range(0, len(open_), chunk):

@@ -13,7 +13,6 @@ changes (``Changes.reset_accumulation``), never for the camera.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -32,16 +31,13 @@ from vtkvol.engine.diffusion import (
     relative_residual,
     source_coefficients,
 )
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
+from vtkvol.engine.gl import ComputeProgram, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import TechniqueStats
 from vtkvol.plugins.convection_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
+    from vtkvol.engine.illuminator import Illuminator, LightSpec
 
-DIRECT_UNIFORM = "vv_convection_diffusion_direct"
-SCATTERED_UNIFORM = "vv_convection_diffusion_scattered"
 
 
 class ConvectionDiffusion(GridScattering):
@@ -49,23 +45,33 @@ class ConvectionDiffusion(GridScattering):
 
     SPEC = TECHNIQUE
     SHADER: ClassVar[str] = "convection_diffusion.glsl"
-    DIRECT = DIRECT_UNIFORM
-    SCATTERED = SCATTERED_UNIFORM
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.setup: Setup | None = None
         self._transport: cpu.Transport | None = None  # numpy path state
-        #: Source model: relative residual of the scattered light's equation (inf before).
-        self.residual = float("inf")
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuTransport:
         return GpuTransport(window)
 
     # -- hooks --------------------------------------------------------------------------------
-    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
-        if changes.reset_accumulation or self.setup is None:
-            self._restart(values)
+    def build_setup(self, grid: cpu.Grid, sigma_t: np.ndarray,
+                    values: Mapping[str, Any]) -> Setup:
+        return Setup.build(grid, sigma_t, self.host.light_specs(), values, self.host.albedo,
+                           self.host.unit_distance, self.host.phase_g)
+
+    def start_gpu(self, gpu: GpuTransport, values: Mapping[str, Any]) -> None:
+        assert self.setup is not None
+        gpu.reset(self.setup)
+
+    def start_cpu(self, values: Mapping[str, Any]) -> None:
+        assert self.setup is not None
+        self._transport = self.setup.transport(values["diffusion_steps"])
+        self._upload_cpu_state()
+
+    def advance(self, values: Mapping[str, Any]) -> None:
+        """Up to ``iterations_per_frame`` iterations: the source model stops on the residual
+        tolerance (a non-zero ``max_iterations`` still caps it), the published one after
+        ``max_iterations`` (0: :meth:`automatic_iterations`)."""
         setup = self.setup
         assert setup is not None
         source = setup.model == "source"
@@ -99,17 +105,10 @@ class ConvectionDiffusion(GridScattering):
         else:
             assert limit is not None
             self.converged = self.iteration >= limit
-        gpu = self._gpu
-        self._bind((gpu.rho, gpu.rho_s) if gpu is not None else None)
-
-    def stats(self) -> TechniqueStats:
-        """:meth:`GridScattering.stats`; ``extra``: the source model's relative ``residual``."""
-        return dataclasses.replace(super().stats(), extra={"residual": self.residual})
 
     def release(self) -> None:
         super().release()
         self._transport = None
-        self.setup = None
 
     def automatic_iterations(self) -> int:
         """Iterations of ``max_iterations = 0`` in the published model: four times what the
@@ -137,32 +136,9 @@ class ConvectionDiffusion(GridScattering):
         return transport.rho[0]
 
     # -- internals ----------------------------------------------------------------------------
-    def _restart(self, values: Mapping[str, Any]) -> None:
-        nx, ny, nz = self.host.dims
-        grid = cpu.Grid((nz, ny, nx), self.host.spacing, self._origin())
-        sigma_t = cpu.extinction(self.host.opacity_volume(), self.host.unit_distance)
-        self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), values, self.host.albedo,
-                                 self.host.unit_distance, self.host.phase_g)
-        self.iteration = 0
-        self.residual = float("inf")
-        self.converged = False
-        self._restarts += 1
-        gpu = self._compute.get(self.host, values["backend"])
-        if gpu is not None:
-            try:
-                gpu.reset(self.setup)
-                self._backend = "gpu"
-                return
-            except GLUnavailableError as exc:
-                self._compute.disable(exc)
-        self._transport = self.setup.transport(values["diffusion_steps"])
-        self._backend = "cpu"
-        self._upload_cpu_state()
-
     def _upload_cpu_state(self) -> None:
         transport = self._transport
         assert transport is not None
-        rw = self.host.render_window
         shape = transport.grid.shape_zyx
         channels = light_channels(len(transport.lights))
         direct = np.zeros((*shape, channels), np.float32)
@@ -170,18 +146,8 @@ class ConvectionDiffusion(GridScattering):
                                                            0, -1)
         scattered = np.zeros((*shape, 4), np.float32)
         scattered[..., :3] = transport.rho_s
-        if self._direct is None or self._direct.shape != shape or self._direct.channels != channels:
-            if self._direct is not None:
-                self._direct.release()
-            self._direct = Texture3D(rw, shape, channels=channels, data=_squeeze(direct))
-        else:
-            self._direct.upload(_squeeze(direct))
-        if self._scattered is None or self._scattered.shape != shape:
-            if self._scattered is not None:
-                self._scattered.release()
-            self._scattered = Texture3D(rw, shape, channels=4, data=scattered)
-        else:
-            self._scattered.upload(scattered)
+        self._direct = self._show(self._direct, _squeeze(direct), channels)
+        self._scattered = self._show(self._scattered, scattered, 4)
 
 
 def _squeeze(a: np.ndarray) -> np.ndarray:
@@ -252,6 +218,11 @@ class GpuTransport:
     @property
     def rho(self) -> Texture3D:
         return self._rho[0]
+
+    @property
+    def shown(self) -> tuple[Texture3D, Texture3D]:
+        """(ρ, ρ_s): what the shader samples as the direct and the scattered light."""
+        return self.rho, self.rho_s
 
     @property
     def rho_s(self) -> Texture3D:

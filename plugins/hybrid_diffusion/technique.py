@@ -13,7 +13,6 @@ tolerance, so the result is final exactly when the samples are.
 
 from __future__ import annotations
 
-import dataclasses
 import time
 from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
@@ -30,16 +29,14 @@ from vtkvol.engine.diffusion import (
     dispatch_groups,
     relative_residual,
 )
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
+from vtkvol.engine.gl import ComputeProgram, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
-from vtkvol.engine.technique import TechniqueStats, finish_gl
+from vtkvol.engine.technique import finish_gl
 from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
+    from vtkvol.engine.illuminator import Illuminator, LightSpec
 
-DIRECT_UNIFORM = "vv_hybrid_diffusion_direct"
-SCATTERED_UNIFORM = "vv_hybrid_diffusion_scattered"
 #: The diffusion step reads the direct light as three "lights" with these colours: ρ_d's r, g, b.
 RGB_AS_LIGHTS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 #: Source model: sweeps between residual checks after the last sample, and their cap (a
@@ -85,16 +82,11 @@ class HybridDiffusion(GridScattering):
 
     SPEC = TECHNIQUE
     SHADER: ClassVar[str] = "hybrid_diffusion.glsl"
-    DIRECT = DIRECT_UNIFORM
-    SCATTERED = SCATTERED_UNIFORM
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self.setup: Setup | None = None
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
-        #: Source model: relative residual of the scattered light's equation (inf before).
-        self.residual = float("inf")
         #: The current sample's next region's first (z layer, y row): not (0, 0) while a
         #: sample is drawn in parts.
         self._next_region = (0, 0)
@@ -107,16 +99,30 @@ class HybridDiffusion(GridScattering):
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuHybrid:
         return GpuHybrid(window)
 
-    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+    def build_setup(self, grid: kd.Grid, sigma_t: np.ndarray,
+                    values: Mapping[str, Any]) -> Setup:
+        return Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
+                           str(values["diffusion_model"]), self.host.phase_g,
+                           str(values["majorant"]))
+
+    def start_gpu(self, gpu: GpuHybrid, values: Mapping[str, Any]) -> None:
+        assert self.setup is not None
+        gpu.reset(self.setup, values)
+
+    def start_cpu(self, values: Mapping[str, Any]) -> None:
+        assert self.setup is not None
+        shape = self.setup.grid.shape_zyx
+        self._rho_d = np.zeros((*shape, 3), np.float32)
+        self._rho_s = np.zeros((*shape, 3), np.float32)
+        self._upload_cpu_state()
+
+    def advance(self, values: Mapping[str, Any]) -> None:
         """Up to ``iterations_per_frame`` samples before this frame. With the host's
         :attr:`~vtkvol.engine.technique.TechniqueHost.work_budget_ms` (the app sets one), the
-        work stops once the budget is spent: a sample is drawn in z slabs sized from the
-        measured cost per layer, and the finishing sweeps in batches, each resumed next frame
-        — one frame never holds the event loop for a whole sample of a large stack."""
-        if changes.reset_accumulation or self.setup is None:
-            self._restart(values)
-        setup = self.setup
-        assert setup is not None
+        work stops once the budget is spent: a sample is drawn in z slabs or y bands sized
+        from the measured cost per row, and the finishing sweeps in batches that fit, each
+        resumed next frame — one frame never holds the event loop for a whole sample."""
+        assert self.setup is not None
         samples = int(values["max_iterations"])
         count = min(int(values["iterations_per_frame"]), samples - self.iteration)
         budget = self.host.work_budget_ms
@@ -141,8 +147,6 @@ class HybridDiffusion(GridScattering):
                 self._upload_cpu_state()
             self._last_ms = (time.perf_counter() - t0) * 1e3
         self.converged = self.iteration >= samples and not self._finishing(values)
-        gpu = self._gpu
-        self._bind((gpu.rho_d, gpu.rho_s) if gpu is not None else None)
 
     def _finishing(self, values: Mapping[str, Any]) -> bool:
         """All samples are drawn and the source model's sweeps have not reached the tolerance."""
@@ -219,13 +223,9 @@ class HybridDiffusion(GridScattering):
             if budget_ms is not None and (time.perf_counter() - t0) * 1e3 >= budget_ms:
                 return
 
-    def stats(self) -> TechniqueStats:
-        """:meth:`GridScattering.stats`; ``extra``: the source model's relative ``residual``."""
-        return dataclasses.replace(super().stats(), extra={"residual": self.residual})
-
     def release(self) -> None:
         super().release()
-        self.setup = self._rho_d = self._rho_s = None
+        self._rho_d = self._rho_s = None
 
     def light_visibility_cpu(
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
@@ -249,29 +249,8 @@ class HybridDiffusion(GridScattering):
 
     # -- internals ----------------------------------------------------------------------------
     def _restart(self, values: Mapping[str, Any]) -> None:
-        nx, ny, nz = self.host.dims
-        grid = kd.Grid((nz, ny, nx), self.host.spacing, self._origin())
-        sigma_t = kd.extinction(self.host.opacity_volume(), self.host.unit_distance)
-        self.setup = Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
-                                 str(values["diffusion_model"]), self.host.phase_g,
-                                 str(values["majorant"]))
-        self.iteration = 0
-        self._next_region = (0, 0)
-        self.residual = float("inf")
-        self.converged = False
-        self._restarts += 1
-        gpu = self._compute.get(self.host, values["backend"])
-        if gpu is not None:
-            try:
-                gpu.reset(self.setup, values)
-                self._backend = "gpu"
-                return
-            except GLUnavailableError as exc:
-                self._compute.disable(exc)
-        self._rho_d = np.zeros((*grid.shape_zyx, 3), np.float32)
-        self._rho_s = np.zeros((*grid.shape_zyx, 3), np.float32)
-        self._backend = "cpu"
-        self._upload_cpu_state()
+        self._next_region = (0, 0)  # a new accumulation draws its first sample from (0, 0)
+        super()._restart(values)
 
     def _sample_cpu(self, values: Mapping[str, Any],
                     region: tuple[int, int, int, int]) -> None:
@@ -318,18 +297,15 @@ class HybridDiffusion(GridScattering):
 
     def _upload_cpu_state(self) -> None:
         assert self._rho_d is not None and self._rho_s is not None
-        rw = self.host.render_window
-        shape = self._rho_d.shape[:3]
-        for name, field in (("_direct", self._rho_d), ("_scattered", self._rho_s)):
-            rgba = np.zeros((*shape, 4), np.float32)
-            rgba[..., :3] = field
-            tex: Texture3D | None = getattr(self, name)
-            if tex is None or tex.shape != shape:
-                if tex is not None:
-                    tex.release()
-                setattr(self, name, Texture3D(rw, shape, channels=4, data=rgba))
-            else:
-                tex.upload(rgba)
+        self._direct = self._show(self._direct, _rgba(self._rho_d), 4)
+        self._scattered = self._show(self._scattered, _rgba(self._rho_s), 4)
+
+
+def _rgba(rgb: np.ndarray) -> np.ndarray:
+    """``[z, y, x, 3]`` → ``[z, y, x, 4]`` float32 with alpha 0 (the textures are RGBA)."""
+    rgba = np.zeros((*rgb.shape[:3], 4), np.float32)
+    rgba[..., :3] = rgb
+    return rgba
 
 
 class GpuHybrid:
@@ -352,6 +328,12 @@ class GpuHybrid:
     def textures(self) -> list[Texture3D]:
         own = [t for t in (self.rho_d, self._sigma, self._bricks) if t is not None]
         return own + self.diffusion.textures + self.source.textures
+
+    @property
+    def shown(self) -> tuple[Texture3D, Texture3D]:
+        """(ρ_d, ρ_s): what the shader samples as the direct and the scattered light."""
+        assert self.rho_d is not None
+        return self.rho_d, self.rho_s
 
     @property
     def rho_s(self) -> Texture3D:

@@ -26,7 +26,8 @@ from vtkvol.engine.light_grid_gpu import (
     LightTexture,
     ensure_work_textures,
 )
-from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats, scale_steps
+from vtkvol.engine.light_grid_technique import LightGridTechnique
+from vtkvol.engine.technique import TechniqueStats, scale_steps
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.shadow_volume import TECHNIQUE
 
@@ -42,7 +43,7 @@ CHUNK_S = 0.08
 _ILLUM = Invalidates.ILLUMINATION
 
 
-class ShadowVolume(Technique):
+class ShadowVolume(LightGridTechnique):
     """Shadows from a precomputed light volume per light (packed one light per channel)."""
 
     SPEC = TECHNIQUE
@@ -50,17 +51,9 @@ class ShadowVolume(Technique):
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self._recomputes = 0
-        self._backend = ""  # "gpu" or "cpu": the path of the last recomputation
-        self.grid: LightGrid | None = None
         self.light_texture: LightTexture | None = None
-        #: The GPU-or-numpy choice (the ``backend`` parameter; numpy for good after a failure).
-        self._compute = ComputePath("shadow_volume", GpuPropagator)
         self._sigma_tex: Texture3D | None = None
-        self._work_tex: dict[int, Texture3D] = {}
         self._sigma_cpu: np.ndarray | None = None
-        self._sigma_valid: dict[str, bool] = {"gpu": False, "cpu": False}
-        self._light_key: tuple | None = None
 
     # -- hooks --------------------------------------------------------------------------------
     def prepare_steps(self, changes: Changes, values: Mapping[str, Any]) -> Iterator[float]:
@@ -126,30 +119,13 @@ class ShadowVolume(Technique):
         points = any(spec.is_point for spec in self.host.light_specs())
         return {"VV_SV_POINT_LIGHTS": "1" if points else "0"}
 
-    def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        grid = self.grid
-        if grid is None:
-            return {}
-        return {
-            "vv_shadow_volume_dims": tuple(float(m) for m in grid.dims),
-            "vv_shadow_volume_cellTex": tuple(
-                float(st / n) for st, n in zip(grid.step, grid.data_dims, strict=True)
-            ),
-        }
-
     def release(self) -> None:
-        # The host removes our uniforms and texture bindings; we release what we created.
-        self._release_timers()
-        for tex in (self.light_texture, self._sigma_tex, *self._work_tex.values()):
+        super().release()
+        for tex in (self.light_texture, self._sigma_tex):
             if tex is not None:
                 tex.release()
         self.light_texture = self._sigma_tex = None
-        self._work_tex = {}
-        self._compute.release()
         self._sigma_cpu = None
-        self._sigma_valid = {"gpu": False, "cpu": False}
-        self.grid = None
-        self._light_key = None
 
     def light_visibility_cpu(
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
@@ -169,13 +145,6 @@ class ShadowVolume(Technique):
         return grid.to_data(vis)
 
     # -- internals ----------------------------------------------------------------------------
-    def _origin(self) -> tuple[float, float, float]:
-        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
-
-    def _direction(self) -> np.ndarray:
-        m = self.host.image.GetDirectionMatrix()
-        return np.array([[m.GetElement(i, j) for j in range(3)] for i in range(3)])
-
     def _gpu_path(self, values: Mapping[str, Any]) -> GpuPropagator | None:
         """The GPU propagator (compiled on first use), or None for the numpy path."""
         return self._compute.get(self.host, values["backend"])

@@ -3,9 +3,10 @@
 One RGBA light volume per light (RGB = indirect transmittance, A = direct transmittance),
 recomputed only when the opacity, the transfer function's colour (which sets the indirect
 extinction), the light geometry or an ILLUMINATION parameter changes, never on camera moves.
-The propagation is the shadow volume's, by import: its compute shader through
-:class:`~vtkvol.engine.light_grid_gpu.GpuPropagator` (one dispatch sequence per channel) or
-its numpy twin (:mod:`.cpu`); the two agree to about 1e-6.
+The propagation is the engine's light-grid propagation (the shadow volume's too): its compute
+shader through :class:`~vtkvol.engine.light_grid_gpu.GpuPropagator` (one dispatch sequence per
+channel) or its numpy twin (:mod:`.cpu`); the two agree to about 1e-6. The grid, the GPU-or-numpy
+choice and the release are :class:`~vtkvol.engine.light_grid_technique.LightGridTechnique`'s.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ from vtkvol.engine.light_grid_gpu import (
     LightTexture,
     ensure_work_textures,
 )
-from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
+from vtkvol.engine.light_grid_technique import LightGridTechnique
+from vtkvol.engine.technique import TechniqueStats
 from vtkvol.model.params import Invalidates
 from vtkvol.plugins.translucency import TECHNIQUE
 from vtkvol.plugins.translucency.cpu import (
@@ -134,7 +136,7 @@ def _table_lookup(function: Any, values: np.ndarray, channels: int) -> np.ndarra
     return out.reshape(*np.shape(values), channels).astype(np.float32)
 
 
-class Translucency(Technique):
+class Translucency(LightGridTechnique):
     """Direct + chromatic indirect light from a precomputed RGBA light volume per light."""
 
     SPEC = TECHNIQUE
@@ -144,16 +146,9 @@ class Translucency(Technique):
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
-        self._recomputes = 0
-        self._backend = ""  # "gpu" or "cpu": the path of the last recomputation
-        self.grid: LightGrid | None = None
         self.light_textures: list[LightTexture] = []
-        self._gpu = ComputePath("translucency", GpuPropagator)
         self._sigma_tex: list[Texture3D] = []  # direct, indirect R, G, B
-        self._work_tex: dict[int, Texture3D] = {}
         self._sigma_cpu: list[np.ndarray] | None = None
-        self._sigma_valid: dict[str, bool] = {"gpu": False, "cpu": False}
-        self._light_key: tuple | None = None
         self._colour_key: tuple | None = None
 
     # -- hooks --------------------------------------------------------------------------------
@@ -179,7 +174,7 @@ class Translucency(Technique):
                 or changes.any_parameter(self.PARAMETERS, _ILLUM)):
             self._sigma_valid = {"gpu": False, "cpu": False}
             self._colour_key = colour_key
-        gpu = self._gpu.get(self.host, values["backend"])
+        gpu = self._compute.get(self.host, values["backend"])
         needed = (
             changes.first
             or not self._sigma_valid["gpu" if gpu is not None else "cpu"]
@@ -192,17 +187,6 @@ class Translucency(Technique):
             self._recompute(grid, light_key, specs, gpu, values)
         self._recomputes += 1
 
-    def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        grid = self.grid
-        if grid is None:
-            return {}
-        return {
-            "vv_translucency_dims": tuple(float(m) for m in grid.dims),
-            "vv_translucency_cellTex": tuple(
-                float(st / n) for st, n in zip(grid.step, grid.data_dims, strict=True)
-            ),
-        }
-
     def stats(self) -> TechniqueStats:
         """The light volumes' recomputations; ``extra``: ``lights`` (light volumes held)."""
         textures = [*self.light_textures, *self._sigma_tex, *self._work_tex.values()]
@@ -212,18 +196,12 @@ class Translucency(Technique):
             extra={"lights": len(self.light_textures)})
 
     def release(self) -> None:
-        # The host removes our uniforms and texture bindings; we release what we created.
-        self._release_timers()
-        for tex in (*self.light_textures, *self._sigma_tex, *self._work_tex.values()):
+        super().release()
+        for tex in (*self.light_textures, *self._sigma_tex):
             tex.release()
         self.light_textures = []
         self._sigma_tex = []
-        self._work_tex = {}
-        self._gpu.release()
         self._sigma_cpu = None
-        self._sigma_valid = {"gpu": False, "cpu": False}
-        self.grid = None
-        self._light_key = None
         self._colour_key = None
 
     def light_visibility_cpu(
@@ -253,13 +231,6 @@ class Translucency(Technique):
                 for spec in self.host.light_specs()]
 
     # -- internals ----------------------------------------------------------------------------
-    def _origin(self) -> tuple[float, float, float]:
-        return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]
-
-    def _direction(self) -> np.ndarray:
-        m = self.host.image.GetDirectionMatrix()
-        return np.array([[m.GetElement(i, j) for j in range(3)] for i in range(3)])
-
     def _colour_signature(self, values: Mapping[str, Any]) -> tuple:
         """What the colour volume depends on beyond the opacity signature (only while the
         colour tints the indirect extinction)."""
@@ -313,7 +284,7 @@ class Translucency(Technique):
                 self._recompute_gpu(gpu, grid, specs, values)
                 self._backend = "gpu"
             except GLUnavailableError as exc:
-                self._gpu.disable(exc)
+                self._compute.disable(exc)
                 gpu = None
         if gpu is None:
             self._recompute_cpu(grid, specs, values)

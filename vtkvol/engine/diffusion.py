@@ -24,20 +24,20 @@ rise monotonically to the solution and φ ≥ 0 at every sweep; they stop on the
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, Texture3D, unbind_images
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
 from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
 
 if TYPE_CHECKING:
-    from vtkvol.engine.illuminator import Illuminator
+    from vtkvol.engine.illuminator import Changes, Illuminator
 
 #: α is clamped below 1 before −ln(1 − α) (a fully opaque voxel keeps a finite extinction).
 MAX_OPACITY = 1.0 - 1e-6
@@ -356,10 +356,14 @@ def light_channels(count: int) -> int:
 class GridScattering(Technique):
     """What seed 003's two methods share: progressive light on the data grid with a GPU
     (``ComputePath``) and a numpy path, shown through two textures — the direct light and the
-    scattered light — bound under ``DIRECT``/``SCATTERED``; their counters in ``stats()``."""
+    scattered light — bound under ``vv_<NAME>_direct`` and ``vv_<NAME>_scattered`` (the names
+    the technique's shader samples); their counters in ``stats()``.
 
-    DIRECT: ClassVar[str]
-    SCATTERED: ClassVar[str]
+    The frame loop is here: :meth:`prepare` restarts the accumulation when
+    ``Changes.reset_accumulation`` says so (:meth:`_restart`: a new :meth:`build_setup`, the
+    counters zeroed, the GPU driver reset or the numpy state made), then runs the subclass's
+    :meth:`advance` (this frame's iterations; it sets ``converged``) and binds what is shown.
+    """
 
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
@@ -369,10 +373,63 @@ class GridScattering(Technique):
         self._restarts = 0
         self._backend = ""
         self._last_ms = 0.0
+        #: What the current accumulation runs on (the subclass's ``build_setup``); None before.
+        self.setup: Any = None
+        #: Source model: relative residual of the scattered light's equation (inf before).
+        self.residual = float("inf")
 
+    # -- what a subclass provides -------------------------------------------------------------
     def make_driver(self, window: vtk.vtkRenderWindow) -> Any:
-        """The GPU driver (compute programs and textures) of this technique."""
+        """The GPU driver (compute programs and textures) of this technique; its ``shown`` is
+        the (direct, scattered) texture pair the shader samples."""
         raise NotImplementedError
+
+    def build_setup(self, grid: Grid, sigma_t: np.ndarray, values: Mapping[str, Any]) -> Any:
+        """What one accumulation runs on, for the host's data ``grid`` (µm) and extinction
+        ``sigma_t`` (per µm, ``[z, y, x]``)."""
+        raise NotImplementedError
+
+    def start_gpu(self, gpu: Any, values: Mapping[str, Any]) -> None:
+        """Reset the GPU driver for :attr:`setup` (may raise ``GLUnavailableError``)."""
+        raise NotImplementedError
+
+    def start_cpu(self, values: Mapping[str, Any]) -> None:
+        """Make the numpy path's state for :attr:`setup` and upload it for display."""
+        raise NotImplementedError
+
+    def advance(self, values: Mapping[str, Any]) -> None:
+        """This frame's iterations on the current path; sets ``converged``."""
+        raise NotImplementedError
+
+    # -- the shared loop ----------------------------------------------------------------------
+    def prepare(self, changes: Changes, values: Mapping[str, Any]) -> None:
+        if changes.reset_accumulation or self.setup is None:
+            self._restart(values)
+        self.advance(values)
+        gpu = self._gpu
+        self._bind(gpu.shown if gpu is not None else None)
+
+    def _restart(self, values: Mapping[str, Any]) -> None:
+        """A new accumulation from the host's current opacity, lights and parameters: on the
+        GPU when the ``backend`` allows it (numpy for good after a GL failure), else numpy."""
+        nx, ny, nz = self.host.dims
+        grid = Grid((nz, ny, nx), self.host.spacing, self._origin())
+        sigma_t = extinction(self.host.opacity_volume(), self.host.unit_distance)
+        self.setup = self.build_setup(grid, sigma_t, values)
+        self.iteration = 0
+        self.residual = float("inf")
+        self.converged = False
+        self._restarts += 1
+        gpu = self._compute.get(self.host, values["backend"])
+        if gpu is not None:
+            try:
+                self.start_gpu(gpu, values)
+                self._backend = "gpu"
+                return
+            except GLUnavailableError as exc:
+                self._compute.disable(exc)
+        self.start_cpu(values)
+        self._backend = "cpu"
 
     @property
     def _gpu(self) -> Any:
@@ -382,19 +439,31 @@ class GridScattering(Technique):
         """Bind the GPU path's (direct, scattered) textures, or the numpy path's."""
         direct, scattered = gpu_textures or (self._direct, self._scattered)
         assert direct is not None and scattered is not None
-        self.host.bind_texture(self.DIRECT, direct)
-        self.host.bind_texture(self.SCATTERED, scattered)
+        self.host.bind_texture(f"vv_{self.NAME}_direct", direct)
+        self.host.bind_texture(f"vv_{self.NAME}_scattered", scattered)
+
+    def _show(self, texture: Texture3D | None, data: np.ndarray, channels: int) -> Texture3D:
+        """``texture`` holding ``data`` (``[z, y, x(, channels)]``): uploaded into it, or a new
+        texture when there is none or its shape or channel count differs (``texture`` is then
+        released)."""
+        shape = data.shape[:3]
+        if texture is None or texture.shape != shape or texture.channels != channels:
+            if texture is not None:
+                texture.release()
+            return Texture3D(self.host.render_window, shape, channels=channels, data=data)
+        texture.upload(data)
+        return texture
 
     def stats(self) -> TechniqueStats:
         """Restarts as ``recomputes``; ``recompute_ms``: milliseconds of the last frame's
-        iterations."""
+        iterations; ``extra``: the source model's relative ``residual``."""
         textures = [self._direct, self._scattered]
         if self._gpu is not None:
             textures += self._gpu.textures
         return TechniqueStats(
             recomputes=self._restarts, recompute_ms=self._last_ms, backend=self._backend,
             texture_bytes=sum(t.nbytes for t in textures if t is not None),
-            iterations=self.iteration)
+            iterations=self.iteration, extra={"residual": self.residual})
 
     def release(self) -> None:
         for tex in (self._direct, self._scattered):
@@ -402,6 +471,7 @@ class GridScattering(Technique):
                 tex.release()
         self._direct = self._scattered = None
         self._compute.release()
+        self.setup = None
 
     def _origin(self) -> tuple[float, float, float]:
         return tuple(float(o) for o in self.host.image.GetOrigin())  # type: ignore[return-value]

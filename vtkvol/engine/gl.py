@@ -258,18 +258,25 @@ class Texture3D:
         return total * self.channels
 
 
+def linear_texture_2d(render_window: vtk.vtkRenderWindow) -> vtk.vtkTextureObject:
+    """A 2-D texture object of ``render_window``'s context, filtered linearly and clamped to
+    its edges, not yet allocated (the caller creates its storage)."""
+    tex = vtk.vtkTextureObject()
+    tex.SetContext(render_window)
+    tex.SetMinificationFilter(vtk.vtkTextureObject.Linear)
+    tex.SetMagnificationFilter(vtk.vtkTextureObject.Linear)
+    tex.SetWrapS(vtk.vtkTextureObject.ClampToEdge)
+    tex.SetWrapT(vtk.vtkTextureObject.ClampToEdge)
+    return tex
+
+
 class Texture2D:
     """A small single-channel float 2D texture (lookup tables such as slice weights)."""
 
     def __init__(self, render_window: vtk.vtkRenderWindow, data: np.ndarray) -> None:
         self.render_window = render_window
         arr = np.ascontiguousarray(data, dtype=np.float32)
-        tex = vtk.vtkTextureObject()
-        tex.SetContext(render_window)
-        tex.SetMinificationFilter(vtk.vtkTextureObject.Linear)
-        tex.SetMagnificationFilter(vtk.vtkTextureObject.Linear)
-        tex.SetWrapS(vtk.vtkTextureObject.ClampToEdge)
-        tex.SetWrapT(vtk.vtkTextureObject.ClampToEdge)
+        tex = linear_texture_2d(render_window)
         h, w = arr.shape
         if not tex.Create2DFromRaw(w, h, 1, vtk.VTK_FLOAT, arr):
             raise GLUnavailableError(f"could not allocate a {w}×{h} float 2D texture")

@@ -33,7 +33,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import Texture2D, Texture3D, gl
+from vtkvol.engine.gl import ComputeProgram, Texture2D, Texture3D, gl
 from vtkvol.engine.opacity_source import gradient_opacity_on
 from vtkvol.engine.precompute import no_collection as _no_collection
 from vtkvol.model.renderers import unsupported_reason
@@ -221,6 +221,10 @@ class BesideRenderer:
         self.result: Any = None  # vtkTextureObject RGBA32F, renderer-sized
         self._colour: Texture3D | None = None
         self._colour_key: tuple | None = None
+        #: The compute renderers' frame program (:meth:`medium_program`) and whether it was
+        #: built for post-classification.
+        self._program: ComputeProgram | None = None
+        self._program_post = False
         self._post: tuple[Texture3D, Texture2D] | None = None
         self._post_key_value: tuple | None = None
         self.post_table: np.ndarray | None = None
@@ -411,6 +415,31 @@ class BesideRenderer:
             return True, scalar_tex, table_tex
         return False, opacity, self._colour_texture(window)
 
+    def medium_program(self, window: vtk.vtkRenderWindow, post: bool, source: str,
+                       label: str) -> ComputeProgram:
+        """The compute renderers' frame program: ``source`` (GLSL 430) compiled with
+        :data:`POST_DEFINES` when ``post`` (see :meth:`medium_textures`), rebuilt when that
+        changes; it is used and released by the caller's frame (:meth:`_end_frame`)."""
+        if self._program is None or self._program_post != post:
+            if self._program is not None:
+                self._program.release()
+            text = source.replace("#version 430\n", "#version 430\n" + POST_DEFINES, 1
+                                  ) if post else source
+            self._program = ComputeProgram(window, text, label)
+            self._program_post = post
+        return self._program
+
+    def _end_frame(self, *textures: Any) -> float:
+        """After a compute renderer's dispatches: ``textures`` (``Texture3D`` or the post
+        table) deactivated, the program done, one more frame counted; the new frame's weight
+        in the running mean (1/iteration)."""
+        for texture in textures:
+            texture.tex.Deactivate()
+        assert self._program is not None
+        self._program.done()
+        self.iteration += 1
+        return 1.0 / self.iteration
+
     def _ensure_buffers(self, window: vtk.vtkRenderWindow) -> None:
         if self._quad is None:
             self._quad, self._composite = quad_program(window, COMPOSITE_FS)
@@ -566,9 +595,13 @@ class BesideRenderer:
     def release_gl(self) -> None:
         """Free this renderer's own GL resources (subclasses add theirs)."""
         window = self._window
+        if window is not None:
+            window.MakeCurrent()
+        if self._program is not None:
+            self._program.release()
+            self._program = None
         if window is None:
             return
-        window.MakeCurrent()
         self._release_depth()
         if self._quad is not None:
             self._quad.ReleaseGraphicsResources(window)

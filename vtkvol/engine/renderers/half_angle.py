@@ -61,8 +61,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
-from vtkvol.engine.renderers.base import COMMON_GLSL, POST_DEFINES, BesideRenderer
+from vtkvol.engine.gl import Texture3D, gl, linear_texture_2d
+from vtkvol.engine.renderers.base import COMMON_GLSL, BesideRenderer
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -251,8 +251,6 @@ class HalfAngleSlicing(BesideRenderer):
         self.indirect_extinction = float(indirect_extinction)
         self.tint = float(tint)
         self.indirect_strength = float(indirect_strength)
-        self._program: ComputeProgram | None = None
-        self._program_post = False
         self._lights: list[vtk.vtkTextureObject] = []
         self._eye: vtk.vtkTextureObject | None = None
         self.slices = 0  #: slices drawn in the last frame
@@ -269,12 +267,7 @@ class HalfAngleSlicing(BesideRenderer):
         return 1.0 / max(1, self.iteration)
 
     def _texture(self, window: Any, w: int, h: int) -> vtk.vtkTextureObject:
-        tex = vtk.vtkTextureObject()
-        tex.SetContext(window)
-        tex.SetMinificationFilter(vtk.vtkTextureObject.Linear)
-        tex.SetMagnificationFilter(vtk.vtkTextureObject.Linear)
-        tex.SetWrapS(vtk.vtkTextureObject.ClampToEdge)
-        tex.SetWrapT(vtk.vtkTextureObject.ClampToEdge)
+        tex = linear_texture_2d(window)
         tex.Allocate2D(w, h, 4, vtk.VTK_FLOAT)  # GL_RGBA32F
         return tex
 
@@ -354,13 +347,7 @@ class HalfAngleSlicing(BesideRenderer):
             # (a new frame would cost a full slicing and change nothing visible).
             return 1.0 / self.iteration
         post, opacity, colour = self.medium_textures(window, opacity)
-        if self._program is None or self._program_post != post:
-            if self._program is not None:
-                self._program.release()
-            source = CS.replace("#version 430\n", "#version 430\n" + POST_DEFINES, 1
-                                ) if post else CS
-            self._program = ComputeProgram(window, source, "half-angle slicing")
-            self._program_post = post
+        self.medium_program(window, post, CS, "half-angle slicing")
         geo = self.frame_geometry(uniforms["ndcToData"], self.iteration)
         self._ensure_targets(window)
         self.geometry = geo
@@ -414,19 +401,12 @@ class HalfAngleSlicing(BesideRenderer):
         p.SetUniformi("first", int(self.iteration == 0))  # the first frame overwrites
         self._program.dispatch(groups)
         self._depth.Deactivate()
-        colour.tex.Deactivate()
-        opacity.tex.Deactivate()
-        self._program.done()
-        self.iteration += 1
-        return 1.0 / self.iteration
+        return self._end_frame(colour, opacity)
 
     def release_gl(self) -> None:
         if self._window is not None:
             self._window.MakeCurrent()
             self._release_targets(self._window)
-        if self._program is not None:
-            self._program.release()
-            self._program = None
         super().release_gl()
 
 

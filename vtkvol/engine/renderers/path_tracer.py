@@ -32,9 +32,9 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from vtkvol.engine.gl import ComputeProgram, Texture3D, gl
+from vtkvol.engine.gl import Texture3D, gl
 from vtkvol.engine.occupancy import BRICK
-from vtkvol.engine.renderers.base import COMMON_GLSL, POST_DEFINES, BesideRenderer
+from vtkvol.engine.renderers.base import COMMON_GLSL, BesideRenderer
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Illuminator
@@ -249,8 +249,6 @@ class PathTracer(BesideRenderer):
             raise ValueError(f"samples must be ≥ 1, not {samples}")
         self.scattering = scattering
         self.seed = int(seed)
-        self._program: ComputeProgram | None = None
-        self._program_post = False
         self._majorants: Texture3D | None = None
         self._majorant_key: tuple | None = None
         self.global_majorant = 0.0
@@ -305,13 +303,7 @@ class PathTracer(BesideRenderer):
         window = self.renderer.GetRenderWindow()
         G = gl(window)
         post, opacity, colour = self.medium_textures(window, opacity)
-        if self._program is None or self._program_post != post:
-            if self._program is not None:
-                self._program.release()
-            source = CS.replace("#version 430\n", "#version 430\n" + POST_DEFINES, 1
-                                ) if post else CS
-            self._program = ComputeProgram(window, source, "camera path tracer")
-            self._program_post = post
+        self.medium_program(window, post, CS, "camera path tracer")
         self._update_majorants(window, opacity, post)
         lights = self._light_uniforms()
         p = self._program.use()
@@ -342,19 +334,11 @@ class PathTracer(BesideRenderer):
         w, h = self.renderer.GetSize()
         self._program.dispatch(((w + 7) // 8, (h + 7) // 8, 1))
         self._depth.Deactivate()
-        self._majorants.tex.Deactivate()
-        colour.tex.Deactivate()
-        opacity.tex.Deactivate()
-        self._program.done()
-        self.iteration += 1
-        return 1.0 / self.iteration
+        return self._end_frame(self._majorants, colour, opacity)
 
     def release_gl(self) -> None:
         if self._window is not None:
             self._window.MakeCurrent()
-        if self._program is not None:
-            self._program.release()
-            self._program = None
         if self._majorants is not None:
             self._majorants.release()
             self._majorants = None
