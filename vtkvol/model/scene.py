@@ -351,6 +351,12 @@ class RenderSettings(EventedModel):
     #: translucency; about the same with one light and local shading or the shadow volume) and
     #: the measured image difference.
     multichannel_lighting: MultichannelLighting = "per_channel"
+    #: Pre-integrated classification (unit-free switch; docs/rendering.md): each sample
+    #: classifies the segment from the previous sample instead of the point, from a 2-D table
+    #: of the transfer function integrated over the sample distance, so a sharp TF (a narrow
+    #: opacity spike) is not stepped over at coarse sample distances. One channel, composite
+    #: blend, 1-D TF, surface methods; elsewhere samples are post-classified as before.
+    preintegration: bool = False
     #: What draws the volume (vtkvol.model.renderers): VTK's ray caster with the illumination
     #: method (``raycast``), or a renderer beside it — ``path_tracer`` (progressive camera path
     #: tracer of the medium material), ``slicing`` (view-aligned slices, local lighting),
