@@ -74,16 +74,20 @@ def _shell() -> VolumeData:
                                  voxel_size_um=(1.0, 1.0, 1.0))
 
 
+def _shell_tf() -> TransferFunction:
+    """A shell a quarter voxel thick: opacity only for values 395…405 (40 per voxel)."""
+    return TransferFunction(
+        colors=[(0.0, 1.0, 0.6, 0.2), (1000.0, 0.2, 0.6, 1.0)],
+        opacity=[(0.0, 0.0), (395.0, 0.0), (400.0, 0.9), (405.0, 0.0), (1000.0, 0.0)])
+
+
 def _render(data: VolumeData, sample_distance: float, preintegration: bool
             ) -> tuple[np.ndarray, dict]:
     model = scene_for(data)
     model.render.jitter = False
     model.render.sample_distance = sample_distance
     model.render.preintegration = preintegration
-    # A shell one sample step thick at 1 voxel: opacity only for values 395…405 (0.25 voxel).
-    model.channels[0].tf = TransferFunction(
-        colors=[(0.0, 1.0, 0.6, 0.2), (1000.0, 0.2, 0.6, 1.0)],
-        opacity=[(0.0, 0.0), (395.0, 0.0), (400.0, 0.9), (405.0, 0.0), (1000.0, 0.0)])
+    model.channels[0].tf = _shell_tf()
     model.illumination.method = "local"
     with offscreen_view(data, model=model, size=(128, 128)) as (rw, scene, _):
         image, _s = settled_frame(rw, scene, max_seconds=None, iterations=None)
@@ -109,3 +113,58 @@ def test_sharp_tf_at_twice_the_sample_distance_is_closer_to_the_reference() -> N
     assert rmse(pre_2x) < 0.5 * rmse(plain_2x)
     # The goal of issue 23: the same error (here less) at twice the sample distance.
     assert rmse(pre_2x) <= rmse(plain_1x)
+
+
+def test_vtkvol_render_preintegration_sets_the_model(tmp_path, monkeypatch) -> None:
+    from vtkvol import cli
+    from vtkvol.engine import api
+
+    seen: list = []
+
+    def fake_render(data, *, model=None, **_kw):
+        seen.append(model)
+        return np.zeros((8, 8, 3), np.uint8)
+
+    monkeypatch.setattr(api, "render_image", fake_render)
+    assert cli.main(["render", "sample", "-o", str(tmp_path / "a.png"), "--size", "8", "8",
+                     "--preintegration"]) == 0
+    assert seen[0] is not None and seen[0].render.preintegration is True
+    assert cli.main(["render", "sample", "-o", str(tmp_path / "b.png"), "--size", "8", "8"]
+                    ) == 0
+    assert seen[1] is None or seen[1].render.preintegration is False
+
+
+@pytest.mark.gl
+def test_preintegration_with_slice_weights_and_its_refusals() -> None:
+    """The wrappers of computeOpacity compose (slice weights over the table): the half of the
+    volume weighted 0 disappears; two channels are refused with the reason."""
+    data = _shell()
+
+    def lit_fraction(weights: bool) -> float:
+        model = scene_for(data)
+        model.render.preintegration = True
+        model.render.jitter = False
+        model.channels[0].tf = _shell_tf()
+        if weights:
+            model.slice_weights.x = [(0.0, 1.0), (0.5, 1.0), (0.5001, 0.0), (1.0, 0.0)]
+        with offscreen_view(data, model=model, size=(64, 64), method="local") as (rw, scene, _):
+            image, _s = settled_frame(rw, scene, max_seconds=None, iterations=None)
+            rw.Render()  # the built source is seen on the frame after the build
+            il = scene.illuminator
+            assert il.preintegration.active and il.last_error is None
+            assert "vv_piOpacity" in il.shader_builder.fragment_source
+            assert ("vv_weightedOpacity" in il.shader_builder.fragment_source) == weights
+        return float((np.abs(image.astype(float) - image[0, 0]).max(axis=2) > 10).mean())
+
+    whole, half = lit_fraction(False), lit_fraction(True)
+    assert whole > 0.05 and half < 0.8 * whole
+
+    two = VolumeData.from_array(np.stack([data.array[0], data.array[0]]),
+                                voxel_size_um=(1.0, 1.0, 1.0))
+    model2 = scene_for(two)
+    model2.render.preintegration = True
+    with offscreen_view(two, model=model2, size=(32, 32), method="local") as (rw, scene, _):
+        settled_frame(rw, scene, max_seconds=None, iterations=None)
+        stats = scene.illuminator.preintegration.stats
+    assert stats == {"active": False,
+                     "reason": "one channel only (several channels classify each sample)"}
