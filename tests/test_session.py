@@ -1109,6 +1109,7 @@ def test_migrate_v10_to_v11_matches_fixture() -> None:
     assert migrate(raw) == out
     # v10 post-classified every sample: the migrated file renders the same image.
     assert out["scene"]["render"]["preintegration"] is False
+    assert out["scene"]["render"]["adaptive_sampling"] is False
     assert raw == untouched
 
 
@@ -1119,15 +1120,18 @@ def test_v11_fixture_reads_cleanly_with_preintegration() -> None:
     assert session.model.render.preintegration is True
     expected = rich_model_v10()
     expected.render.preintegration = True
+    expected.render.adaptive_sampling = True
     assert _same_except_volume(session.model, expected)
 
 
+@pytest.mark.parametrize("field", ["preintegration", "adaptive_sampling"])
 @pytest.mark.parametrize("value", ["yes", 2, None])
-def test_a_session_with_a_bad_preintegration_is_refused_in_one_line(tmp_path, value) -> None:
+def test_a_session_with_a_bad_preintegration_is_refused_in_one_line(tmp_path, field, value
+                                                                    ) -> None:
     doc = load_fixture("v11_complete.vtkvol.json")
-    doc["scene"]["render"]["preintegration"] = value
+    doc["scene"]["render"][field] = value
     path = tmp_path / "v.vtkvol.json"
     path.write_text(json.dumps(doc), encoding="utf-8")
     with pytest.raises(SessionError, match=r"^v\.vtkvol\.json: ") as info:
         read_session(path)
-    assert "render.preintegration" in str(info.value) and "\n" not in str(info.value)
+    assert f"render.{field}" in str(info.value) and "\n" not in str(info.value)

@@ -28,6 +28,7 @@ import numpy as np
 import vtk
 
 from vtkvol.engine import shaders
+from vtkvol.engine.adaptive_sampling import AdaptiveSampler
 from vtkvol.engine.bindings import Bindings, technique_uniform_values
 from vtkvol.engine.changes import ChangeTracker, first_changes
 from vtkvol.engine.empty_space import EmptySpaceSkipper
@@ -153,6 +154,8 @@ class Illuminator(ServedTechniqueHost):
         self.empty_space = EmptySpaceSkipper(self)
         self._preintegrate = False  # RenderSettings.preintegration (engine/preintegration.py)
         self.preintegration = PreIntegrator(self)
+        self._adaptive = False  # RenderSettings.adaptive_sampling (engine/adaptive_sampling.py)
+        self.adaptive_sampling = AdaptiveSampler(self)
         self.exposure_control = ExposureControl(self.bindings)
         self.precompute_runner = PrecomputeRunner(self)
         self._closed = False
@@ -423,6 +426,10 @@ class Illuminator(ServedTechniqueHost):
         """Pre-integrated classification on or off (engine/preintegration.py)."""
         self._preintegrate = bool(enabled)
 
+    def set_adaptive_sampling(self, enabled: bool) -> None:
+        """Adaptive sampling on or off (engine/adaptive_sampling.py)."""
+        self._adaptive = bool(enabled)
+
     def empty_space_stats(self) -> dict[str, Any]:
         """The last frame's occupancy: ``active`` (bool), ``reason`` (why not, or ""),
         ``bricks`` (x, y, z), ``brick_voxels`` (x, y, z), ``empty_fraction`` (0…1) and
@@ -592,6 +599,7 @@ class Illuminator(ServedTechniqueHost):
         self._upload_weights()
         self.empty_space.update()
         self.preintegration.update()
+        self.adaptive_sampling.update()
         changes = self.changes.take()
         if self.precompute_runner.defers(changes):
             # Keep the previous light: no prepare, the changes wait (merged) for later;
@@ -674,6 +682,7 @@ class Illuminator(ServedTechniqueHost):
         self._release_technique()
         self.empty_space.drop()
         self.preintegration.drop()
+        self.adaptive_sampling.drop()
         self.bindings.release()
         self.shader_builder.clear()
         self.shader_builder.restore_shade()

@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, Any
 import vtk
 
 from vtkvol.engine import shaders
+from vtkvol.engine.adaptive_sampling import STEP_FACTOR
 from vtkvol.engine.bindings import technique_uniform_values
 from vtkvol.engine.precompute import no_collection
 from vtkvol.engine.preintegration import TABLE_SIZE
@@ -194,6 +195,11 @@ class ShaderBuilder:
             bz, by, bx = self._host.empty_space.stats["brick_voxels_zyx"]
             sections += shaders.load("host_empty_space.glsl", {
                 "VV_ESS_BRICK": f"vec3({float(bx):.1f}, {float(by):.1f}, {float(bz):.1f})"})
+        if self._host.adaptive_sampling.active:
+            bz, by, bx = self._host.adaptive_sampling.stats["brick_voxels_zyx"]
+            sections += shaders.load("host_adaptive.glsl", {
+                "VV_AS_BRICK": f"vec3({float(bx):.1f}, {float(by):.1f}, {float(bz):.1f})",
+                "VV_AS_FACTOR": f"{float(STEP_FACTOR):.1f}"})
         own = tech.sections(values)
         defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}

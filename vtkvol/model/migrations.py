@@ -256,14 +256,15 @@ def _v9_to_v10(raw: dict[str, Any]) -> dict[str, Any]:
 
 
 def _v10_to_v11(raw: dict[str, Any]) -> dict[str, Any]:
-    """v10 → v11: render settings gained ``preintegration``, filled with false (every sample
-    post-classified: how v10 rendered)."""
+    """v10 → v11: render settings gained ``preintegration`` and ``adaptive_sampling``, both
+    filled with false (every sample post-classified, every step taken: how v10 rendered)."""
     out = copy.deepcopy(raw)
     out["version"] = 11
     scene = out.get("scene")
     render = scene.get("render") if isinstance(scene, dict) else None
     if isinstance(render, dict):
         render.setdefault("preintegration", False)
+        render.setdefault("adaptive_sampling", False)
     return out
 
 
