@@ -161,6 +161,13 @@ def _parser() -> argparse.ArgumentParser:
                                "method, default), path_tracer (progressive camera path tracer, "
                                "256 paths per pixel; --iterations N stops it earlier), slicing "
                                "(view-aligned slices, local lighting); a session's own otherwise")
+    p_render.add_argument("--preintegration", action="store_true",
+                          help="pre-integrated classification: each sample classifies the "
+                               "segment from the previous one (sharp transfer functions at "
+                               "coarse sample distances; one channel, composite blend)")
+    p_render.add_argument("--adaptive-sampling", action="store_true",
+                          help="larger steps (4 samples in one) where the classified opacity "
+                               "is smooth, every step elsewhere (one channel, composite blend)")
     p_render.add_argument("--labels", action="store_true",
                           help="the first channel is a label image (segmentation): one colour "
                                "per id (glasbey), no blending between ids")
@@ -356,10 +363,15 @@ def cmd_render(args: argparse.Namespace) -> int:
     if out.resolve() in inputs:
         print(f"vtkvol: {out} is the input; choose another name for the image", file=sys.stderr)
         return 2
-    if args.blend or args.labels or args.renderer:
+    if (args.blend or args.labels or args.renderer or args.preintegration
+            or args.adaptive_sampling):
         from vtkvol.model.defaults import scene_for
 
         model = model or scene_for(data)
+    if args.preintegration:
+        model.render.preintegration = True
+    if args.adaptive_sampling:
+        model.render.adaptive_sampling = True
     if args.blend:
         model.render.blend_mode = args.blend
     if model is not None:

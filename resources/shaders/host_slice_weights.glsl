@@ -22,4 +22,5 @@ float vv_weightedOpacity(vec4 scalar, int c) { return computeOpacity(scalar, c) 
 #else
 float vv_weightedOpacity(vec4 scalar) { return computeOpacity(scalar) * vv_sliceWeight(g_dataPos); }
 #endif
+#undef computeOpacity
 #define computeOpacity vv_weightedOpacity

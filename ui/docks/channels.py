@@ -289,6 +289,20 @@ class ChannelsDock(ModelDock):
             "fully transparent. Exact (the image does not change); faster on sparse data. "
             "Composite, additive and (with opacity rising with the value) MIP blending")
         form.addRow("", self.skip_empty)
+        self.preintegration = QCheckBox("Pre-integrated classification")
+        self.preintegration.setObjectName("render_preintegration")
+        self.preintegration.setToolTip(
+            "Each sample classifies the segment from the previous sample (a table of the "
+            "transfer function integrated over the sample distance), so narrow opacity peaks "
+            "are not stepped over at coarse sample distances. One channel, composite blending")
+        form.addRow("", self.preintegration)
+        self.adaptive = QCheckBox("Adaptive sampling")
+        self.adaptive.setObjectName("render_adaptive_sampling")
+        self.adaptive.setToolTip(
+            "Larger steps (one sample for four) in 8³-voxel bricks where the transfer "
+            "function's opacity is smooth, every step elsewhere: faster, close to the "
+            "fixed-step image. One channel, composite blending; not with pre-integration")
+        form.addRow("", self.adaptive)
         self.iso = number_box(minimum=-1e9, maximum=1e9, decimals=1, object_name="render_iso_value",
                               tooltip="Data value of the isosurface")
         self.iso_auto = QPushButton("Auto")
@@ -328,6 +342,10 @@ class ChannelsDock(ModelDock):
                to_model=lambda i: self.interpolation.itemData(i))
         b.bind(render, "empty_space_skipping", self.skip_empty, self.skip_empty.toggled,
                lambda on: self.skip_empty.setChecked(bool(on)))
+        b.bind(render, "preintegration", self.preintegration, self.preintegration.toggled,
+               lambda on: self.preintegration.setChecked(bool(on)))
+        b.bind(render, "adaptive_sampling", self.adaptive, self.adaptive.toggled,
+               lambda on: self.adaptive.setChecked(bool(on)))
         b.connect_qt(self.iso.valueChanged, self._on_iso)
         b.connect_qt(self.iso_auto.clicked, lambda: setattr(self.model.render,
                                                              "isosurface_value", None))

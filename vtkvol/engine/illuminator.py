@@ -28,6 +28,7 @@ import numpy as np
 import vtk
 
 from vtkvol.engine import shaders
+from vtkvol.engine.adaptive_sampling import AdaptiveSampler
 from vtkvol.engine.bindings import Bindings, technique_uniform_values
 from vtkvol.engine.changes import ChangeTracker, first_changes
 from vtkvol.engine.empty_space import EmptySpaceSkipper
@@ -40,6 +41,7 @@ from vtkvol.engine.lights import (  # noqa: F401  (re-exported)
 )
 from vtkvol.engine.opacity_source import OpacitySource
 from vtkvol.engine.precompute import PrecomputeRunner, no_collection
+from vtkvol.engine.preintegration import PreIntegrator
 from vtkvol.engine.shader_builder import ShaderBuilder, source_observer
 from vtkvol.engine.smart import SmartStandIn, check_mapper, input_problem, take_over
 from vtkvol.engine.technique import (  # noqa: F401  (old import path)
@@ -150,6 +152,10 @@ class Illuminator(ServedTechniqueHost):
         self._textures = self.bindings.textures
         self.opacity = OpacitySource(self)
         self.empty_space = EmptySpaceSkipper(self)
+        self._preintegrate = False  # RenderSettings.preintegration (engine/preintegration.py)
+        self.preintegration = PreIntegrator(self)
+        self._adaptive = False  # RenderSettings.adaptive_sampling (engine/adaptive_sampling.py)
+        self.adaptive_sampling = AdaptiveSampler(self)
         self.exposure_control = ExposureControl(self.bindings)
         self.precompute_runner = PrecomputeRunner(self)
         self._closed = False
@@ -416,6 +422,14 @@ class Illuminator(ServedTechniqueHost):
         (:meth:`empty_space_stats` says why)."""
         self._skip_empty = bool(enabled)
 
+    def set_preintegration(self, enabled: bool) -> None:
+        """Pre-integrated classification on or off (engine/preintegration.py)."""
+        self._preintegrate = bool(enabled)
+
+    def set_adaptive_sampling(self, enabled: bool) -> None:
+        """Adaptive sampling on or off (engine/adaptive_sampling.py)."""
+        self._adaptive = bool(enabled)
+
     def empty_space_stats(self) -> dict[str, Any]:
         """The last frame's occupancy: ``active`` (bool), ``reason`` (why not, or ""),
         ``bricks`` (x, y, z), ``brick_voxels`` (x, y, z), ``empty_fraction`` (0…1) and
@@ -584,6 +598,8 @@ class Illuminator(ServedTechniqueHost):
         self._ensure_technique()
         self._upload_weights()
         self.empty_space.update()
+        self.preintegration.update()
+        self.adaptive_sampling.update()
         changes = self.changes.take()
         if self.precompute_runner.defers(changes):
             # Keep the previous light: no prepare, the changes wait (merged) for later;
@@ -665,6 +681,8 @@ class Illuminator(ServedTechniqueHost):
             self.render_window.MakeCurrent()
         self._release_technique()
         self.empty_space.drop()
+        self.preintegration.drop()
+        self.adaptive_sampling.drop()
         self.bindings.release()
         self.shader_builder.clear()
         self.shader_builder.restore_shade()

@@ -304,6 +304,10 @@ class VolumeScene:
             self.illuminator.set_empty_space_skipping(render.empty_space_skipping)
         if (every or "multichannel_lighting" in names) and self.illuminator is not None:
             self.illuminator.set_multichannel_lighting(render.multichannel_lighting)
+        if (every or "preintegration" in names) and self.illuminator is not None:
+            self.illuminator.set_preintegration(render.preintegration)
+        if (every or "adaptive_sampling" in names) and self.illuminator is not None:
+            self.illuminator.set_adaptive_sampling(render.adaptive_sampling)
         if every or names & {"renderer", "blend_mode"}:
             self._apply_renderer()
 

@@ -21,8 +21,10 @@ from typing import TYPE_CHECKING, Any
 import vtk
 
 from vtkvol.engine import shaders
+from vtkvol.engine.adaptive_sampling import STEP_FACTOR
 from vtkvol.engine.bindings import technique_uniform_values
 from vtkvol.engine.precompute import no_collection
+from vtkvol.engine.preintegration import TABLE_SIZE
 
 if TYPE_CHECKING:
     from vtkvol.engine.technique import Technique
@@ -49,6 +51,12 @@ _MULTICHANNEL_LINES = {
     "color[i] = computeColor(scalar, color[i][3], i);": "",
     "totalAlpha += color[i][3] * in_componentWeight[i];": "",
 }
+
+
+#: VTK 9.7's colour-table fetch of one component (computeColor) and what pre-integrated
+#: classification puts there (host_preintegration.glsl).
+_COLOR_FETCH = "texture2D(in_colorTransferFunc_0[0],"
+_PI_COLOR_FETCH = "vv_piColorTex(in_colorTransferFunc_0[0],"
 
 
 @functools.lru_cache(maxsize=64)
@@ -164,6 +172,11 @@ class ShaderBuilder:
         """The replacements that install ``tech`` (with ``values``) and the host's sections for
         the volume's current state, and what the built shader must then contain."""
         sections = shaders.load("host_prelude.glsl")
+        preintegrated = self._host.preintegration.active
+        if preintegrated:
+            # Innermost computeOpacity: before the slice weights and the corrected filter.
+            sections += shaders.load("host_preintegration.glsl",
+                                     {"VV_PI_SIZE": f"{float(TABLE_SIZE):.1f}"})
         if self._host._weights is not None:
             img = self._host.image
             ncomp = img.GetPointData().GetScalars().GetNumberOfComponents()
@@ -182,6 +195,11 @@ class ShaderBuilder:
             bz, by, bx = self._host.empty_space.stats["brick_voxels_zyx"]
             sections += shaders.load("host_empty_space.glsl", {
                 "VV_ESS_BRICK": f"vec3({float(bx):.1f}, {float(by):.1f}, {float(bz):.1f})"})
+        if self._host.adaptive_sampling.active:
+            bz, by, bx = self._host.adaptive_sampling.stats["brick_voxels_zyx"]
+            sections += shaders.load("host_adaptive.glsl", {
+                "VV_AS_BRICK": f"vec3({float(bx):.1f}, {float(by):.1f}, {float(bz):.1f})",
+                "VV_AS_FACTOR": f"{float(STEP_FACTOR):.1f}"})
         own = tech.sections(values)
         defined = _defined_functions(tuple(s.code for s in own))
         hooks = {define: "1" for hook, define in HOOKS.items() if hook in defined}
@@ -217,6 +235,11 @@ class ShaderBuilder:
                     expected_lines.add(text.splitlines()[-1].strip())
                 else:
                     absent_lines.add(line)
+        if preintegrated:
+            # VTK's colour-table fetch in computeColor reads the segment's colour instead.
+            replacements[(_COLOR_FETCH, "post")] = _PI_COLOR_FETCH
+            expected_lines.add(_PI_COLOR_FETCH)
+            absent_lines.add(_COLOR_FETCH)
         for name, (_texture, sampler) in self._host._textures.items():
             replacements[(f"uniform int {name};", "post")] = f"uniform {sampler} {name};"
             expected_lines.add(f"uniform {sampler} {name};")

@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 10
+VERSION = 11
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -255,9 +255,23 @@ def _v9_to_v10(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v10_to_v11(raw: dict[str, Any]) -> dict[str, Any]:
+    """v10 → v11: render settings gained ``preintegration`` and ``adaptive_sampling``, both
+    filled with false (every sample post-classified, every step taken: how v10 rendered)."""
+    out = copy.deepcopy(raw)
+    out["version"] = 11
+    scene = out.get("scene")
+    render = scene.get("render") if isinstance(scene, dict) else None
+    if isinstance(render, dict):
+        render.setdefault("preintegration", False)
+        render.setdefault("adaptive_sampling", False)
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
                                     4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8,
-                                    8: _v8_to_v9, 9: _v9_to_v10}
+                                    8: _v8_to_v9, 9: _v9_to_v10,
+                                    10: _v10_to_v11}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 
