@@ -72,3 +72,19 @@ def test_adaptive_image_within_tolerance_with_fewer_samples() -> None:
     # Fewer samples: in the coarse fraction of the bricks (asserted above) one sample stands
     # for 4 steps. The time it saves is a benchmark's, not a test's (benchmarks/
     # adaptive_sampling.py; measured 158 → 68 ms on llvmpipe, docs/benchmarks.md).
+
+
+@pytest.mark.gl
+def test_adaptive_sampling_gives_way_to_preintegration() -> None:
+    data = VolumeData.from_array(np.linspace(0, 1000, 16 ** 3, dtype=np.float32).reshape(
+        16, 16, 16), voxel_size_um=(1.0, 1.0, 1.0))
+    model = scene_for(data)
+    model.render.adaptive_sampling = True
+    model.render.preintegration = True
+    with offscreen_view(data, model=model, size=(32, 32), method="local") as (rw, scene, _):
+        settled_frame(rw, scene, max_seconds=None, iterations=None)
+        il = scene.illuminator
+        assert il.preintegration.active
+        assert il.adaptive_sampling.stats == {
+            "active": False,
+            "reason": "pre-integration's table is integrated over the fixed sample distance"}

@@ -477,3 +477,20 @@ def test_renderer_chooser_greys_unsupported_choices_with_the_reason(window, qtbo
     assert np.abs(after - before).mean() > 1  # drawn by the path tracer now
     window.model.render.renderer = "raycast"
     assert combo.currentData() == "raycast"
+
+
+def test_render_checkboxes_for_preintegration_and_adaptive_sampling(window) -> None:
+    """The two ray-caster switches of issue 23 edit the model and follow it (sessions)."""
+    from PySide6.QtWidgets import QCheckBox
+
+    render = window.model.render
+    pre = window.findChild(QCheckBox, "render_preintegration")
+    adaptive = window.findChild(QCheckBox, "render_adaptive_sampling")
+    assert pre is not None and adaptive is not None
+    assert not pre.isChecked() and not adaptive.isChecked()
+    pre.setChecked(True)
+    assert render.preintegration is True and render.adaptive_sampling is False
+    adaptive.setChecked(True)
+    assert render.adaptive_sampling is True
+    render.preintegration = False
+    assert not pre.isChecked()
