@@ -159,6 +159,8 @@ def folder(tmp_path_factory) -> Path:
     save_keyframes(here / "fly.keyframes.json",
                    Animation((Keyframe(0.0, start), Keyframe(0.1, end))))
     (here / "tests").symlink_to(ROOT / "tests")  # the README's time-lapse line imports from it
+    # The stand-in inputs, which each Python example gets linked into a folder of its own.
+    (here / ".inputs").write_text("\n".join(sorted(p.name for p in here.iterdir())))
     return here
 
 
@@ -211,13 +213,13 @@ def test_python_example_runs(folder, page, line, text):
     for old, new in edits:
         assert old in text, f"{page}:{line}: the example no longer contains {old!r}"
         text = text.replace(old, new)
-    # Each block in a folder of its own that links the stand-in inputs: what one example
-    # writes (fly.mp4, say) is not there for the next, which would refuse to overwrite it.
+    # Each block in a folder of its own that links the stand-in inputs: what another example
+    # wrote (fly.mp4, say) is not there for this one, which would refuse to overwrite it.
     work = folder / f"python_{Path(page).stem}_{line}"
     work.mkdir(exist_ok=True)
-    for entry in folder.iterdir():
-        if not entry.name.startswith(("python_", "example_")) and not (work / entry.name).exists():
-            (work / entry.name).symlink_to(entry)
+    for name in (folder / ".inputs").read_text().split():  # not what shell lines wrote
+        if not (work / name).exists():
+            (work / name).symlink_to(folder / name)
     script = work / f"example_{Path(page).stem}_{line}.py"
     script.write_text(prelude + text, encoding="utf-8")
     done = run([sys.executable, str(script)], work)

@@ -127,7 +127,8 @@ def test_old_sessions_keep_their_look_and_new_ones_get_the_defaults():
                                                   "iterations_per_frame": 4}}}}}
     out = migrate(old)
     assert out["scene"]["render"] == {"ambient": 0.2, "exposure": 1.0, "auto_exposure": False,
-                                      "fill": 0.0}
+                                      "fill": 0.0, "preintegration": False,
+                                      "adaptive_sampling": False}
     params = out["scene"]["illumination"]["parameters"]["convection_diffusion"]
     assert params == {"diffusion_model": "published", "iterations_per_frame": 4}
     render = scene_for(confocal_phantom()).render
