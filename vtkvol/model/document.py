@@ -15,13 +15,12 @@ assignments inside :meth:`Document.batch`, and each transition method (:meth:`op
 
 from __future__ import annotations
 
-import contextlib
 import copy
-from collections.abc import Iterator, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from vtkvol.model.evented import Signal, _equal
+from vtkvol.model.evented import BatchedEvents, Signal, _equal
 from vtkvol.model.scene import SceneModel
 
 if TYPE_CHECKING:
@@ -59,7 +58,7 @@ def sample_kwargs(stored: Mapping[str, Any]) -> dict[str, Any]:
             if k in SAMPLE_ARGS}
 
 
-class Document:
+class Document(BatchedEvents):
     """The open document of the app: scene model, data and their provenance.
 
     Attributes (each assignment of a different value emits its name on :attr:`changed`):
@@ -99,34 +98,13 @@ class Document:
         self._values["voxel_size_chosen"] = False
         self._values["unsaved_data_edit"] = False
 
-    # -- events -------------------------------------------------------------------------------
-    @property
-    def changed(self) -> Signal:
-        """Emits one ``frozenset[str]`` of changed field names per (batched) change."""
-        return self._changed
-
-    @contextlib.contextmanager
-    def batch(self) -> Iterator[None]:
-        """Group assignments so listeners see a single event with all changed names."""
-        self._batch_depth += 1
-        try:
-            yield
-        finally:
-            self._batch_depth -= 1
-            if self._batch_depth == 0 and self._pending:
-                names, self._pending = frozenset(self._pending), set()
-                self._changed.emit(names)
-
+    # -- events (changed, batch: BatchedEvents) ---------------------------------------------
     def _set(self, name: str, value: Any) -> None:
         old = self._values[name]
         same = value is old if name in _BY_IDENTITY else _equal(old, value)
         self._values[name] = value
-        if same:
-            return
-        if self._batch_depth:
-            self._pending.add(name)
-        else:
-            self._changed.emit(frozenset({name}))
+        if not same:
+            self._emit({name})
 
     # -- fields -------------------------------------------------------------------------------
     @property

@@ -63,7 +63,41 @@ class Signal:
         return len(self._slots)
 
 
-class EventedModel(BaseModel):
+class BatchedEvents:
+    """``changed`` and ``batch()`` of an evented object (:class:`EventedModel`, the app's
+    :class:`~vtkvol.model.document.Document`): ``changed`` emits one ``frozenset[str]`` of
+    changed names (dotted paths for nested models) per change, or per outermost batch.
+    The object holds ``_changed`` (a :class:`Signal`), ``_batch_depth`` and ``_pending``."""
+
+    _changed: Signal
+    _batch_depth: int
+    _pending: set[str]
+
+    @property
+    def changed(self) -> Signal:
+        """Emits one ``frozenset[str]`` of changed names per (batched) change."""
+        return self._changed
+
+    @contextlib.contextmanager
+    def batch(self) -> Iterator[None]:
+        """Group assignments so listeners see a single event with all changed names."""
+        self._batch_depth += 1
+        try:
+            yield
+        finally:
+            self._batch_depth -= 1
+            if self._batch_depth == 0 and self._pending:
+                names, self._pending = frozenset(self._pending), set()
+                self._changed.emit(names)
+
+    def _emit(self, names: set[str] | frozenset[str]) -> None:
+        if self._batch_depth:
+            self._pending.update(names)
+        else:
+            self._changed.emit(frozenset(names))
+
+
+class EventedModel(BatchedEvents, BaseModel):
     """Base for all model state: validated on assignment, emits changed field paths."""
 
     model_config = ConfigDict(validate_assignment=True, extra="forbid", frozen=False)
@@ -76,30 +110,6 @@ class EventedModel(BaseModel):
     def model_post_init(self, __context: Any) -> None:
         for name in type(self).model_fields:
             self._adopt(name, getattr(self, name))
-
-    # -- events -------------------------------------------------------------------------------
-    @property
-    def changed(self) -> Signal:
-        """Emits one ``frozenset[str]`` of dotted field paths per (batched) change."""
-        return self._changed
-
-    @contextlib.contextmanager
-    def batch(self) -> Iterator[None]:
-        """Group assignments so listeners see a single event with all changed paths."""
-        self._batch_depth += 1
-        try:
-            yield
-        finally:
-            self._batch_depth -= 1
-            if self._batch_depth == 0 and self._pending:
-                paths, self._pending = frozenset(self._pending), set()
-                self._changed.emit(paths)
-
-    def _emit(self, paths: set[str] | frozenset[str]) -> None:
-        if self._batch_depth:
-            self._pending.update(paths)
-        else:
-            self._changed.emit(frozenset(paths))
 
     # -- nested models ------------------------------------------------------------------------
     def _adopt(self, name: str, value: Any) -> None:
