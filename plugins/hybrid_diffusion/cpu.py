@@ -50,11 +50,21 @@ def pcg(v: np.ndarray) -> np.ndarray:
     return (word >> _U32(22)) ^ word
 
 
-def stream_keys(shape_zyx: Sequence[int], iteration: int, seed: int) -> np.ndarray:
-    """One key per voxel (flat index x + nx·(y + ny·z)) for iteration ``iteration``."""
-    n = int(np.prod(shape_zyx))
+def stream_keys(shape_zyx: Sequence[int], iteration: int, seed: int,
+                region: tuple[int, int, int, int] | None = None) -> np.ndarray:
+    """One key per voxel (flat index x + nx·(y + ny·z)) for iteration ``iteration``; with
+    ``region`` (z0, z1, y0, y1) only that region's keys are computed (the others are 0)."""
     base = pcg(np.array([(iteration + int(pcg(np.array([seed], _U32))[0])) & 0xFFFFFFFF], _U32))
-    return pcg(np.arange(n, dtype=_U32) ^ base[0]).reshape(tuple(shape_zyx))
+    nz, ny, nx = (int(n) for n in shape_zyx)
+    if region is None:
+        return pcg(np.arange(nz * ny * nx, dtype=_U32) ^ base[0]).reshape((nz, ny, nx))
+    z0, z1, y0, y1 = region
+    index = (np.arange(z0, z1, dtype=_U32)[:, None, None] * _U32(ny)
+             + np.arange(y0, y1, dtype=_U32)[None, :, None]) * _U32(nx) + np.arange(
+                 nx, dtype=_U32)[None, None, :]
+    keys = np.zeros((nz, ny, nx), _U32)
+    keys[z0:z1, y0:y1] = pcg(index ^ base[0])
+    return keys
 
 
 def uniform(keys: np.ndarray, draw: int) -> np.ndarray:
@@ -176,7 +186,7 @@ def direct_sample(
     out = np.zeros((*shape, 3), np.float32)
     if not lights:
         return out
-    keys = stream_keys(shape, iteration, seed)
+    keys = stream_keys(shape, iteration, seed, region)  # only the region's are drawn
     xs, ys, zs = centres32(grid)
     majorant = np.float32(sigma_t.max())
     n = len(lights)
