@@ -616,3 +616,17 @@ def test_cpu_path_for_the_voxel_error_runs_with_the_declared_values():
                                              force=True)
     assert seen == [{"max_iterations": 8, "seed": 3}]
     assert metrics == {} and problem == "light_visibility_cpu: 512 non-finite voxels"
+
+
+def test_table1_analogue_is_per_scene_with_the_papers_ratio():
+    """Issue 24: seed 003's Table 1 per scene (a scene's own 3 ÷ 1-light ratio), never a ratio
+    of medians across scenes, with the paper's ratio (GTX 1050) beside it."""
+    from vtkvol.bench.report import _table1_markdown
+
+    rows = [{"scene": s, "method": "convection_diffusion", "short": "KD", "lights": n,
+             "iterations_per_s": rate, "bytes_per_voxel": 48 + 24 * (n == 3)}
+            for s, n, rate in (("a", 1, 10.0), ("a", 3, 5.0), ("b", 1, 100.0), ("b", 3, 20.0))]
+    md = "\n".join(_table1_markdown(rows))
+    assert "| a | KD | 10.0 | 5.0 | 0.50 | 0.31 | 48 | 72 |" in md
+    assert "| b | KD | 100.0 | 20.0 | 0.20 | 0.31 | 48 | 72 |" in md
+    assert "GTX 1050" in md and "GTX 1080" not in md
