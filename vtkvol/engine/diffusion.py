@@ -37,6 +37,7 @@ from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
 
 if TYPE_CHECKING:
+    from vtkvol.engine.coarse_diffusion import ScatterGrid
     from vtkvol.engine.illuminator import Changes, Illuminator
 
 #: α is clamped below 1 before −ln(1 − α) (a fully opaque voxel keeps a finite extinction).
@@ -454,6 +455,15 @@ class GridScattering(Technique):
         texture.upload(data)
         return texture
 
+    def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
+        """``vv_<NAME>_scatteredDims``: the points (x, y, z) of the grid the scattered texture
+        holds — the data's, or the reduced grid's (``scatter_grid``), sampled over the same
+        point bounds with the host's ``vv_unitToGrid``."""
+        scatter = getattr(self.setup, "scatter", None)
+        dims = (scatter.dims_xyz if scatter is not None
+                else tuple(float(n) for n in self.host.dims))
+        return {f"vv_{self.NAME}_scatteredDims": dims}
+
     def stats(self) -> TechniqueStats:
         """Restarts as ``recomputes``; ``recompute_ms``: milliseconds of the last frame's
         iterations; ``extra``: the source model's relative ``residual``."""
@@ -608,8 +618,13 @@ class GpuDiffusion(GridPrograms):
 
 class GpuSourceDiffusion(GridPrograms):
     """The source model on the GPU (``source_diffusion.comp.glsl``): φ ping-pongs between two
-    RGBA textures; the per-voxel coefficients are one RGBA texture; each sweep also writes the
-    per-voxel squared residual and source, read back (once per frame) for the stopping test."""
+    RGBA textures; the per-point coefficients are one RGBA texture; each sweep also writes the
+    per-point squared residual and source, read back (once per frame) for the stopping test.
+
+    On a reduced grid (a coarse :class:`~vtkvol.engine.coarse_diffusion.ScatterGrid`) φ, the
+    coefficients and the residual live on the coarse points; each :meth:`run` first restricts
+    q = σ_s·E_0 from the data grid's direct light into a coarse source texture
+    (``source_restrict.comp.glsl``), which the sweeps then read (``VV_SOURCE_IMAGE``)."""
 
     SHADER = "source_diffusion.comp.glsl"
     LABEL = "source diffusion"
@@ -619,9 +634,13 @@ class GpuSourceDiffusion(GridPrograms):
         self._phi: list[Texture3D] = []
         self._coefficients: Texture3D | None = None
         self._residual: Texture3D | None = None
+        self._source: Texture3D | None = None  # reduced grid: the restricted q
+        self._sigma_s: Texture3D | None = None  # reduced grid: σ_s on the data grid
         self._grid = Grid((1, 1, 1), (1.0, 1.0, 1.0))
+        self._scatter: ScatterGrid | None = None
         self._channels = 1
         self._falloff: list[float] = [0.0] * 16
+        self._variants: dict[tuple[str, int, bool], ComputeProgram] = {}
 
     @property
     def phi(self) -> Texture3D:
@@ -629,23 +648,48 @@ class GpuSourceDiffusion(GridPrograms):
 
     @property
     def textures(self) -> list[Texture3D]:
-        return [*self._phi, *(t for t in (self._coefficients, self._residual) if t)]
+        return [*self._phi, *(t for t in (self._coefficients, self._residual, self._source,
+                                          self._sigma_s) if t)]
+
+    def variant(self, shader: str, channels: int, source_image: bool = False) -> ComputeProgram:
+        """``shader`` compiled for ``channels`` lights (and ``VV_SOURCE_IMAGE``), once."""
+        key = (shader, channels, source_image)
+        prog = self._variants.get(key)
+        if prog is None:
+            defines = {"VV_CHANNELS": str(channels), "VV_SOURCE_IMAGE": str(int(source_image))}
+            prog = ComputeProgram(self.render_window, compute_source(shader, defines),
+                                  f"{self.LABEL} {key}")
+            self._variants[key] = prog
+        return prog
 
     def reset(self, grid: Grid, coefficients: np.ndarray, channels: int,
-              lights: Sequence[LightSource]) -> None:
-        """Zero φ on ``grid``; the direct light will have ``channels`` channels, one per light of
-        ``lights`` (their fall-off applies to the source)."""
+              lights: Sequence[LightSource], scatter: ScatterGrid | None = None,
+              fine_sigma_s: np.ndarray | None = None) -> None:
+        """Zero φ; the direct light will have ``channels`` channels on the data ``grid``, one
+        per light of ``lights`` (their fall-off applies to the source). ``coefficients`` are
+        those of the grid φ is solved on: ``grid``'s, or with a coarse ``scatter`` its
+        points', and then ``fine_sigma_s`` (``[z, y, x]`` per µm, the data grid's σ_s, 0 where
+        empty) is needed for the restriction of q."""
         self._release_textures()
         rw = self.render_window
-        shape = grid.shape_zyx
+        coarse = scatter is not None and scatter.coarse
+        solve = scatter.grid if coarse else grid  # type: ignore[union-attr]
+        shape = solve.shape_zyx
         empty = np.zeros((*shape, 4), np.float32)
         self._phi = [Texture3D(rw, shape, channels=4, data=empty) for _ in range(2)]
         self._coefficients = Texture3D(rw, shape, channels=4, data=coefficients)
         self._residual = Texture3D(rw, shape, channels=2,
                                    data=np.zeros((*shape, 2), np.float32))
+        if coarse:
+            if fine_sigma_s is None:
+                raise ValueError("a reduced scattered-light grid needs the data grid's sigma_s")
+            self._source = Texture3D(rw, shape, channels=4, data=empty)
+            self._sigma_s = Texture3D(rw, grid.shape_zyx,
+                                      data=np.ascontiguousarray(fine_sigma_s, np.float32))
         for tex in self.textures:
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self._grid, self._channels = grid, channels
+        self._scatter = scatter if coarse else None
         flat: list[float] = []
         for light in lights:
             d0 = float(light.falloff_distance) if light.kind == "point" else 0.0
@@ -654,17 +698,50 @@ class GpuSourceDiffusion(GridPrograms):
 
     def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
             sweeps: int) -> None:
-        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``."""
+        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors`` (on a reduced
+        grid: restricted once, then swept)."""
         assert self._coefficients is not None and self._residual is not None
-        prog = self.program(self._channels)
-        self.bind(prog, self._grid, (("vv_direct", direct),
-                                     ("vv_coefficients", self._coefficients),
-                                     ("vv_phiIn", None), ("vv_phiOut", None),
-                                     ("vv_residual", None)), placement=True)
+        scatter = self._scatter
+        if scatter is None:
+            prog = self.variant(self.SHADER, self._channels)
+            self.bind(prog, self._grid, (("vv_direct", direct),
+                                         ("vv_coefficients", self._coefficients),
+                                         ("vv_phiIn", None), ("vv_phiOut", None),
+                                         ("vv_residual", None)), placement=True)
+            _colours_uniforms(prog, colors)
+            prog.set_uniform_array("vv_falloff", self._falloff, size=4)
+            solve = self._grid
+        else:
+            assert self._source is not None and self._sigma_s is not None
+            self._restrict(direct, colors, scatter)
+            prog = self.variant(self.SHADER, 4, source_image=True)
+            solve = scatter.grid
+            self.bind(prog, solve, (("vv_source", self._source),
+                                    ("vv_coefficients", self._coefficients),
+                                    ("vv_phiIn", None), ("vv_phiOut", None),
+                                    ("vv_residual", None)))
+            prog.set_uniform("vv_spacing", *solve.spacing, kind="f")  # vv_origin is unused
+        self._residual.bind_image(4, "write")
+        self.sweep(prog, solve, self._phi, (2, 3), sweeps, bound=5)
+
+    def _restrict(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                  scatter: ScatterGrid) -> None:
+        """q on the data grid, restricted into the coarse source texture."""
+        assert self._source is not None and self._sigma_s is not None
+        prog = self.variant("source_restrict.comp.glsl", self._channels)
+        self.bind(prog, scatter.grid, (("vv_direct", direct), ("vv_sigmaS", self._sigma_s),
+                                       ("vv_source", None)))
+        nz, ny, nx = self._grid.shape_zyx
+        prog.set_uniform("vv_fineDims", nx, ny, nz)
+        prog.set_uniform("vv_ratio", *scatter.ratios_xyz, kind="f")
+        prog.set_uniform("vv_origin", *self._grid.origin, kind="f")
+        prog.set_uniform("vv_spacing", *self._grid.spacing, kind="f")
         _colours_uniforms(prog, colors)
         prog.set_uniform_array("vv_falloff", self._falloff, size=4)
-        self._residual.bind_image(4, "write")
-        self.sweep(prog, self._grid, self._phi, (2, 3), sweeps, bound=5)
+        self._source.bind_image(2, "write")
+        prog.dispatch(dispatch_groups(scatter.grid))
+        unbind_images(self.render_window, 3)
+        prog.done()
 
     def residual(self) -> tuple[float, float]:
         """(Σ residual², Σ source²) of the last sweep's starting φ."""
@@ -676,10 +753,13 @@ class GpuSourceDiffusion(GridPrograms):
         for tex in self.textures:
             tex.release()
         self._phi = []
-        self._coefficients = self._residual = None
+        self._coefficients = self._residual = self._source = self._sigma_s = None
 
     def release(self) -> None:
         self._release_textures()
+        for prog in self._variants.values():
+            prog.release()
+        self._variants.clear()
         super().release()
 
 
