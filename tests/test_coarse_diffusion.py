@@ -118,3 +118,26 @@ def test_gpu_restriction_and_sweeps_match_numpy(factor: int) -> None:
     # float32 restriction in another summation order than numpy's float64 full weighting.
     np.testing.assert_allclose(got, phi, atol=1e-5 * float(phi.max()))
     assert residual == pytest.approx(D.relative_residual(r2, q2), rel=1e-3)
+
+
+def test_scatter_grid_round_trips_through_a_session(tmp_path) -> None:
+    """Technique parameters are saved generically: both techniques' ``scatter_grid`` come
+    back as saved, and an undeclared value is refused naming the parameter."""
+    import json
+
+    from vtkvol.model import SceneModel
+    from vtkvol.model.session import SessionError, read_session, save_session
+
+    model = SceneModel()
+    model.illumination.method = "hybrid_diffusion"
+    model.illumination.set_value("scatter_grid", "quarter", method="convection_diffusion")
+    model.illumination.set_value("scatter_grid", "half", method="hybrid_diffusion")
+    path = save_session(tmp_path / "v", model)
+    again = read_session(path).model.illumination.parameters
+    assert again["convection_diffusion"]["scatter_grid"] == "quarter"
+    assert again["hybrid_diffusion"]["scatter_grid"] == "half"
+    doc = json.loads(path.read_text())
+    doc["scene"]["illumination"]["parameters"]["hybrid_diffusion"]["scatter_grid"] = "eighth"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(SessionError, match="scatter_grid must be one of full, half, quarter"):
+        read_session(path)
