@@ -455,15 +455,6 @@ class GridScattering(Technique):
         texture.upload(data)
         return texture
 
-    def uniforms(self, values: Mapping[str, Any]) -> dict[str, Any]:
-        """``vv_<NAME>_scatteredDims``: the points (x, y, z) of the grid the scattered texture
-        holds — the data's, or the reduced grid's (``scatter_grid``), sampled over the same
-        point bounds with the host's ``vv_unitToGrid``."""
-        scatter = getattr(self.setup, "scatter", None)
-        dims = (scatter.dims_xyz if scatter is not None
-                else tuple(float(n) for n in self.host.dims))
-        return {f"vv_{self.NAME}_scatteredDims": dims}
-
     def stats(self) -> TechniqueStats:
         """Restarts as ``recomputes``; ``recompute_ms``: milliseconds of the last frame's
         iterations; ``extra``: the source model's relative ``residual``."""
@@ -733,7 +724,7 @@ class GpuSourceDiffusion(GridPrograms):
                                        ("vv_source", None)))
         nz, ny, nx = self._grid.shape_zyx
         prog.set_uniform("vv_fineDims", nx, ny, nz)
-        prog.set_uniform("vv_ratio", *scatter.ratios_xyz, kind="f")
+        prog.set_uniform("vv_cell", *scatter.cells_xyz, kind="f")
         prog.set_uniform("vv_origin", *self._grid.origin, kind="f")
         prog.set_uniform("vv_spacing", *self._grid.spacing, kind="f")
         _colours_uniforms(prog, colors)

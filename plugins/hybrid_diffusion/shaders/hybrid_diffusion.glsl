@@ -6,8 +6,8 @@
 // Textures (bound by the host, retyped from int to sampler3D):
 //   vv_hybrid_diffusion_direct     rho_d: running mean of the direct light (rgb)
 //   vv_hybrid_diffusion_scattered  rho_s: diffused light (rgb)
-//     (a grid of vv_hybrid_diffusion_scatteredDims points (x, y, z) over the data's point
-//     bounds: the data grid, or the reduced one of scatter_grid; vv_unitToGrid maps to it)
+//     on the data grid, or on the reduced grid of scatter_grid (⌈n/2⌉ or ⌈n/4⌉ texels per
+//     axis tiling the same extent): either way sampled at texPos, like the data
 
 //@inject //VTK::ComputeLighting::Dec pre before
 float vv_light_visibility(int light, vec3 texPos, vec3 dirDS) { return 0.0; }
@@ -15,6 +15,5 @@ float vv_light_visibility(int light, vec3 texPos, vec3 dirDS) { return 0.0; }
 vec3 vv_irradiance(vec3 texPos)
 {
   return texture(vv_hybrid_diffusion_direct, texPos).rgb
-    + texture(vv_hybrid_diffusion_scattered,
-    vv_unitToGrid(vv_texToUnit(texPos), vv_hybrid_diffusion_scatteredDims)).rgb;
+    + texture(vv_hybrid_diffusion_scattered, texPos).rgb;
 }
