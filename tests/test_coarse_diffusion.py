@@ -112,6 +112,14 @@ def test_gpu_restriction_and_sweeps_match_numpy(factor: int) -> None:
     gpu.run(tex, colors, 12)
     got = gpu.phi.download()[..., :3]
     residual = D.relative_residual(*gpu.residual())
+    # An unchanged source is not restricted again (KD after its warm start, HD's finishing
+    # sweeps): with the direct texture zeroed behind its back the sweeps go on with the old q …
+    tex.upload(np.zeros_like(direct))
+    gpu.run(tex, colors, 3, source_changed=False)
+    kept = gpu.phi.download()[..., :3]
+    # … and a changed one is: q = 0 now, so φ decays.
+    gpu.run(tex, colors, 3, source_changed=True)
+    fresh = gpu.phi.download()[..., :3]
     tex.release()
     gpu.release()
     rw.Finalize()
@@ -119,6 +127,10 @@ def test_gpu_restriction_and_sweeps_match_numpy(factor: int) -> None:
     # float32 restriction in another summation order than numpy's float64 full weighting.
     np.testing.assert_allclose(got, phi, atol=1e-5 * float(phi.max()))
     assert residual == pytest.approx(D.relative_residual(r2, q2), rel=1e-3)
+    for _ in range(3):
+        phi, _r2, _q2 = D.jacobi_sweep(phi, q, coarse, scatter.grid)
+    np.testing.assert_allclose(kept, phi, atol=1e-5 * float(phi.max()))
+    assert float(fresh.sum()) < 0.9 * float(kept.sum())
 
 
 def test_scatter_grid_round_trips_through_a_session(tmp_path) -> None:

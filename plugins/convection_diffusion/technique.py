@@ -357,7 +357,9 @@ class GpuTransport:
         """``iterations`` iterations of the accumulation's model (see :mod:`.cpu`)."""
         if self._model == "source":
             if diffusion_steps:
-                self.source.run(self._rho[0], self._colors, iterations * diffusion_steps)
+                # The direct light is final after the warm start: q is restricted once.
+                self.source.run(self._rho[0], self._colors, iterations * diffusion_steps,
+                                source_changed=False)
             return
         self._convect(iterations, steady=False, diffusion_steps=diffusion_steps)
 

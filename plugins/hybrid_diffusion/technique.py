@@ -106,6 +106,8 @@ class HybridDiffusion(GridScattering):
         super().__init__(host)
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
+        #: Source model, numpy path: q (restricted to the scatter grid) of the current ρ_d.
+        self._q: np.ndarray | None = None
         #: The current sample's next region's first (z layer, y row): not (0, 0) while a
         #: sample is drawn in parts.
         self._next_region = (0, 0)
@@ -133,6 +135,7 @@ class HybridDiffusion(GridScattering):
         shape = self.setup.grid.shape_zyx
         self._rho_d = np.zeros((*shape, 3), np.float32)
         self._rho_s = np.zeros((*self.setup.scatter.grid.shape_zyx, 3), np.float32)
+        self._q = None
         self._upload_cpu_state()
 
     def advance(self, values: Mapping[str, Any]) -> None:
@@ -244,7 +247,7 @@ class HybridDiffusion(GridScattering):
 
     def release(self) -> None:
         super().release()
-        self._rho_d = self._rho_s = None
+        self._rho_d = self._rho_s = self._q = None
 
     def light_visibility_cpu(
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
@@ -286,6 +289,7 @@ class HybridDiffusion(GridScattering):
         mean = self._rho_d[z0:z1, y0:y1]
         self._rho_d[z0:z1, y0:y1] = mean + (draw[z0:z1, y0:y1] - mean) / np.float32(
             self.iteration + 1)
+        self._q = None  # ρ_d changed: the source model's q is stale
 
     def _iterate(self, values: Mapping[str, Any], sample: bool = True) -> None:
         """One iteration: a whole sample of the direct light (while ``sample``), then
@@ -303,8 +307,11 @@ class HybridDiffusion(GridScattering):
         if setup.model == "source":
             assert setup.coefficients is not None
             if steps:
-                q = setup.scatter.restrict(kd.source_term(
-                    setup.coefficients, np.moveaxis(self._rho_d, -1, 0), RGB_AS_LIGHTS, [1.0] * 3))
+                if self._q is None:  # after a sample; the finishing sweeps reuse it
+                    self._q = setup.scatter.restrict(kd.source_term(
+                        setup.coefficients, np.moveaxis(self._rho_d, -1, 0), RGB_AS_LIGHTS,
+                        [1.0] * 3))
+                q = self._q
                 grid, coefficients = setup.solve
                 for _ in range(steps):
                     new, r2, q2 = kd.jacobi_sweep(self._rho_s, q, coefficients, grid)
@@ -342,6 +349,8 @@ class GpuHybrid:
         self.diffusion = GpuDiffusion(render_window)
         self.source = GpuSourceDiffusion(render_window)
         self._setup: Setup | None = None
+        #: A sample changed ρ_d since the source model last read it (its q is stale).
+        self._sampled = True
         self.program("ratio", "one", False)  # fail now, not mid-frame, when compute cannot work
 
     @property
@@ -412,7 +421,8 @@ class GpuHybrid:
         if not steps:
             return
         if setup.model == "source":
-            self.source.run(self.rho_d, RGB_AS_LIGHTS, steps)
+            self.source.run(self.rho_d, RGB_AS_LIGHTS, steps, source_changed=self._sampled)
+            self._sampled = False
         else:
             self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
 
@@ -465,6 +475,7 @@ class GpuHybrid:
                        -(-(region[1] - region[0]) // GROUP[2])))
         unbind_images(self.render_window, 3)
         prog.done()
+        self._sampled = True
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
         """(ρ_d, ρ_s), each ``[z, y, x, 3]`` (tests and verification)."""

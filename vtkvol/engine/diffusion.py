@@ -632,6 +632,7 @@ class GpuSourceDiffusion(GridPrograms):
         self._channels = 1
         self._falloff: list[float] = [0.0] * 16
         self._variants: dict[tuple[str, int, bool], ComputeProgram] = {}
+        self._restricted = False  # reduced grid: the source texture holds the current q
 
     @property
     def phi(self) -> Texture3D:
@@ -681,6 +682,7 @@ class GpuSourceDiffusion(GridPrograms):
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self._grid, self._channels = grid, channels
         self._scatter = scatter if coarse else None
+        self._restricted = False
         flat: list[float] = []
         for light in lights:
             d0 = float(light.falloff_distance) if light.kind == "point" else 0.0
@@ -688,9 +690,11 @@ class GpuSourceDiffusion(GridPrograms):
         self._falloff = flat + [0.0] * (16 - len(flat))
 
     def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
-            sweeps: int) -> None:
-        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors`` (on a reduced
-        grid: restricted once, then swept)."""
+            sweeps: int, source_changed: bool = True) -> None:
+        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``. On a reduced
+        grid q is restricted first when ``source_changed`` (the direct light changed since the
+        last run) or not yet since :meth:`reset`: a restriction is a pass over the data grid,
+        which would cost more than the coarse sweeps it feeds."""
         assert self._coefficients is not None and self._residual is not None
         scatter = self._scatter
         if scatter is None:
@@ -704,7 +708,9 @@ class GpuSourceDiffusion(GridPrograms):
             solve = self._grid
         else:
             assert self._source is not None and self._sigma_s is not None
-            self._restrict(direct, colors, scatter)
+            if source_changed or not self._restricted:
+                self._restrict(direct, colors, scatter)
+                self._restricted = True
             prog = self.variant(self.SHADER, 4, source_image=True)
             solve = scatter.grid
             self.bind(prog, solve, (("vv_source", self._source),
