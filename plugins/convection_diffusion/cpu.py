@@ -28,7 +28,7 @@ the paper leaves open and how it is decided (docs/multiple-scattering.md has the
   start, :func:`vtkvol.engine.diffusion.steady_convection_sweep`); each iteration is then
   ``diffusion_steps`` Jacobi sweeps of the source model for the scattered light ρ_s — on the
   data grid, or with a coarse ``scatter`` grid (``scatter_grid`` "half"/"quarter",
-  :mod:`vtkvol.engine.coarse_diffusion`) on its points, from the restricted source.
+  :mod:`vtkvol.engine.coarse_diffusion`) on its cells, from the restricted source.
 """
 
 from __future__ import annotations
@@ -108,7 +108,7 @@ class Transport:
     ``colors`` are the lights' colour × intensity (RGB). ``model`` selects the published one-field
     split or the source model (which needs ``coefficients``, see
     :func:`vtkvol.engine.diffusion.source_coefficients`, and computes the direct light at once).
-    With a coarse ``scatter`` grid the source model's ρ_s lives on its points (``[m_z, m_y,
+    With a coarse ``scatter`` grid the source model's ρ_s lives on its cells (``[m_z, m_y,
     m_x, 3]``), solved with ``scatter_coefficients`` (:meth:`ScatterGrid.coefficients`) from
     the restricted source.
     """

@@ -145,8 +145,8 @@ class ConvectionDiffusion(GridScattering):
         direct = np.zeros((*shape, channels), np.float32)
         direct[..., : len(transport.lights)] = np.moveaxis(transport.rho[: len(transport.lights)],
                                                            0, -1)
-        # The scattered light on its own grid (the data's, or the reduced one: the shader
-        # samples it over the same point bounds, ``vv_convection_diffusion_scatteredDims``).
+        # The scattered light on its own grid (the data's, or the reduced one, which tiles the
+        # same extent: the shader samples either at texPos).
         scattered = np.zeros((*transport.rho_s.shape[:3], 4), np.float32)
         scattered[..., :3] = transport.rho_s
         self._direct = self._show(self._direct, _squeeze(direct), channels)

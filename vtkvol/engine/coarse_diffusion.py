@@ -128,7 +128,7 @@ class ScatterGrid:
 
     def coefficients(self, sigma_t: np.ndarray, albedo: float,
                      phase_g: float = 0.0) -> np.ndarray:
-        """The source model's per-point (D, σ_a, σ_s, 0) on this grid from the data's σ_t
+        """The source model's per-cell (D, σ_a, σ_s, 0) on this grid from the data's σ_t
         (per µm, ``[z, y, x]``): from the restricted σ_t (see the module docstring)."""
         return source_coefficients(self.restrict(sigma_t), self.grid, albedo, phase_g)
 

@@ -613,9 +613,9 @@ class GpuSourceDiffusion(GridPrograms):
     per-point squared residual and source, read back (once per frame) for the stopping test.
 
     On a reduced grid (a coarse :class:`~vtkvol.engine.coarse_diffusion.ScatterGrid`) φ, the
-    coefficients and the residual live on the coarse points; each :meth:`run` first restricts
-    q = σ_s·E_0 from the data grid's direct light into a coarse source texture
-    (``source_restrict.comp.glsl``), which the sweeps then read (``VV_SOURCE_IMAGE``)."""
+    coefficients and the residual live on the coarse cells; :meth:`run` restricts q = σ_s·E_0
+    from the data grid's direct light into a coarse source texture (``source_restrict.comp.glsl``)
+    when the direct light changed, and the sweeps read it (``VV_SOURCE_IMAGE``)."""
 
     SHADER = "source_diffusion.comp.glsl"
     LABEL = "source diffusion"

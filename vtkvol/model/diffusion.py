@@ -11,7 +11,7 @@ DIFFUSION_MODELS = ("source", "published")
 #: The source model's stopping tolerance: relative residual ‖b − Aφ‖/‖b‖.
 DEFAULT_TOLERANCE = 1e-4
 #: The grids the source model's scattered light can be solved on, the default first: the data
-#: grid, or ⌈n/2⌉ / ⌈n/4⌉ points per axis over the same point bounds (issue 24).
+#: grid, or ⌈n/2⌉ / ⌈n/4⌉ cells per axis tiling the same extent (issue 24).
 SCATTER_GRIDS = ("full", "half", "quarter")
 
 
@@ -37,7 +37,7 @@ def diffusion_model_params(invalidates: Invalidates) -> tuple[Param, ...]:
         Param(
             "scatter_grid", SCATTER_GRIDS[0], "Scattered-light grid",
             "Source model: the grid the scattered light is solved on — full: the data grid; "
-            "half / quarter: ½ or ¼ of the points per axis over the same extent (8× or 64× "
+            "half / quarter: ½ or ¼ of the cells per axis over the same extent (8× or 64× "
             "fewer unknowns and texels, fewer and cheaper sweeps; the light is smoother, the "
             "error measured in docs/benchmarks.md). The direct light stays on the data grid.",
             kind="choice", choices=SCATTER_GRIDS, invalidates=invalidates, uniform=False,
