@@ -144,9 +144,11 @@ def kd_scene(backend: str, lights=None, **params):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize(("model", "size"), [("source", 0.0), ("published", 0.0),
-                                             ("source", 1.0)])
-def test_gpu_transport_matches_numpy(model, size):
+@pytest.mark.parametrize(("model", "size", "scatter_grid"),
+                         [("source", 0.0, "full"), ("published", 0.0, "full"),
+                          ("source", 1.0, "full"), ("source", 0.0, "half"),
+                          ("source", 1.0, "quarter")])
+def test_gpu_transport_matches_numpy(model, size, scatter_grid):
     from vtkvol.engine.offscreen import grab
     from vtkvol.model.scene import Light
 
@@ -157,7 +159,8 @@ def test_gpu_transport_matches_numpy(model, size):
                     falloff="inverse_square", size=4.0 * size)]
     states = {}
     for backend in ("auto", "cpu"):
-        rw, _ren, il = kd_scene(backend, lights=lights, diffusion_steps=2, diffusion_model=model)
+        rw, _ren, il = kd_scene(backend, lights=lights, diffusion_steps=2, diffusion_model=model,
+                                scatter_grid=scatter_grid)
         for _ in range(3):
             grab(rw)
         tech = il.technique
@@ -179,7 +182,13 @@ def test_gpu_transport_matches_numpy(model, size):
     else:
         assert np.abs(c_s).max() == 0.0  # one field: ρ_l is all the light
     np.testing.assert_allclose(g_rho, c_rho, atol=1e-5)
-    np.testing.assert_allclose(g_s, c_s, atol=1e-6)
+    # The scattered light lives on the scatter grid: 24³ data → 12³ (half) or 6³ (quarter).
+    points = {"full": 24, "half": 12, "quarter": 6}[scatter_grid]
+    assert c_s.shape == g_s.shape == (points, points, points, 3)
+    # Reduced grids: the GPU restricts q in float32 in another summation order than numpy's
+    # float64 full weighting; 15 sweeps later that is at most 1e-5 of the peak.
+    np.testing.assert_allclose(g_s, c_s, atol=1e-6 if scatter_grid == "full"
+                               else 1e-5 * float(c_s.max()))
 
 
 @pytest.mark.gl

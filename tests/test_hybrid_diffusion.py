@@ -101,10 +101,14 @@ def hd_scene(backend: str, lights=None, **params):
 
 
 @pytest.mark.gl
-@pytest.mark.parametrize(("estimator", "model", "majorant"),
-                         [("ratio", "source", "bricks"), ("delta", "source", "bricks"),
-                          ("ratio", "published", "global"), ("delta", "source", "global")])
-def test_gpu_path_matches_numpy(estimator, model, majorant):
+@pytest.mark.parametrize(("estimator", "model", "majorant", "scatter_grid"),
+                         [("ratio", "source", "bricks", "full"),
+                          ("delta", "source", "bricks", "full"),
+                          ("ratio", "published", "global", "full"),
+                          ("delta", "source", "global", "full"),
+                          ("ratio", "source", "bricks", "half"),
+                          ("ratio", "source", "bricks", "quarter")])
+def test_gpu_path_matches_numpy(estimator, model, majorant, scatter_grid):
     from vtkvol.engine.offscreen import grab
     from vtkvol.model.scene import Light
 
@@ -114,7 +118,8 @@ def test_gpu_path_matches_numpy(estimator, model, majorant):
     states = {}
     for backend in ("auto", "cpu"):
         rw, _ren, il = hd_scene(backend, lights=lights, estimator=estimator, diffusion_steps=2,
-                                diffusion_model=model, majorant=majorant)
+                                diffusion_model=model, majorant=majorant,
+                                scatter_grid=scatter_grid)
         grab(rw)
         grab(rw)
         tech = il.technique
@@ -129,6 +134,9 @@ def test_gpu_path_matches_numpy(estimator, model, majorant):
         rw.Finalize()
     (g_d, g_s), (c_d, c_s) = states["auto"], states["cpu"]
     assert c_d.max() > 0.5 and np.abs(c_s).max() > 1e-3
+    # The scattered light on its grid: 20³ data → 10³ (half) or 5³ (quarter).
+    points = {"full": 20, "half": 10, "quarter": 5}[scatter_grid]
+    assert g_s.shape == c_s.shape == (points, points, points, 3)
     # Float rounding can move a rare path across a decision (escape, collision); the rest agree.
     close = np.abs(g_d - c_d).max(axis=-1) < 1e-5
     assert close.mean() > 0.99

@@ -26,7 +26,9 @@ the paper leaves open and how it is decided (docs/multiple-scattering.md has the
   1/(2 Σ w_a); zero flux at the box. ρ_l is all the light; the scattered volume stays 0.
 * **source**: the direct light is the converged convection from one propagation pass (warm
   start, :func:`vtkvol.engine.diffusion.steady_convection_sweep`); each iteration is then
-  ``diffusion_steps`` Jacobi sweeps of the source model for the scattered light ρ_s.
+  ``diffusion_steps`` Jacobi sweeps of the source model for the scattered light ρ_s — on the
+  data grid, or with a coarse ``scatter`` grid (``scatter_grid`` "half"/"quarter",
+  :mod:`vtkvol.engine.coarse_diffusion`) on its cells, from the restricted source.
 """
 
 from __future__ import annotations
@@ -37,6 +39,7 @@ from typing import Literal
 
 import numpy as np
 
+from vtkvol.engine.coarse_diffusion import ScatterGrid
 from vtkvol.engine.diffusion import (  # noqa: F401  (re-exported: KD's numpy API)
     MAX_OPACITY,
     Grid,
@@ -105,6 +108,9 @@ class Transport:
     ``colors`` are the lights' colour × intensity (RGB). ``model`` selects the published one-field
     split or the source model (which needs ``coefficients``, see
     :func:`vtkvol.engine.diffusion.source_coefficients`, and computes the direct light at once).
+    With a coarse ``scatter`` grid the source model's ρ_s lives on its cells (``[m_z, m_y,
+    m_x, 3]``), solved with ``scatter_coefficients`` (:meth:`ScatterGrid.coefficients`) from
+    the restricted source.
     """
 
     grid: Grid
@@ -115,6 +121,8 @@ class Transport:
     diffusion_steps: int = 1
     model: DiffusionModel = "published"
     coefficients: np.ndarray | None = None
+    scatter: ScatterGrid | None = None
+    scatter_coefficients: np.ndarray | None = None
     rho: np.ndarray = field(init=False)
     rho_s: np.ndarray = field(init=False)
     iteration: int = field(init=False, default=0)
@@ -131,8 +139,17 @@ class Transport:
             if self.coefficients is None:
                 raise ValueError("the source model needs its coefficients")
             self.warm_start()
-            self._q = source_term(self.coefficients, self.rho[:n], self.colors,
-                                  [falloff(self.grid, light) for light in self.lights])
+            q = source_term(self.coefficients, self.rho[:n], self.colors,
+                            [falloff(self.grid, light) for light in self.lights])
+            self._solve_grid, self._solve_coefficients = self.grid, self.coefficients
+            if self.scatter is not None and self.scatter.coarse:
+                if self.scatter_coefficients is None:
+                    raise ValueError("a reduced scattered-light grid needs its coefficients")
+                q = self.scatter.restrict(q)
+                self._solve_grid = self.scatter.grid
+                self._solve_coefficients = self.scatter_coefficients
+                self.rho_s = np.zeros((*self.scatter.grid.shape_zyx, 3), np.float32)
+            self._q = q
 
     def warm_start(self) -> None:
         """The converged convected light of every light, in one propagation pass (a sized
@@ -165,9 +182,9 @@ class Transport:
         Jacobi sweeps of the scattered light."""
         for _ in range(iterations):
             if self.model == "source":
-                assert self.coefficients is not None
                 for _ in range(self.diffusion_steps):
-                    new, r2, q2 = jacobi_sweep(self.rho_s, self._q, self.coefficients, self.grid)
+                    new, r2, q2 = jacobi_sweep(self.rho_s, self._q, self._solve_coefficients,
+                                               self._solve_grid)
                     self.residual = relative_residual(r2, q2)
                     self.rho_s = new
             else:

@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
+from vtkvol.engine.coarse_diffusion import ScatterGrid
 from vtkvol.engine.diffusion import (
     GpuFieldDiffusion,
     GpuSourceDiffusion,
@@ -144,7 +145,9 @@ class ConvectionDiffusion(GridScattering):
         direct = np.zeros((*shape, channels), np.float32)
         direct[..., : len(transport.lights)] = np.moveaxis(transport.rho[: len(transport.lights)],
                                                            0, -1)
-        scattered = np.zeros((*shape, 4), np.float32)
+        # The scattered light on its own grid (the data's, or the reduced one, which tiles the
+        # same extent: the shader samples either at texPos).
+        scattered = np.zeros((*transport.rho_s.shape[:3], 4), np.float32)
         scattered[..., :3] = transport.rho_s
         self._direct = self._show(self._direct, _squeeze(direct), channels)
         self._scattered = self._show(self._scattered, scattered, 4)
@@ -156,14 +159,20 @@ def _squeeze(a: np.ndarray) -> np.ndarray:
 
 class Setup:
     """What one accumulation runs on: grid, lights, the model, per-voxel absorption per
-    iteration, diffusion rate (published) and source-model coefficients (source)."""
+    iteration, diffusion rate (published) and source-model coefficients (source) on the data
+    grid, and the grid the scattered light is solved on (``scatter``: the data grid, or the
+    source model's reduced ``scatter_grid`` with its own ``scatter_coefficients``)."""
 
     def __init__(self, grid: cpu.Grid, lights: list[cpu.LightSource],
                  colors: list[tuple[float, float, float]], sigma_a: np.ndarray,
-                 lam: np.ndarray, model: str, coefficients: np.ndarray | None) -> None:
+                 lam: np.ndarray, model: str, coefficients: np.ndarray | None,
+                 scatter: ScatterGrid | None = None,
+                 scatter_coefficients: np.ndarray | None = None) -> None:
         self.grid, self.lights, self.colors = grid, lights, colors
         self.sigma_a, self.lam = sigma_a, lam
         self.model, self.coefficients = model, coefficients
+        self.scatter = scatter if scatter is not None else ScatterGrid(grid, 1)
+        self.scatter_coefficients = scatter_coefficients
 
     @classmethod
     def build(cls, grid: cpu.Grid, sigma_t: np.ndarray, specs: Sequence[Any],
@@ -185,13 +194,19 @@ class Setup:
         lam = cpu.diffusion_rate(sigma_t, grid, albedo)
         coefficients = (source_coefficients(sigma_t, grid, albedo, phase_g)
                         if model == "source" else None)
+        # The published model has no separate scattered field: always the data grid.
+        scatter = ScatterGrid.named(grid, str(values["scatter_grid"]) if model == "source"
+                                    else "full")
+        scatter_coefficients = (scatter.coefficients(sigma_t, albedo, phase_g)
+                                if scatter.coarse else None)
         return cls(grid, lights, colors, sigma_a, lam, model,  # type: ignore[arg-type]
-                   coefficients)
+                   coefficients, scatter, scatter_coefficients)
 
     def transport(self, diffusion_steps: int) -> cpu.Transport:
         return cpu.Transport(self.grid, self.lights, self.colors, self.sigma_a, self.lam,
                              diffusion_steps=diffusion_steps, model=self.model,  # type: ignore[arg-type]
-                             coefficients=self.coefficients)
+                             coefficients=self.coefficients, scatter=self.scatter,
+                             scatter_coefficients=self.scatter_coefficients)
 
 
 class GpuTransport:
@@ -264,7 +279,12 @@ class GpuTransport:
         self._channels, self._model = channels, setup.model
         if setup.model == "source":
             assert setup.coefficients is not None
-            self.source.reset(setup.grid, setup.coefficients, channels, setup.lights)
+            if setup.scatter.coarse:
+                assert setup.scatter_coefficients is not None
+                self.source.reset(setup.grid, setup.scatter_coefficients, channels, setup.lights,
+                                  setup.scatter, fine_sigma_s=setup.coefficients[..., 2])
+            else:
+                self.source.reset(setup.grid, setup.coefficients, channels, setup.lights)
             self._warm_start(setup)
 
     def _warm_start(self, setup: Setup) -> None:
@@ -337,7 +357,9 @@ class GpuTransport:
         """``iterations`` iterations of the accumulation's model (see :mod:`.cpu`)."""
         if self._model == "source":
             if diffusion_steps:
-                self.source.run(self._rho[0], self._colors, iterations * diffusion_steps)
+                # The direct light is final after the warm start: q is restricted once.
+                self.source.run(self._rho[0], self._colors, iterations * diffusion_steps,
+                                source_changed=False)
             return
         self._convect(iterations, steady=False, diffusion_steps=diffusion_steps)
 

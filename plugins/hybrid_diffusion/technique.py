@@ -21,6 +21,7 @@ import numpy as np
 import vtk
 
 from vtkvol.engine import diffusion as kd
+from vtkvol.engine.coarse_diffusion import ScatterGrid
 from vtkvol.engine.diffusion import (
     GROUP,
     GpuDiffusion,
@@ -46,22 +47,36 @@ MAX_FINISHING_SWEEPS = 100000
 
 
 class Setup:
-    """What one accumulation runs on (dataset space, µm)."""
+    """What one accumulation runs on (dataset space, µm). ``scatter``: the grid the scattered
+    light is solved on (the data grid, or the source model's reduced ``scatter_grid`` with its
+    own ``scatter_coefficients``)."""
 
     def __init__(self, grid: kd.Grid, sigma_t: np.ndarray, lights: list[kd.LightSource],
                  colors: list[tuple[float, float, float]], lam: np.ndarray, model: str = "source",
                  coefficients: np.ndarray | None = None,
-                 bricks: np.ndarray | None = None) -> None:
+                 bricks: np.ndarray | None = None, scatter: ScatterGrid | None = None,
+                 scatter_coefficients: np.ndarray | None = None) -> None:
         self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
             grid, sigma_t, lights, colors, lam)
         self.model, self.coefficients = model, coefficients
         #: The per-brick majorant grid (``majorant = "bricks"``), None for the global one.
         self.bricks = bricks
+        self.scatter = scatter if scatter is not None else ScatterGrid(grid, 1)
+        self.scatter_coefficients = scatter_coefficients
+
+    @property
+    def solve(self) -> tuple[kd.Grid, np.ndarray]:
+        """(grid, coefficients) the source model's sweeps run on."""
+        if self.scatter.coarse:
+            assert self.scatter_coefficients is not None
+            return self.scatter.grid, self.scatter_coefficients
+        assert self.coefficients is not None
+        return self.grid, self.coefficients
 
     @classmethod
     def build(cls, grid: kd.Grid, sigma_t: np.ndarray, specs: list[Any],
               albedo: float, model: str = "source", phase_g: float = 0.0,
-              majorant: str = "global") -> Setup:
+              majorant: str = "global", scatter_grid: str = "full") -> Setup:
         specs = specs[:4]
         lights = [
             kd.LightSource(s.kind, tuple(float(v) for v in (
@@ -73,8 +88,12 @@ class Setup:
         coefficients = (kd.source_coefficients(sigma_t, grid, albedo, phase_g)
                         if model == "source" else None)
         bricks = cpu.brick_majorants(sigma_t) if majorant == "bricks" else None
+        # The published model's scattered volume stays on the data grid.
+        scatter = ScatterGrid.named(grid, scatter_grid if model == "source" else "full")
+        scatter_coefficients = (scatter.coefficients(sigma_t, albedo, phase_g)
+                                if scatter.coarse else None)
         return cls(grid, sigma_t, lights, colors, kd.diffusion_rate(sigma_t, grid, albedo),
-                   model, coefficients, bricks)
+                   model, coefficients, bricks, scatter, scatter_coefficients)
 
 
 class HybridDiffusion(GridScattering):
@@ -87,6 +106,8 @@ class HybridDiffusion(GridScattering):
         super().__init__(host)
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
+        #: Source model, numpy path: q (restricted to the scatter grid) of the current ρ_d.
+        self._q: np.ndarray | None = None
         #: The current sample's next region's first (z layer, y row): not (0, 0) while a
         #: sample is drawn in parts.
         self._next_region = (0, 0)
@@ -103,7 +124,7 @@ class HybridDiffusion(GridScattering):
                     values: Mapping[str, Any]) -> Setup:
         return Setup.build(grid, sigma_t, self.host.light_specs(), self.host.albedo,
                            str(values["diffusion_model"]), self.host.phase_g,
-                           str(values["majorant"]))
+                           str(values["majorant"]), str(values["scatter_grid"]))
 
     def start_gpu(self, gpu: GpuHybrid, values: Mapping[str, Any]) -> None:
         assert self.setup is not None
@@ -113,7 +134,8 @@ class HybridDiffusion(GridScattering):
         assert self.setup is not None
         shape = self.setup.grid.shape_zyx
         self._rho_d = np.zeros((*shape, 3), np.float32)
-        self._rho_s = np.zeros((*shape, 3), np.float32)
+        self._rho_s = np.zeros((*self.setup.scatter.grid.shape_zyx, 3), np.float32)
+        self._q = None
         self._upload_cpu_state()
 
     def advance(self, values: Mapping[str, Any]) -> None:
@@ -225,7 +247,7 @@ class HybridDiffusion(GridScattering):
 
     def release(self) -> None:
         super().release()
-        self._rho_d = self._rho_s = None
+        self._rho_d = self._rho_s = self._q = None
 
     def light_visibility_cpu(
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
@@ -267,6 +289,7 @@ class HybridDiffusion(GridScattering):
         mean = self._rho_d[z0:z1, y0:y1]
         self._rho_d[z0:z1, y0:y1] = mean + (draw[z0:z1, y0:y1] - mean) / np.float32(
             self.iteration + 1)
+        self._q = None  # ρ_d changed: the source model's q is stale
 
     def _iterate(self, values: Mapping[str, Any], sample: bool = True) -> None:
         """One iteration: a whole sample of the direct light (while ``sample``), then
@@ -284,10 +307,14 @@ class HybridDiffusion(GridScattering):
         if setup.model == "source":
             assert setup.coefficients is not None
             if steps:
-                q = kd.source_term(setup.coefficients, np.moveaxis(self._rho_d, -1, 0),
-                                   RGB_AS_LIGHTS, [1.0] * 3)
+                if self._q is None:  # after a sample; the finishing sweeps reuse it
+                    self._q = setup.scatter.restrict(kd.source_term(
+                        setup.coefficients, np.moveaxis(self._rho_d, -1, 0), RGB_AS_LIGHTS,
+                        [1.0] * 3))
+                q = self._q
+                grid, coefficients = setup.solve
                 for _ in range(steps):
-                    new, r2, q2 = kd.jacobi_sweep(self._rho_s, q, setup.coefficients, setup.grid)
+                    new, r2, q2 = kd.jacobi_sweep(self._rho_s, q, coefficients, grid)
                     self.residual = relative_residual(r2, q2)
                     self._rho_s = new
             return
@@ -322,6 +349,8 @@ class GpuHybrid:
         self.diffusion = GpuDiffusion(render_window)
         self.source = GpuSourceDiffusion(render_window)
         self._setup: Setup | None = None
+        #: A sample changed ρ_d since the source model last read it (its q is stale).
+        self._sampled = True
         self.program("ratio", "one", False)  # fail now, not mid-frame, when compute cannot work
 
     @property
@@ -377,8 +406,9 @@ class GpuHybrid:
         if setup.model == "source":
             assert setup.coefficients is not None
             # ρ_d's r, g, b as three "lights"; their fall-off is in the tracked samples already.
-            self.source.reset(setup.grid, setup.coefficients, 4,
-                              [kd.LightSource("directional", (0.0, 0.0, 1.0))] * 3)
+            self.source.reset(setup.grid, setup.solve[1], 4,
+                              [kd.LightSource("directional", (0.0, 0.0, 1.0))] * 3,
+                              setup.scatter, fine_sigma_s=setup.coefficients[..., 2])
         self._setup = setup
 
     def step(self, iteration: int, values: Mapping[str, Any], sample: bool = True) -> None:
@@ -391,7 +421,8 @@ class GpuHybrid:
         if not steps:
             return
         if setup.model == "source":
-            self.source.run(self.rho_d, RGB_AS_LIGHTS, steps)
+            self.source.run(self.rho_d, RGB_AS_LIGHTS, steps, source_changed=self._sampled)
+            self._sampled = False
         else:
             self.diffusion.run(self.rho_d, RGB_AS_LIGHTS, steps)
 
@@ -444,6 +475,7 @@ class GpuHybrid:
                        -(-(region[1] - region[0]) // GROUP[2])))
         unbind_images(self.render_window, 3)
         prog.done()
+        self._sampled = True
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
         """(ρ_d, ρ_s), each ``[z, y, x, 3]`` (tests and verification)."""

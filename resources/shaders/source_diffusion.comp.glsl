@@ -6,13 +6,19 @@
 // (outflow phi / (2 + h / (2 D))) towards empty voxels and the box. D = 0 marks an empty voxel.
 // Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
-// Defines: VV_CHANNELS 1, 2 or 4 (lights in vv_direct).
+// Defines: VV_CHANNELS 1, 2 or 4 (lights in vv_direct); VV_SOURCE_IMAGE 1: q is read from
+// vv_source (rgb, per um^3; the reduced grid's restricted source, source_restrict.comp.glsl)
+// instead of being computed from vv_direct on this grid.
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 
 //@include light_format.glsl
 
+#if VV_SOURCE_IMAGE
+layout(rgba32f) uniform readonly image3D vv_source;        // q (rgb) per point of this grid
+#else
 layout(VV_FORMAT) uniform readonly image3D vv_direct;      // direct light l in channel l
+#endif
 layout(rgba32f) uniform readonly image3D vv_coefficients;  // (D um, sigma_a, sigma_s, 0) per um
 layout(rgba32f) uniform readonly image3D vv_phiIn;         // phi (rgb)
 layout(rgba32f) uniform writeonly image3D vv_phiOut;
@@ -39,6 +45,9 @@ void main()
     imageStore(vv_residual, p, vec4(0.0));
     return;
   }
+#if VV_SOURCE_IMAGE
+  vec3 q = imageLoad(vv_source, p).rgb;
+#else
   vec4 rho = imageLoad(vv_direct, p);
   vec3 pos = vv_origin + vv_spacing * vec3(p);
   vec3 e0 = vec3(0.0);
@@ -53,6 +62,7 @@ void main()
     e0 += rho[l] * f * vv_color[l];
   }
   vec3 q = k.z * e0;
+#endif
   float diag = k.y;
   vec3 acc = q;
   for (int a = 0; a < 3; ++a)

@@ -37,6 +37,7 @@ from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
 
 if TYPE_CHECKING:
+    from vtkvol.engine.coarse_diffusion import ScatterGrid
     from vtkvol.engine.illuminator import Changes, Illuminator
 
 #: α is clamped below 1 before −ln(1 − α) (a fully opaque voxel keeps a finite extinction).
@@ -608,8 +609,13 @@ class GpuDiffusion(GridPrograms):
 
 class GpuSourceDiffusion(GridPrograms):
     """The source model on the GPU (``source_diffusion.comp.glsl``): φ ping-pongs between two
-    RGBA textures; the per-voxel coefficients are one RGBA texture; each sweep also writes the
-    per-voxel squared residual and source, read back (once per frame) for the stopping test."""
+    RGBA textures; the per-point coefficients are one RGBA texture; each sweep also writes the
+    per-point squared residual and source, read back (once per frame) for the stopping test.
+
+    On a reduced grid (a coarse :class:`~vtkvol.engine.coarse_diffusion.ScatterGrid`) φ, the
+    coefficients and the residual live on the coarse cells; :meth:`run` restricts q = σ_s·E_0
+    from the data grid's direct light into a coarse source texture (``source_restrict.comp.glsl``)
+    when the direct light changed, and the sweeps read it (``VV_SOURCE_IMAGE``)."""
 
     SHADER = "source_diffusion.comp.glsl"
     LABEL = "source diffusion"
@@ -619,9 +625,14 @@ class GpuSourceDiffusion(GridPrograms):
         self._phi: list[Texture3D] = []
         self._coefficients: Texture3D | None = None
         self._residual: Texture3D | None = None
+        self._source: Texture3D | None = None  # reduced grid: the restricted q
+        self._sigma_s: Texture3D | None = None  # reduced grid: σ_s on the data grid
         self._grid = Grid((1, 1, 1), (1.0, 1.0, 1.0))
+        self._scatter: ScatterGrid | None = None
         self._channels = 1
         self._falloff: list[float] = [0.0] * 16
+        self._variants: dict[tuple[str, int, bool], ComputeProgram] = {}
+        self._restricted = False  # reduced grid: the source texture holds the current q
 
     @property
     def phi(self) -> Texture3D:
@@ -629,23 +640,49 @@ class GpuSourceDiffusion(GridPrograms):
 
     @property
     def textures(self) -> list[Texture3D]:
-        return [*self._phi, *(t for t in (self._coefficients, self._residual) if t)]
+        return [*self._phi, *(t for t in (self._coefficients, self._residual, self._source,
+                                          self._sigma_s) if t)]
+
+    def variant(self, shader: str, channels: int, source_image: bool = False) -> ComputeProgram:
+        """``shader`` compiled for ``channels`` lights (and ``VV_SOURCE_IMAGE``), once."""
+        key = (shader, channels, source_image)
+        prog = self._variants.get(key)
+        if prog is None:
+            defines = {"VV_CHANNELS": str(channels), "VV_SOURCE_IMAGE": str(int(source_image))}
+            prog = ComputeProgram(self.render_window, compute_source(shader, defines),
+                                  f"{self.LABEL} {key}")
+            self._variants[key] = prog
+        return prog
 
     def reset(self, grid: Grid, coefficients: np.ndarray, channels: int,
-              lights: Sequence[LightSource]) -> None:
-        """Zero φ on ``grid``; the direct light will have ``channels`` channels, one per light of
-        ``lights`` (their fall-off applies to the source)."""
+              lights: Sequence[LightSource], scatter: ScatterGrid | None = None,
+              fine_sigma_s: np.ndarray | None = None) -> None:
+        """Zero φ; the direct light will have ``channels`` channels on the data ``grid``, one
+        per light of ``lights`` (their fall-off applies to the source). ``coefficients`` are
+        those of the grid φ is solved on: ``grid``'s, or with a coarse ``scatter`` its
+        points', and then ``fine_sigma_s`` (``[z, y, x]`` per µm, the data grid's σ_s, 0 where
+        empty) is needed for the restriction of q."""
         self._release_textures()
         rw = self.render_window
-        shape = grid.shape_zyx
+        coarse = scatter is not None and scatter.coarse
+        solve = scatter.grid if coarse else grid  # type: ignore[union-attr]
+        shape = solve.shape_zyx
         empty = np.zeros((*shape, 4), np.float32)
         self._phi = [Texture3D(rw, shape, channels=4, data=empty) for _ in range(2)]
         self._coefficients = Texture3D(rw, shape, channels=4, data=coefficients)
         self._residual = Texture3D(rw, shape, channels=2,
                                    data=np.zeros((*shape, 2), np.float32))
+        if coarse:
+            if fine_sigma_s is None:
+                raise ValueError("a reduced scattered-light grid needs the data grid's sigma_s")
+            self._source = Texture3D(rw, shape, channels=4, data=empty)
+            self._sigma_s = Texture3D(rw, grid.shape_zyx,
+                                      data=np.ascontiguousarray(fine_sigma_s, np.float32))
         for tex in self.textures:
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self._grid, self._channels = grid, channels
+        self._scatter = scatter if coarse else None
+        self._restricted = False
         flat: list[float] = []
         for light in lights:
             d0 = float(light.falloff_distance) if light.kind == "point" else 0.0
@@ -653,18 +690,55 @@ class GpuSourceDiffusion(GridPrograms):
         self._falloff = flat + [0.0] * (16 - len(flat))
 
     def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
-            sweeps: int) -> None:
-        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``."""
+            sweeps: int, source_changed: bool = True) -> None:
+        """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``. On a reduced
+        grid q is restricted first when ``source_changed`` (the direct light changed since the
+        last run) or not yet since :meth:`reset`: a restriction is a pass over the data grid,
+        which would cost more than the coarse sweeps it feeds."""
         assert self._coefficients is not None and self._residual is not None
-        prog = self.program(self._channels)
-        self.bind(prog, self._grid, (("vv_direct", direct),
-                                     ("vv_coefficients", self._coefficients),
-                                     ("vv_phiIn", None), ("vv_phiOut", None),
-                                     ("vv_residual", None)), placement=True)
+        scatter = self._scatter
+        if scatter is None:
+            prog = self.variant(self.SHADER, self._channels)
+            self.bind(prog, self._grid, (("vv_direct", direct),
+                                         ("vv_coefficients", self._coefficients),
+                                         ("vv_phiIn", None), ("vv_phiOut", None),
+                                         ("vv_residual", None)), placement=True)
+            _colours_uniforms(prog, colors)
+            prog.set_uniform_array("vv_falloff", self._falloff, size=4)
+            solve = self._grid
+        else:
+            assert self._source is not None and self._sigma_s is not None
+            if source_changed or not self._restricted:
+                self._restrict(direct, colors, scatter)
+                self._restricted = True
+            prog = self.variant(self.SHADER, 4, source_image=True)
+            solve = scatter.grid
+            self.bind(prog, solve, (("vv_source", self._source),
+                                    ("vv_coefficients", self._coefficients),
+                                    ("vv_phiIn", None), ("vv_phiOut", None),
+                                    ("vv_residual", None)))
+            prog.set_uniform("vv_spacing", *solve.spacing, kind="f")  # vv_origin is unused
+        self._residual.bind_image(4, "write")
+        self.sweep(prog, solve, self._phi, (2, 3), sweeps, bound=5)
+
+    def _restrict(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                  scatter: ScatterGrid) -> None:
+        """q on the data grid, restricted into the coarse source texture."""
+        assert self._source is not None and self._sigma_s is not None
+        prog = self.variant("source_restrict.comp.glsl", self._channels)
+        self.bind(prog, scatter.grid, (("vv_direct", direct), ("vv_sigmaS", self._sigma_s),
+                                       ("vv_source", None)))
+        nz, ny, nx = self._grid.shape_zyx
+        prog.set_uniform("vv_fineDims", nx, ny, nz)
+        prog.set_uniform("vv_cell", *scatter.cells_xyz, kind="f")
+        prog.set_uniform("vv_origin", *self._grid.origin, kind="f")
+        prog.set_uniform("vv_spacing", *self._grid.spacing, kind="f")
         _colours_uniforms(prog, colors)
         prog.set_uniform_array("vv_falloff", self._falloff, size=4)
-        self._residual.bind_image(4, "write")
-        self.sweep(prog, self._grid, self._phi, (2, 3), sweeps, bound=5)
+        self._source.bind_image(2, "write")
+        prog.dispatch(dispatch_groups(scatter.grid))
+        unbind_images(self.render_window, 3)
+        prog.done()
 
     def residual(self) -> tuple[float, float]:
         """(Σ residual², Σ source²) of the last sweep's starting φ."""
@@ -676,10 +750,13 @@ class GpuSourceDiffusion(GridPrograms):
         for tex in self.textures:
             tex.release()
         self._phi = []
-        self._coefficients = self._residual = None
+        self._coefficients = self._residual = self._source = self._sigma_s = None
 
     def release(self) -> None:
         self._release_textures()
+        for prog in self._variants.values():
+            prog.release()
+        self._variants.clear()
         super().release()
 
 

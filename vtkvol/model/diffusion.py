@@ -10,10 +10,14 @@ from vtkvol.model.params import Invalidates, Param
 DIFFUSION_MODELS = ("source", "published")
 #: The source model's stopping tolerance: relative residual ‖b − Aφ‖/‖b‖.
 DEFAULT_TOLERANCE = 1e-4
+#: The grids the source model's scattered light can be solved on, the default first: the data
+#: grid, or ⌈n/2⌉ / ⌈n/4⌉ cells per axis tiling the same extent (issue 24).
+SCATTER_GRIDS = ("full", "half", "quarter")
 
 
 def diffusion_model_params(invalidates: Invalidates) -> tuple[Param, ...]:
-    """``diffusion_model`` and ``tolerance``, restarting the accumulation (``invalidates``)."""
+    """``diffusion_model``, ``tolerance`` and ``scatter_grid``, restarting the accumulation
+    (``invalidates``)."""
     return (
         Param(
             "diffusion_model", "source", "Diffusion model",
@@ -29,5 +33,15 @@ def diffusion_model_params(invalidates: Invalidates) -> tuple[Param, ...]:
             "Source model: the scattered light is final once the relative residual of its "
             "equation is below this.",
             kind="float", range=(1e-8, 0.1), invalidates=invalidates, uniform=False,
+        ),
+        Param(
+            "scatter_grid", SCATTER_GRIDS[0], "Scattered-light grid",
+            "Source model: the grid the scattered light is solved on — full: the data grid; "
+            "half / quarter: ½ or ¼ of the cells per axis over the same extent (8× or 64× "
+            "fewer unknowns and texels, fewer and cheaper sweeps; the light is smoother, the "
+            "error measured in docs/benchmarks.md). The direct light stays on the data grid.",
+            kind="choice", choices=SCATTER_GRIDS, invalidates=invalidates, uniform=False,
+            choice_labels=("Data grid", "½ per axis", "¼ per axis"),
+            applies_when=(("diffusion_model", ("source",)),),
         ),
     )

@@ -6,6 +6,8 @@
 // Textures (bound by the host, retyped from int to sampler3D):
 //   vv_hybrid_diffusion_direct     rho_d: running mean of the direct light (rgb)
 //   vv_hybrid_diffusion_scattered  rho_s: diffused light (rgb)
+//     on the data grid, or on the reduced grid of scatter_grid (⌈n/2⌉ or ⌈n/4⌉ texels per
+//     axis tiling the same extent): either way sampled at texPos, like the data
 
 //@inject //VTK::ComputeLighting::Dec pre before
 float vv_light_visibility(int light, vec3 texPos, vec3 dirDS) { return 0.0; }
