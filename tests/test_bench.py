@@ -540,9 +540,17 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     # every technique's checkpoint is also measured against the camera path tracer
     techniques = [r for r in result["records"] if r["method"] != "camera_path_tracer"]
     assert all(10.0 < r["psnr_pt"] < 80.0 for r in techniques)
-    recs = [r for r in techniques if r["method"] not in ("translucency", "half_angle_slicing")]
-    assert {(r["method"], r["lights"]) for r in recs} == {
-        (m, n) for m in ("convection_diffusion", "hybrid_diffusion") for n in (1, 3)}
+    every = [r for r in techniques if r["method"] not in ("translucency", "half_angle_slicing")]
+    # KD and HD run with both diffusion models (issue 24): the default under its own name,
+    # seed 003's published model beside it
+    assert {(r["method"], r["lights"]) for r in every} == {
+        (m + model, n) for m in ("convection_diffusion", "hybrid_diffusion")
+        for model in ("", "/published") for n in (1, 3)}
+    published = [r for r in every if r["method"].endswith("/published")]
+    assert {r["short"] for r in published} == {"KD published", "HD published"}
+    assert {r["diffusion_model"] for r in published} == {"published"}
+    recs = [r for r in every if r not in published]
+    assert {r["diffusion_model"] for r in recs} == {"source"}
     for method, lights in {(r["method"], r["lights"]) for r in recs}:
         rows = [r for r in recs if r["method"] == method and r["lights"] == lights]
         its = [r["iteration"] for r in rows]
@@ -562,10 +570,11 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     # KD keeps a light volume per light; HD's memory does not grow with the lights
     assert mem[("convection_diffusion", 3)] > mem[("convection_diffusion", 1)]
     assert mem[("hybrid_diffusion", 3)] == mem[("hybrid_diffusion", 1)]
-    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 9
+    assert len(summary(recs)) == 4 and len(summary(result["records"])) == 13
     md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
     assert "## Multiple scattering: convergence (test," in md and "| KD | " in md
     assert "| camera PT | " in md and "| T + indirect | " in md and "| half-angle | " in md
+    assert "| KD published | " in md and "| HD published | " in md
     assert "**The two truths**" in md and f"| {scene.name} | 3 | 16 | " in md
     assert result["paths"]["scattering"].exists() and result["paths"]["two_truths"].exists()
     doc = report.load(tmp_path / "benchmarks.json")

@@ -79,6 +79,9 @@ class StudyConfig:
     camera_paths: int = 256
     #: Jittered frames of half-angle slicing (one-light runs only); 0: not run.
     half_angle_frames: int = 8
+    #: Each technique that declares ``diffusion_model`` runs once per model listed here
+    #: (issue 24: the new default beside seed 003's published model, on one chart).
+    diffusion_models: tuple[str, ...] = ("source", "published")
 
 
 def checkpoints(limit: int) -> list[int]:
@@ -214,13 +217,15 @@ def study_scene(rig: Any, cache: ReferenceCache, scene: Scene, methods: Sequence
                     print(f"vtkvol bench --scattering: the camera path tracer on {scene.name} "
                           f"({count} lights) failed: {exc}", file=stream)
         for method in methods:
-            try:
-                records += _study_method(rig, method, refs, config, common,
-                                         voxels=int(np.prod(lit.shape)), camera=camera)
-            except Exception as exc:  # one failing method must not end the study
-                if stream is not None:
-                    print(f"vtkvol bench --scattering: {method} on {scene.name} "
-                          f"({count} lights) failed: {exc}", file=stream)
+            for variant, parameters in _variants(method, config):
+                try:
+                    records += _study_method(rig, method, refs, config, common,
+                                             voxels=int(np.prod(lit.shape)), camera=camera,
+                                             parameters=parameters, variant=variant)
+                except Exception as exc:  # one failing method must not end the study
+                    if stream is not None:
+                        print(f"vtkvol bench --scattering: {variant} on {scene.name} "
+                              f"({count} lights) failed: {exc}", file=stream)
         if config.half_angle_frames and count == 1:
             try:
                 records += study_half_angle(rig, refs, config, common, camera)
@@ -274,20 +279,41 @@ def _study_once(rig: Any, method: str, refs: dict[str, np.ndarray], common: dict
     }]
 
 
+def _variants(method: str, config: StudyConfig) -> list[tuple[str, dict[str, Any]]]:
+    """The runs of ``method`` in the study, as (record name, parameters): one per model of
+    :attr:`StudyConfig.diffusion_models` for a technique that declares ``diffusion_model``
+    (the declared default keeps the plain name, another model is ``method/model``), else
+    one."""
+    from vtkvol.engine.technique import installed_techniques
+
+    spec = installed_techniques()[method].SPEC
+    if "diffusion_model" not in spec.defaults() or not config.diffusion_models:
+        return [(method, {})]
+    default = spec.defaults()["diffusion_model"]
+    return [(method if model == default else f"{method}/{model}", {"diffusion_model": model})
+            for model in config.diffusion_models]
+
+
 def _study_method(rig: Any, method: str, refs: dict[str, np.ndarray], config: StudyConfig,
-                  common: dict[str, Any], voxels: int, camera: np.ndarray | None = None
+                  common: dict[str, Any], voxels: int, camera: np.ndarray | None = None,
+                  parameters: dict[str, Any] | None = None, variant: str | None = None
                   ) -> list[dict[str, Any]]:
-    """Restart ``method`` and record every checkpoint up to its end (or the time limit);
-    ``camera``: the camera truth, each checkpoint's ``psnr_pt`` (None without one)."""
+    """Restart ``method`` with ``parameters`` and record every checkpoint up to its end (or
+    the time limit) under the name ``variant`` (default ``method``); ``camera``: the camera
+    truth, each checkpoint's ``psnr_pt`` (None without one)."""
     from vtkvol.engine.technique import installed_techniques
 
     if not installed_techniques()[method].SPEC.has("progressive"):
         return _study_once(rig, method, refs, common, voxels, camera)
-    rig.set_method(method, {"max_iterations": 1})
+    parameters = dict(parameters or {})
+    rig.set_method(method, {**parameters, "max_iterations": 1})
     rig.rw.Render()  # build: shaders, textures, first iteration
     limit = _iteration_limit(rig)
     spec = rig.illuminator.spec  # the declared short name (first bench setting's label)
     short = spec.bench[0].label if spec.bench else method
+    if variant is not None and variant != method:
+        short = f"{short} {variant.split('/', 1)[1]}"
+    name = variant or method
     rig.illuminator.invalidate()  # restart: the timed run starts from nothing
     records: list[dict[str, Any]] = []
     spent = 0.0
@@ -299,7 +325,9 @@ def _study_method(rig: Any, method: str, refs: dict[str, np.ndarray], config: St
         ss = image_metrics(image, refs["ss"])
         texture_bytes = tech.stats().get("texture_bytes")
         records.append({
-            **common, "method": method, "short": short, "iteration": int(tech.iteration),
+            **common, "method": name, "short": short, "iteration": int(tech.iteration),
+            **({"diffusion_model": parameters["diffusion_model"]}
+               if "diffusion_model" in parameters else {}),
             "seconds": spent, "iterations_per_s": tech.iteration / spent if spent > 0 else None,
             "rmse_ms": ms["rmse"], "psnr_ms": ms["psnr"], "rmse_ss": ss["rmse"],
             "psnr_ss": ss["psnr"], "psnr_pt": _vs_camera(image, camera),

@@ -739,7 +739,7 @@ def _table1_markdown(rows: Sequence[dict[str, Any]]) -> list[str]:
         rate1, rate3 = one.get("iterations_per_s"), three.get("iterations_per_s")
         ratio = rate3 / rate1 if _finite(rate1) and _finite(rate3) and rate1 else None
         short = (one or three).get("short", method)
-        paper = PAPER_TABLE1.get(short)
+        paper = PAPER_TABLE1.get(str(short).split(" ")[0])  # both diffusion models
         out.append(f"| {scene} | {short} | {_fmt(rate1, 1)} | {_fmt(rate3, 1)} | "
                    f"{_fmt(ratio, 2)} | {_fmt(paper[1] / paper[0], 2) if paper else '–'} | "
                    f"{_fmt(one.get('bytes_per_voxel'), 0)} | "
