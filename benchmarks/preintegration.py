@@ -10,6 +10,8 @@ range wide, over the channel's own colour ramp):
 * ``shells2``, ``shells3`` (several channels, independent components, VTK's additive mixing):
   ``shell`` plus one or two more radial ramps about other centres (values 1000 − 40·r and
   1000 − 50·r), spikes at 400 and 600: two or three thin shells that cut through each other.
+* ``bead_f32``: ``bead`` as float32 (the same values; a float texture instead of VTK's 8-bit
+  one, whose filtered values llvmpipe resolves coarsely: docs/benchmarks.md).
 * ``bead2``: ``bead`` plus the same stack shifted by 30 voxels in x as a second channel, the
   second spike at a third of the contrast limits.
 Reference: post-classified at a sample distance of 1/16 voxel. Local shading, no jitter,
@@ -59,7 +61,7 @@ def shells(channels: int = 1) -> Scene:
     return data, [(centre, 10.0) for *_, centre in ramps]
 
 
-def bead(channels: int = 1) -> Scene | None:
+def bead(channels: int = 1, dtype: type | None = None) -> Scene | None:
     if not BEAD.exists():
         return None
     from vtkvol.io import read_volume
@@ -67,7 +69,9 @@ def bead(channels: int = 1) -> Scene | None:
     data = read_volume(str(BEAD))
     first = data.array[0]
     arrays = [first] + [np.roll(first, 30, axis=2)] * (channels - 1)
-    data = VolumeData.from_array(np.stack(arrays), voxel_size_um=data.voxel_size_um)
+    stack = np.stack(arrays)
+    data = VolumeData.from_array(stack if dtype is None else stack.astype(dtype),
+                                 voxel_size_um=data.voxel_size_um)
     lo, hi = contrast_limits(data, 0)
     spikes = [(0.5 * (lo + hi), 0.01 * (hi - lo)), (lo + (hi - lo) / 3, 0.01 * (hi - lo))]
     return data, spikes[:channels]
@@ -103,11 +107,11 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--size", type=int, default=192)
     parser.add_argument("--frames", type=int, default=5)
-    parser.add_argument("--scenes", nargs="+", default=["shell", "bead", "shells2", "shells3",
-                                                        "bead2"],
-                        choices=["shell", "bead", "shells2", "shells3", "bead2"])
+    names = ["shell", "bead", "bead_f32", "shells2", "shells3", "bead2"]
+    parser.add_argument("--scenes", nargs="+", default=names, choices=names)
     args = parser.parse_args()
     makers = {"shell": lambda: shells(1), "bead": lambda: bead(1),
+              "bead_f32": lambda: bead(1, np.float32),
               "shells2": lambda: shells(2), "shells3": lambda: shells(3),
               "bead2": lambda: bead(2)}
     scenes = {name: makers[name]() for name in args.scenes}
