@@ -164,7 +164,7 @@ def _parser() -> argparse.ArgumentParser:
     p_render.add_argument("--preintegration", action="store_true",
                           help="pre-integrated classification: each sample classifies the "
                                "segment from the previous one (sharp transfer functions at "
-                               "coarse sample distances; one channel, composite blend)")
+                               "coarse sample distances; one to four channels, composite blend)")
     p_render.add_argument("--adaptive-sampling", action="store_true",
                           help="larger steps (4 samples in one) where the classified opacity "
                                "is smooth, every step elsewhere (one channel, composite blend)")

@@ -294,7 +294,8 @@ class ChannelsDock(ModelDock):
         self.preintegration.setToolTip(
             "Each sample classifies the segment from the previous sample (a table of the "
             "transfer function integrated over the sample distance), so narrow opacity peaks "
-            "are not stepped over at coarse sample distances. One channel, composite blending")
+            "are not stepped over at coarse sample distances. One to four channels, composite "
+            "blending")
         form.addRow("", self.preintegration)
         self.adaptive = QCheckBox("Adaptive sampling")
         self.adaptive.setObjectName("render_adaptive_sampling")

@@ -115,21 +115,91 @@ def tf_samples(prop: vtk.vtkVolumeProperty, value_range: tuple[float, float],
     return alpha, rgb.reshape(count, 3)
 
 
+def _lookup(table: np.ndarray, front: np.ndarray, back: np.ndarray) -> np.ndarray:
+    """``table`` (``N × N × 4``) at TF coordinates ``front``, ``back`` (0…1, same shape),
+    bilinearly between entries, as the shader's texture fetch reads it (texel centres at the
+    ends): ``(..., 4)``."""
+    last = table.shape[0] - 1
+    f = np.clip(np.asarray(front, np.float64), 0.0, 1.0) * last
+    b = np.clip(np.asarray(back, np.float64), 0.0, 1.0) * last
+    i0 = np.minimum(f.astype(np.int64), last - 1)
+    j0 = np.minimum(b.astype(np.int64), last - 1)
+    fi = (f - i0)[..., None]
+    fj = (b - j0)[..., None]
+    t = table.astype(np.float64)
+    return ((t[i0, j0] * (1 - fj) + t[i0, j0 + 1] * fj) * (1 - fi)
+            + (t[i0 + 1, j0] * (1 - fj) + t[i0 + 1, j0 + 1] * fj) * fi)
+
+
+def composite_ray(tables: list[np.ndarray], scalars: np.ndarray,
+                  weights: np.ndarray | None = None, mixing: str = "additive"
+                  ) -> np.ndarray:
+    """The CPU twin of the pre-integrated ray (``host_preintegration.glsl`` inside VTK's
+    composite loop), unshaded: the premultiplied RGBA that reaches the end of one ray.
+
+    ``tables``: one pre-integration table per channel (:func:`preintegration_table`);
+    ``scalars``: ``K × C``, the channels' TF coordinates (0…1) at the ray's ``K`` samples, one
+    sample distance apart. Each sample classifies the segment from the previous sample (the
+    first one: a segment of its own value, as the shader does at the ray start) per channel
+    from that channel's table; the channels' segments are combined exactly as VTK combines
+    independent components' samples (``weights``: VTK's component weights, default 1;
+    ``mixing``: ``"additive"``, VTK's opacity-weighted mean alpha, or ``"composite"``, the
+    channels as independent absorbers, RenderSettings.channel_mixing), then composited front
+    to back."""
+    scalars = np.asarray(scalars, np.float64).reshape(len(scalars), -1)
+    count, channels = scalars.shape
+    w = np.ones(channels) if weights is None else np.asarray(weights, np.float64)
+    front = np.vstack([scalars[:1], scalars[:-1]])
+    rgba = np.stack([_lookup(tables[c], front[:, c], scalars[:, c]) for c in range(channels)],
+                    axis=1)                                      # K × C × 4, associated
+    alpha = rgba[:, :, 3]
+    # The colour VTK's computeColor returns: the segment's colour (associated / opacity).
+    with np.errstate(invalid="ignore", divide="ignore"):
+        colour = np.where(alpha[..., None] > 0, np.clip(rgba[:, :, :3] / alpha[..., None],
+                                                        0.0, 1.0), 0.0)
+    out = np.zeros(4)
+    for k in range(count):
+        total = float(np.sum(alpha[k] * w))
+        tmp = np.zeros(4)
+        if total > 0.0:
+            for c in range(channels):
+                if w[c] <= 0:
+                    continue
+                tmp[:3] += colour[k, c] * alpha[k, c] * w[c]
+                if mixing == "composite":
+                    tmp[3] = 1.0 - (1.0 - tmp[3]) * (1.0 - alpha[k, c] * w[c])
+                else:
+                    tmp[3] += alpha[k, c] ** 2 / total
+        out = (1.0 - out[3]) * tmp + out
+    return out
+
+
 class PreIntegrator:
-    """The pre-integration table of one illuminated volume, rebuilt when the TF, the data
-    range, the sample distance or the opacity unit distance change, and bound as
-    ``vv_piTable`` (one R32F texture of ``N`` columns × ``4N`` rows: the R, G, B and A planes
-    stacked, rows = front sample, columns = back sample)."""
+    """The pre-integration tables of one illuminated volume's channels, rebuilt when a
+    channel's TF, its data range, the sample distance or its opacity unit distance change, and
+    bound as ``vv_piTable``: one atlas, an R32F texture of ``N`` columns × ``4CN`` rows for
+    ``C`` channels (channel ``c``'s R, G, B and A planes are planes ``4c`` … ``4c + 3``, each
+    ``N`` rows; rows = front sample, columns = back sample)."""
 
     def __init__(self, host: Any) -> None:
         self._host = host
         self._key: tuple | None = None
         self._texture: Texture2D | None = None
-        self._tables: dict[tuple, np.ndarray] = {}  # the last two tables built, by key
-        #: The last table built (``N × N × 4``), for tests and diagnostics.
-        self.table: np.ndarray | None = None
-        #: Whether the last frame drew with the table, and if not why (a sentence).
+        self._tables: dict[tuple, np.ndarray] = {}  # recent tables, by (channel, key)
+        #: The channels' last tables (``N × N × 4`` each), for tests and diagnostics.
+        self.tables: list[np.ndarray] = []
+        #: Whether the last frame drew with the tables, and if not why (a sentence).
         self.stats: dict[str, Any] = {"active": False, "reason": "switched off"}
+
+    @property
+    def table(self) -> np.ndarray | None:
+        """The first channel's last table (``N × N × 4``), or None."""
+        return self.tables[0] if self.tables else None
+
+    def channels(self) -> int:
+        """How many components the volume's scalars have (1…4)."""
+        scalars = self._host.image.GetPointData().GetScalars()
+        return scalars.GetNumberOfComponents() if scalars is not None else 1
 
     def why_not(self) -> str | None:
         """None when the volume's settings allow pre-integration, else why not."""
@@ -138,17 +208,16 @@ class PreIntegrator:
             return "switched off"
         prop = host.volume.GetProperty()
         mapper = host.volume.GetMapper()
-        scalars = host.image.GetPointData().GetScalars()
-        ncomp = scalars.GetNumberOfComponents() if scalars is not None else 1
+        ncomp = self.channels()
         if mapper.GetBlendMode() != vtk.vtkVolumeMapper.COMPOSITE_BLEND:
             return "only composite blending integrates segments"
-        if ncomp != 1:
-            return "one channel only (several channels classify each sample)"
+        if ncomp > 1 and not prop.GetIndependentComponents():
+            return "dependent components (colour data) have no transfer function per channel"
         if prop.GetTransferFunctionMode() != vtk.vtkVolumeProperty.TF_1D:
             return "2-D transfer functions are not supported"
         if prop.GetInterpolationType() == vtk.VTK_NEAREST_INTERPOLATION:
             return "nearest-voxel interpolation (labels) has no linear segment"
-        if prop.HasGradientOpacity(0):
+        if any(prop.HasGradientOpacity(c) for c in range(ncomp)):
             return "gradient opacity is not supported"
         if host.spec.lighting != "surface":
             return "medium techniques colour samples themselves"
@@ -159,7 +228,7 @@ class PreIntegrator:
         return bool(self.stats.get("active"))
 
     def update(self) -> None:
-        """Rebuild and bind the table if needed, or unbind it (``stats`` says why)."""
+        """Rebuild and bind the tables if needed, or unbind them (``stats`` says why)."""
         why = self.why_not()
         if why is not None:
             self.stats = {"active": False, "reason": why}
@@ -168,30 +237,45 @@ class PreIntegrator:
         host = self._host
         prop = host.volume.GetProperty()
         mapper = host.volume.GetMapper()
-        value_range = tuple(host.image.GetPointData().GetScalars().GetRange(0))
+        scalars = host.image.GetPointData().GetScalars()
+        ncomp = self.channels()
         distance = float(mapper.GetSampleDistance())
-        unit = float(prop.GetScalarOpacityUnitDistance(0))
-        key = (prop.GetScalarOpacity(0).GetMTime(), prop.GetRGBTransferFunction(0).GetMTime(),
-               value_range, distance, unit)
+        keys = []
+        for c in range(ncomp):
+            # VTK's table coordinate of component c spans that component's data range.
+            value_range = tuple(scalars.GetRange(c))
+            unit = float(prop.GetScalarOpacityUnitDistance(c))
+            keys.append((c, prop.GetScalarOpacity(c).GetMTime(),
+                         prop.GetRGBTransferFunction(c).GetMTime(), value_range, distance,
+                         unit))
+        key = tuple(keys)
         if key != self._key or self._texture is None:
-            # The table costs about a second on two CPU cores (256 × 256 segments of 256
+            # A table costs about a second on two CPU cores (256 × 256 segments of 256
             # sub-steps); the full-quality and the interactive sample distance alternate with
-            # every camera move, so the last two tables are kept.
-            if key not in self._tables:
-                alpha, rgb = tf_samples(prop, value_range)
-                self._tables[key] = preintegration_table(alpha, rgb, distance, unit)
-                while len(self._tables) > 2:
-                    self._tables.pop(next(iter(self._tables)))
-            self.table = self._tables[key]
-            planes = np.concatenate([self.table[:, :, c] for c in range(4)], axis=0)
+            # every camera move, so each channel's last two tables are kept (and a channel
+            # whose TF did not change is not integrated again).
+            for k in keys:
+                if k not in self._tables:
+                    c, value_range, unit = k[0], k[3], k[5]
+                    alpha, rgb = tf_samples(prop, value_range, component=c)
+                    self._tables[k] = preintegration_table(alpha, rgb, distance, unit)
+            while len(self._tables) > 2 * ncomp:
+                self._tables.pop(next(iter(self._tables)))
+            self.tables = [self._tables[k] for k in keys]
+            planes = np.concatenate([t[:, :, p] for t in self.tables for p in range(4)],
+                                    axis=0)
+            if self._texture is not None and self._texture.shape != planes.shape:
+                self._texture.release()  # the number of channels changed
+                self._texture = None
             if self._texture is None:
                 self._texture = Texture2D(host.render_window, planes)
             else:
                 self._texture.upload(planes)
             self._key = key
         host.bind_texture("vv_piTable", self._texture, "sampler2D")
-        self.stats = {"active": True, "reason": "", "sample_distance": distance,
-                      "unit_distance": unit}
+        self.stats = {"active": True, "reason": "", "channels": ncomp,
+                      "sample_distance": distance,
+                      "unit_distance": float(prop.GetScalarOpacityUnitDistance(0))}
 
     def drop(self) -> None:
         self._host.unbind_texture("vv_piTable")

@@ -57,6 +57,10 @@ _MULTICHANNEL_LINES = {
 #: classification puts there (host_preintegration.glsl).
 _COLOR_FETCH = "texture2D(in_colorTransferFunc_0[0],"
 _PI_COLOR_FETCH = "vv_piColorTex(in_colorTransferFunc_0[0],"
+#: The same for component ``c`` of independent components (VTK 9.7 spells the fetch over two
+#: lines, the first ending in twelve spaces): the component's index goes in front.
+_COLOR_FETCH_COMPONENT = "texture2D(            \n      in_colorTransferFunc_0[{c}],"
+_PI_COLOR_FETCH_COMPONENT = "vv_piColorTex({c},            \n      in_colorTransferFunc_0[{c}],"
 
 
 @functools.lru_cache(maxsize=64)
@@ -173,10 +177,14 @@ class ShaderBuilder:
         the volume's current state, and what the built shader must then contain."""
         sections = shaders.load("host_prelude.glsl")
         preintegrated = self._host.preintegration.active
+        pi_channels = self._host.preintegration.channels() if preintegrated else 1
         if preintegrated:
             # Innermost computeOpacity: before the slice weights and the corrected filter.
-            sections += shaders.load("host_preintegration.glsl",
-                                     {"VV_PI_SIZE": f"{float(TABLE_SIZE):.1f}"})
+            pi_defines = {"VV_PI_SIZE": f"{float(TABLE_SIZE):.1f}",
+                          "VV_PI_CHANNELS": str(pi_channels)}
+            if pi_channels > 1:
+                pi_defines["VV_INDEPENDENT"] = "1"
+            sections += shaders.load("host_preintegration.glsl", pi_defines)
         if self._host._weights is not None:
             img = self._host.image
             ncomp = img.GetPointData().GetScalars().GetNumberOfComponents()
@@ -237,9 +245,13 @@ class ShaderBuilder:
                     absent_lines.add(line)
         if preintegrated:
             # VTK's colour-table fetch in computeColor reads the segment's colour instead.
-            replacements[(_COLOR_FETCH, "post")] = _PI_COLOR_FETCH
-            expected_lines.add(_PI_COLOR_FETCH)
-            absent_lines.add(_COLOR_FETCH)
+            fetches = ([(_COLOR_FETCH, _PI_COLOR_FETCH)] if pi_channels == 1 else
+                       [(_COLOR_FETCH_COMPONENT.format(c=c), _PI_COLOR_FETCH_COMPONENT.format(c=c))
+                        for c in range(pi_channels)])
+            for fetch, replaced in fetches:
+                replacements[(fetch, "post")] = replaced
+                expected_lines.add(replaced)
+                absent_lines.add(fetch)
         for name, (_texture, sampler) in self._host._textures.items():
             replacements[(f"uniform int {name};", "post")] = f"uniform {sampler} {name};"
             expected_lines.add(f"uniform {sampler} {name};")

@@ -354,8 +354,9 @@ class RenderSettings(EventedModel):
     #: Pre-integrated classification (unit-free switch; docs/rendering.md): each sample
     #: classifies the segment from the previous sample instead of the point, from a 2-D table
     #: of the transfer function integrated over the sample distance, so a sharp TF (a narrow
-    #: opacity spike) is not stepped over at coarse sample distances. One channel, composite
-    #: blend, 1-D TF, surface methods; elsewhere samples are post-classified as before.
+    #: opacity spike) is not stepped over at coarse sample distances. One to four channels
+    #: (one table each, mixed as VTK mixes independent components), composite blend, 1-D TF,
+    #: surface methods; elsewhere samples are post-classified as before.
     preintegration: bool = False
     #: Adaptive sampling (unit-free switch; docs/rendering.md): in 8³-voxel bricks where the
     #: transfer function's opacity varies by at most 0.02 over the brick's values, one sample
