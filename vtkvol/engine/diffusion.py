@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 import vtk
@@ -37,7 +37,6 @@ from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
 
 if TYPE_CHECKING:
-    from vtkvol.engine.coarse_diffusion import ScatterGrid
     from vtkvol.engine.illuminator import Changes, Illuminator
 
 #: α is clamped below 1 before −ln(1 − α) (a fully opaque voxel keeps a finite extinction).
@@ -98,6 +97,20 @@ class Grid:
             (oy + sy * np.arange(ny, dtype=np.float64))[None, :, None],
             (oz + sz * np.arange(nz, dtype=np.float64))[:, None, None],
         )
+
+
+class ReducedGrid(Protocol):
+    """What the GPU solver reads of the grid the scattered light is solved on
+    (:class:`vtkvol.engine.coarse_diffusion.ScatterGrid`, which builds on this module)."""
+
+    @property
+    def grid(self) -> Grid: ...  # the grid φ is solved on (the data's, or coarser)
+
+    @property
+    def coarse(self) -> bool: ...  # whether that grid is coarser than the data's
+
+    @property
+    def cells_xyz(self) -> tuple[float, float, float]: ...  # data voxels per coarse cell
 
 
 @dataclass(frozen=True)
@@ -628,7 +641,7 @@ class GpuSourceDiffusion(GridPrograms):
         self._source: Texture3D | None = None  # reduced grid: the restricted q
         self._sigma_s: Texture3D | None = None  # reduced grid: σ_s on the data grid
         self._grid = Grid((1, 1, 1), (1.0, 1.0, 1.0))
-        self._scatter: ScatterGrid | None = None
+        self._scatter: ReducedGrid | None = None
         self._channels = 1
         self._falloff: list[float] = [0.0] * 16
         self._variants: dict[tuple[str, int, bool], ComputeProgram] = {}
@@ -655,7 +668,7 @@ class GpuSourceDiffusion(GridPrograms):
         return prog
 
     def reset(self, grid: Grid, coefficients: np.ndarray, channels: int,
-              lights: Sequence[LightSource], scatter: ScatterGrid | None = None,
+              lights: Sequence[LightSource], scatter: ReducedGrid | None = None,
               fine_sigma_s: np.ndarray | None = None) -> None:
         """Zero φ; the direct light will have ``channels`` channels on the data ``grid``, one
         per light of ``lights`` (their fall-off applies to the source). ``coefficients`` are
@@ -722,7 +735,7 @@ class GpuSourceDiffusion(GridPrograms):
         self.sweep(prog, solve, self._phi, (2, 3), sweeps, bound=5)
 
     def _restrict(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
-                  scatter: ScatterGrid) -> None:
+                  scatter: ReducedGrid) -> None:
         """q on the data grid, restricted into the coarse source texture."""
         assert self._source is not None and self._sigma_s is not None
         prog = self.variant("source_restrict.comp.glsl", self._channels)
