@@ -483,6 +483,21 @@ def dispatch_groups(grid: Grid) -> tuple[int, int, int]:
     return (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
 
 
+def storage(texture: Texture3D | None, render_window: vtk.vtkRenderWindow,
+            shape_zyx: tuple[int, int, int], channels: int, *, zero: bool = False) -> Texture3D:
+    """``texture`` when it already has ``shape_zyx`` and ``channels`` (a restart on the same
+    grid keeps its storage: no reallocation), else a new one (``texture`` released); zeroed
+    on the GPU with ``zero``. Left unbound from texture units (compute uses image units)."""
+    if texture is None or texture.shape != tuple(shape_zyx) or texture.channels != channels:
+        if texture is not None:
+            texture.release()
+        texture = Texture3D(render_window, shape_zyx, channels=channels)
+        texture.tex.Deactivate()  # allocated bound to a unit; image units are separate
+    if zero:
+        texture.clear()
+    return texture
+
+
 class GridPrograms:
     """One diffusion compute shader (``SHADER``), compiled once per light-channel count, and
     the dispatch loop its drivers share: image units bound, sweeps ping-ponged between two
@@ -635,16 +650,29 @@ class GpuSourceDiffusion(GridPrograms):
               lights: Sequence[LightSource]) -> None:
         """Zero φ on ``grid``; the direct light will have ``channels`` channels, one per light of
         ``lights`` (their fall-off applies to the source)."""
-        self._release_textures()
+        self.allocate_coefficients(grid.shape_zyx)
+        self.upload_coefficients(coefficients, 0)
+        self.zero(grid, channels, lights)
+
+    def allocate_coefficients(self, shape_zyx: tuple[int, int, int]) -> None:
+        """Storage for the per-voxel coefficients of a ``shape_zyx`` grid (kept when it
+        already has that shape), filled by :meth:`upload_coefficients` — a restart in parts."""
+        self._coefficients = storage(self._coefficients, self.render_window, shape_zyx, 4)
+
+    def upload_coefficients(self, slab: np.ndarray, z0: int) -> None:
+        """Coefficients ``[z, y, x, 4]`` (:func:`source_coefficients`) of layers z0… ."""
+        assert self._coefficients is not None
+        self._coefficients.upload_slab(slab, z0)
+        self._coefficients.tex.Deactivate()
+
+    def zero(self, grid: Grid, channels: int, lights: Sequence[LightSource]) -> None:
+        """φ and the residual zeroed on ``grid`` (storage kept when its shape is unchanged); the
+        direct light will have ``channels`` channels, one per light of ``lights``."""
         rw = self.render_window
         shape = grid.shape_zyx
-        empty = np.zeros((*shape, 4), np.float32)
-        self._phi = [Texture3D(rw, shape, channels=4, data=empty) for _ in range(2)]
-        self._coefficients = Texture3D(rw, shape, channels=4, data=coefficients)
-        self._residual = Texture3D(rw, shape, channels=2,
-                                   data=np.zeros((*shape, 2), np.float32))
-        for tex in self.textures:
-            tex.tex.Deactivate()  # created bound to units; image units are separate
+        old = self._phi or [None, None]
+        self._phi = [storage(t, rw, shape, 4, zero=True) for t in old]
+        self._residual = storage(self._residual, rw, shape, 2, zero=True)
         self._grid, self._channels = grid, channels
         flat: list[float] = []
         for light in lights:
@@ -655,6 +683,31 @@ class GpuSourceDiffusion(GridPrograms):
     def run(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
             sweeps: int) -> None:
         """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``."""
+        prog = self._bind_sweep(direct, colors, 0)
+        self._residual.bind_image(4, "write")  # type: ignore[union-attr]
+        self.sweep(prog, self._grid, self._phi, (2, 3), sweeps, bound=5)
+
+    def sweep_slab(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                   z0: int, z1: int) -> None:
+        """Layers z0…z1 of one Jacobi sweep (a sweep in bounded parts): they read the current
+        φ and write the next one, so the slabs of a sweep add up to :meth:`run`'s sweep bit
+        for bit; :meth:`swap` after its last slab."""
+        prog = self._bind_sweep(direct, colors, z0)
+        assert self._residual is not None
+        self._phi[0].bind_image(2, "read")
+        self._phi[1].bind_image(3, "write")
+        self._residual.bind_image(4, "write")
+        groups = dispatch_groups(self._grid)
+        prog.dispatch((groups[0], groups[1], -(-(z1 - z0) // GROUP[2])))
+        unbind_images(self.render_window, 5)
+        prog.done()
+
+    def swap(self) -> None:
+        """End a sweep drawn in slabs: the φ it wrote becomes the current one."""
+        self._phi.reverse()
+
+    def _bind_sweep(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                    z0: int) -> ComputeProgram:
         assert self._coefficients is not None and self._residual is not None
         prog = self.program(self._channels)
         self.bind(prog, self._grid, (("vv_direct", direct),
@@ -663,8 +716,8 @@ class GpuSourceDiffusion(GridPrograms):
                                      ("vv_residual", None)), placement=True)
         _colours_uniforms(prog, colors)
         prog.set_uniform_array("vv_falloff", self._falloff, size=4)
-        self._residual.bind_image(4, "write")
-        self.sweep(prog, self._grid, self._phi, (2, 3), sweeps, bound=5)
+        prog.set_uniform("vv_zFirst", z0)
+        return prog
 
     def residual(self) -> tuple[float, float]:
         """(Σ residual², Σ source²) of the last sweep's starting φ."""
