@@ -159,6 +159,11 @@ class HybridDiffusion(GridScattering):
         self._restarts += 1
         self._staging = self._stages(dict(values))
 
+    @property
+    def restarting(self) -> bool:
+        """A restart is being built in parts (the previous light is shown meanwhile)."""
+        return self._staging is not None
+
     def _spent_ms(self) -> float:
         return (time.perf_counter() - self._frame_t0) * 1e3
 
