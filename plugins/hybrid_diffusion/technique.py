@@ -195,9 +195,13 @@ class HybridDiffusion(GridScattering):
         sigma_t = np.empty((nz, ny, nx), np.float32)
         lam = np.empty_like(sigma_t)
         coefficients = np.empty((nz, ny, nx, 4), np.float32) if model == "source" else None
+        had_driver = self._gpu is not None
         gpu: GpuHybrid | None = self._compute.get(host, values["backend"])
+        if gpu is not None and not had_driver:
+            yield  # the driver was made now: compute checked, a program compiled
         if gpu is not None:
-            gpu = self._gl(gpu.allocate, grid.shape_zyx, model)
+            yield from self._gl_steps(gpu.input_steps(grid.shape_zyx, model))
+            gpu = self._gpu
         budget = host.work_budget_ms
         z0 = 0
         while z0 < nz:
@@ -227,12 +231,22 @@ class HybridDiffusion(GridScattering):
                                  host.phase_g, str(values["majorant"]),
                                  coefficients=coefficients, lam=lam)
         if gpu is not None:
+            yield from self._gl_steps(gpu.state_steps(self.setup))
+            gpu = self._gpu
+        if gpu is not None:
             gpu = self._gl(gpu.finish, self.setup)
         if gpu is not None:
             self._backend = "gpu"
         else:
             self.start_cpu(values)
             self._backend = "cpu"
+
+    def _gl_steps(self, steps: Iterator[None]) -> Iterator[None]:
+        """The GPU driver's ``steps``, ended by a GL failure (numpy from then on)."""
+        try:
+            yield from steps
+        except GLUnavailableError as exc:
+            self._compute.disable(exc)
 
     def _gl(self, call: Callable[..., None], *args: Any) -> GpuHybrid | None:
         """``call(*args)`` of the GPU driver: the driver, or None after a GL failure (numpy
@@ -541,9 +555,31 @@ class GpuHybrid:
     def allocate(self, shape: tuple[int, int, int], model: str) -> None:
         """Storage for a restart's per-voxel inputs on a ``shape`` grid (kept when unchanged;
         the light shown is not touched)."""
-        self._sigma = kd.storage(self._sigma, self.render_window, shape, 1)
-        if model == "source":
+        for _ in self.input_steps(shape, model):
+            pass
+
+    def input_steps(self, shape: tuple[int, int, int], model: str) -> Iterator[None]:
+        """:meth:`allocate` one new texture a step (none when the grid is unchanged)."""
+        if not kd.fits(self._sigma, shape, 1):
+            self._sigma = kd.storage(self._sigma, self.render_window, shape, 1)
+            yield
+        if model == "source" and not kd.fits(self.source.coefficients, shape, 4):
             self.source.allocate_coefficients(shape)
+            yield
+
+    def state_steps(self, setup: Setup) -> Iterator[None]:
+        """New storage for ρ_d and the source model's φ where the grid's shape differs, one
+        texture a step; :attr:`ready` is False from the first (nothing consistent to show)
+        until :meth:`finish`."""
+        shape = setup.grid.shape_zyx
+        if not kd.fits(self.rho_d, shape, 4):
+            self._setup = None
+            self.rho_d = kd.storage(self.rho_d, self.render_window, shape, 4)
+            yield
+        if setup.model == "source":
+            for _ in self.source.allocation_steps(shape):
+                self._setup = None
+                yield
 
     def upload_slab(self, sigma_t: np.ndarray, coefficients: np.ndarray | None,
                     z0: int) -> None:

@@ -24,7 +24,7 @@ rise monotonically to the solution and φ ≥ 0 at every sweep; they stop on the
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -483,12 +483,18 @@ def dispatch_groups(grid: Grid) -> tuple[int, int, int]:
     return (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
 
 
+def fits(texture: Texture3D | None, shape_zyx: tuple[int, int, int], channels: int) -> bool:
+    """``texture`` exists with this shape and channel count (:func:`storage` keeps it)."""
+    return (texture is not None and texture.shape == tuple(shape_zyx)
+            and texture.channels == channels)
+
+
 def storage(texture: Texture3D | None, render_window: vtk.vtkRenderWindow,
             shape_zyx: tuple[int, int, int], channels: int, *, zero: bool = False) -> Texture3D:
     """``texture`` when it already has ``shape_zyx`` and ``channels`` (a restart on the same
     grid keeps its storage: no reallocation), else a new one (``texture`` released); zeroed
     on the GPU with ``zero``. Left unbound from texture units (compute uses image units)."""
-    if texture is None or texture.shape != tuple(shape_zyx) or texture.channels != channels:
+    if not fits(texture, shape_zyx, channels):
         if texture is not None:
             texture.release()
         texture = Texture3D(render_window, shape_zyx, channels=channels)
@@ -643,6 +649,11 @@ class GpuSourceDiffusion(GridPrograms):
         return self._phi[0]
 
     @property
+    def coefficients(self) -> Texture3D | None:
+        """The per-voxel coefficients' texture (None before the first restart)."""
+        return self._coefficients
+
+    @property
     def textures(self) -> list[Texture3D]:
         return [*self._phi, *(t for t in (self._coefficients, self._residual) if t)]
 
@@ -664,6 +675,20 @@ class GpuSourceDiffusion(GridPrograms):
         assert self._coefficients is not None
         self._coefficients.upload_slab(slab, z0)
         self._coefficients.tex.Deactivate()
+
+    def allocation_steps(self, shape_zyx: tuple[int, int, int]) -> Iterator[None]:
+        """New storage for φ (two textures) and the residual where the grid's shape differs,
+        one texture a step (a large allocation is a large part of a frame); :meth:`zero` then
+        clears them. Between the steps φ is not consistent: show nothing of it."""
+        rw = self.render_window
+        for i in range(2):
+            if len(self._phi) <= i or not fits(self._phi[i], shape_zyx, 4):
+                tex = storage(self._phi[i] if len(self._phi) > i else None, rw, shape_zyx, 4)
+                self._phi = [*self._phi[:i], tex, *self._phi[i + 1:]]
+                yield
+        if not fits(self._residual, shape_zyx, 2):
+            self._residual = storage(self._residual, rw, shape_zyx, 2)
+            yield
 
     def zero(self, grid: Grid, channels: int, lights: Sequence[LightSource]) -> None:
         """φ and the residual zeroed on ``grid`` (storage kept when its shape is unchanged); the
