@@ -111,6 +111,9 @@ class HybridDiffusion(GridScattering):
         self._sweep_of_sample = False
         #: Measured cost (ms) of one z layer of one diffusion sweep (GPU source model).
         self._sweep_layer_ms: float | None = None
+        #: The GPU source model's (Σ residual², Σ source²) per z layer of the current unit's
+        #: last sweep, read back slab by slab.
+        self._residual_layers = np.zeros((2, 0))
         #: Finishing batches run in this accumulation (bounded by ``MAX_FINISHING_SWEEPS``).
         self._finish_batches = 0
         #: Zero light shown while the first restart is under way (nothing computed yet).
@@ -380,6 +383,8 @@ class HybridDiffusion(GridScattering):
         gpu = self._gpu
         if gpu is not None and setup.model == "source":
             z0, z1 = self._sweep_z, nz
+            if self._residual_layers.shape != (2, nz):
+                self._residual_layers = np.zeros((2, nz))
             if budget_ms is not None:
                 fit = (GROUP[2] if self._sweep_layer_ms is None
                        else int(budget_ms / max(self._sweep_layer_ms, 1e-6)))
@@ -388,6 +393,9 @@ class HybridDiffusion(GridScattering):
             gpu.source.sweep_slab(gpu.rho_d, RGB_AS_LIGHTS, z0, z1)
             if budget_ms is not None:
                 finish_gl(self.host.render_window)
+            if self._sweeps_left == 1:  # the unit's last sweep: its residual, slab by slab
+                r2, q2 = gpu.source.residual_layers(z0, z1)
+                self._residual_layers[:, z0:z1] = r2, q2
             self._sweep_layer_ms = (time.perf_counter() - t0) * 1e3 / (z1 - z0)
             self.last_work_voxels += (z1 - z0) * ny * nx
             if z1 < nz:
@@ -402,7 +410,9 @@ class HybridDiffusion(GridScattering):
         if self._sweeps_left:
             return False
         if gpu is not None and setup.model == "source":
-            self.residual = gpu.residual()  # reads back: the unit has run
+            # layer sums added in z order: the same total however the sweep was cut
+            r2, q2 = self._residual_layers.sum(axis=1)
+            self.residual = relative_residual(float(r2), float(q2))
         if self._sweep_of_sample:
             self.iteration += 1
         return True

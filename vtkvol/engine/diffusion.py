@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl, unbind_images
 from vtkvol.engine.shaders import compute_source
 from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
@@ -749,6 +749,21 @@ class GpuSourceDiffusion(GridPrograms):
         assert self._residual is not None
         r = self._residual.download().astype(np.float64)
         return float(r[..., 0].sum()), float(r[..., 1].sum())
+
+    def residual_layers(self, z0: int, z1: int) -> tuple[np.ndarray, np.ndarray]:
+        """(Σ residual², Σ source²) of each z layer z0…z1 of the last sweep, float64: read
+        back only those layers (a sweep in slabs reads each slab once). Summed layer by layer,
+        so the totals do not depend on how a sweep was cut into slabs."""
+        assert self._residual is not None
+        GL = gl(self.render_window)
+        _nz, ny, nx = self._grid.shape_zyx
+        out = np.empty((z1 - z0, ny, nx, 2), np.float32)
+        GL.glMemoryBarrier(GL.GL_ALL_BARRIER_BITS)
+        self.render_window.GetState().vtkglPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        GL.glGetTextureSubImage(self._residual.handle, 0, 0, 0, z0, nx, ny, z1 - z0, GL.GL_RG,
+                                GL.GL_FLOAT, out.nbytes, out)
+        return (out[..., 0].sum(axis=(1, 2), dtype=np.float64),
+                out[..., 1].sum(axis=(1, 2), dtype=np.float64))
 
     def _release_textures(self) -> None:
         for tex in self.textures:
