@@ -83,7 +83,9 @@ class Setup:
 
 
 class HybridDiffusion(GridScattering):
-    """Tracked direct light plus diffused multiple scattering, refined over frames."""
+    """Tracked direct light plus diffused multiple scattering, refined over frames. Its own
+    :meth:`prepare` and :meth:`_restart` (the restart in parts, :meth:`_stages`) replace the
+    base class's one-step restart (``build_setup``/``start_gpu`` are not used)."""
 
     SPEC = TECHNIQUE
     SHADER: ClassVar[str] = "hybrid_diffusion.glsl"
@@ -529,10 +531,6 @@ class GpuHybrid:
         assert self._setup is not None
         return self.source.phi if self._setup.model == "source" else self.diffusion.rho_s
 
-    def residual(self) -> float:
-        """The source model's relative residual after the last sweep's start."""
-        return relative_residual(*self.source.residual())
-
     def program(self, estimator: str, light_sampling: str, bricks: bool) -> ComputeProgram:
         key = (estimator, light_sampling, bricks)
         prog = self._programs.get(key)
@@ -555,21 +553,10 @@ class GpuHybrid:
         """An accumulation's light is there to show (a restart has finished once)."""
         return self._setup is not None and self.rho_d is not None
 
-    def reset(self, setup: Setup, values: Mapping[str, Any]) -> None:
-        """Everything for ``setup`` at once (:meth:`allocate`, :meth:`upload_slab`,
-        :meth:`finish`)."""
-        self.allocate(setup.grid.shape_zyx, setup.model)
-        self.upload_slab(setup.sigma_t, setup.coefficients, 0)
-        self.finish(setup)
-
-    def allocate(self, shape: tuple[int, int, int], model: str) -> None:
-        """Storage for a restart's per-voxel inputs on a ``shape`` grid (kept when unchanged;
-        the light shown is not touched)."""
-        for _ in self.input_steps(shape, model):
-            pass
-
     def input_steps(self, shape: tuple[int, int, int], model: str) -> Iterator[None]:
-        """:meth:`allocate` one new texture a step (none when the grid is unchanged)."""
+        """Storage for a restart's per-voxel inputs (σ_t, the source model's coefficients) on
+        a ``shape`` grid, one new texture a step (none when the grid is unchanged: kept); the
+        light shown is not touched. :meth:`upload_slab` fills them, :meth:`finish` ends."""
         if not kd.fits(self._sigma, shape, 1):
             self._sigma = kd.storage(self._sigma, self.render_window, shape, 1)
             yield
