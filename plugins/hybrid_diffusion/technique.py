@@ -100,6 +100,8 @@ class HybridDiffusion(GridScattering):
         #: Measured cost (ms) of one row (a y line of one z layer) of one sample: sizes the
         #: next region.
         self._row_ms: float | None = None
+        #: The same per slab of 4 z layers (its index z // 4), as last measured there.
+        self._row_ms_at: dict[int, float] = {}
         #: The restart under way in parts (z slabs of the per-voxel arrays, then the state):
         #: None when none is; meanwhile the previous accumulation's light stays shown.
         self._staging: Iterator[None] | None = None
@@ -341,12 +343,25 @@ class HybridDiffusion(GridScattering):
         if budget_ms is None:
             region = (0, nz, 0, ny)
         else:
-            fit = (GROUP[1] * GROUP[2] if self._row_ms is None
-                   else int(budget_ms / max(self._row_ms, 1e-6)))
-            if y0 == 0 and fit >= ny * GROUP[2]:  # whole slabs
-                layers = (fit // ny) // GROUP[2] * GROUP[2]
+            # The cost per row differs along z (paths towards the light differ in length):
+            # each slab of 4 layers is sized at its own cost in the last sample.
+            def row_ms(z: int) -> float | None:
+                return self._row_ms_at.get(z // GROUP[2], self._row_ms)
+
+            layers, spent = 0, 0.0
+            while y0 == 0 and z0 + layers < nz:
+                cost = row_ms(z0 + layers)
+                slab_ms = None if cost is None else cost * ny * GROUP[2]
+                if slab_ms is None or spent + slab_ms > budget_ms:
+                    break
+                spent += slab_ms
+                layers += GROUP[2]
+            if layers:  # whole slabs
                 region = (z0, min(nz, z0 + layers), 0, ny)
             else:  # a band of rows of one slab
+                cost = row_ms(z0)
+                fit = (GROUP[1] * GROUP[2] if cost is None
+                       else int(budget_ms / max(cost, 1e-6)))
                 z1 = min(nz, z0 + GROUP[2])
                 rows = max(GROUP[1], fit // (z1 - z0) // GROUP[1] * GROUP[1])
                 region = (z0, z1, y0, min(ny, y0 + rows))
@@ -359,6 +374,8 @@ class HybridDiffusion(GridScattering):
             self._sample_cpu(values, region)
         z0, z1, y0, y1 = region
         self._row_ms = (time.perf_counter() - t0) * 1e3 / ((z1 - z0) * (y1 - y0))
+        for group in range(z0 // GROUP[2], -(-z1 // GROUP[2])):
+            self._row_ms_at[group] = self._row_ms
         self.last_work_voxels += (z1 - z0) * (y1 - y0) * nx
         if y1 < ny:
             self._next_region = (z0, y1)
