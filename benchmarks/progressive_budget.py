@@ -7,20 +7,29 @@ frame"). Not part of the installed library; run from a checkout:
 
 Both runs use the same generated stack (the built-in confocal phantom), the same offscreen
 window (160² px) and the method's defaults; they alternate frame by frame, side by side in one
-process, for ``--seconds`` of each. Reported per run: the first frame's work (the restart:
-extinction, coefficients, majorants and textures, then the first iterations), the longest and
-median work before the render after it (``Illuminator.last_prepare_ms``: the technique's
-iterations), the longest whole frame after the first, and how many samples per voxel were
-complete after the time given.
+process, for ``--seconds`` of each. Halfway through, each run's light moves (a restart on the
+same grid). Reported per run: the two restarts — opening (the first frames: extinction,
+coefficients, majorants and textures, then the first iterations; its first frame apart, as it
+also loads PyOpenGL and compiles the compute program once per process) and the light move — as
+the frames they took and their longest work before the render (``Illuminator.last_prepare_ms``);
+the longest and median work of the frames that refine (the technique's iterations: samples,
+diffusion sweeps); the longest whole frame after the first; how many samples per voxel were
+complete after the time given. A technique without ``restarting`` (the code before the restart
+was split) restarts inside one frame.
+
+To compare two versions of the code in one run, run this file with ``PYTHONPATH`` set to the
+other checkout first (the checkout on ``sys.path`` is the one measured).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 
 import numpy as np
 
+import vtkvol
 from vtkvol.engine.illuminator import Illuminator
 from vtkvol.engine.offscreen import simple_volume_scene
 from vtkvol.io.sample import confocal_phantom
@@ -44,27 +53,42 @@ def main() -> None:
         il = Illuminator(vol, _ren, method="hybrid_diffusion",
                          lights=[Light(direction=(0.3, 0.5, 1.0))])
         il.work_budget_ms = budget
-        runs[budget] = {"rw": rw, "il": il, "prepare": [], "frame": [], "spent": 0.0}
+        runs[budget] = {"rw": rw, "il": il, "prepare": [], "frame": [], "phase": [],
+                        "spent": 0.0, "moved": False, "restart": "open"}
     while any(r["spent"] < args.seconds for r in runs.values()):
         for run in runs.values():
             if run["spent"] >= args.seconds:
                 continue
+            if not run["moved"] and run["spent"] >= args.seconds / 2:
+                run["il"].set_lights([Light(direction=(-0.3, 0.5, 1.0))])
+                run["moved"], run["restart"] = True, "light"
             t0 = time.perf_counter()
             run["rw"].Render()
             dt = time.perf_counter() - t0
             run["spent"] += dt
             run["frame"].append(dt * 1e3)
             run["prepare"].append(run["il"].last_prepare_ms)
+            run["phase"].append(run["restart"] or "refine")
+            if not getattr(run["il"].technique, "restarting", False):
+                run["restart"] = None
     print(f"hybrid diffusion, {'×'.join(map(str, args.shape))} voxels, "
-          f"{args.seconds:.0f} s each, alternating frames")
-    print("| work budget | frames | first frame: restart + work (ms) | longest work after it "
-          "(ms) | median work (ms) | longest frame after the first (ms) | samples complete |")
-    print("|---|---|---|---|---|---|---|")
+          f"{args.seconds:.0f} s each, alternating frames; code: "
+          f"{os.path.dirname(os.path.dirname(os.path.abspath(vtkvol.__file__)))}")
+    print("| work budget | frames | opening: frames, first frame's work, longest work after "
+          "it (ms) | light move: frames, "
+          "longest work (ms) | longest work refining (ms) | median work refining (ms) | "
+          "longest frame after the first (ms) | samples complete |")
+    print("|---|---|---|---|---|---|---|---|")
     for budget, run in runs.items():
         tech = run["il"].technique
-        later, frames = run["prepare"][1:] or [0.0], run["frame"][1:] or [0.0]
+        work = {k: [w for w, p in zip(run["prepare"], run["phase"], strict=True) if p == k]
+                or [0.0] for k in ("open", "light", "refine")}
+        frames = run["frame"][1:] or [0.0]
         print(f"| {'none' if budget is None else f'{budget:.0f} ms'} | {len(run['frame'])} | "
-              f"{run['prepare'][0]:.0f} | {max(later):.0f} | {float(np.median(later)):.0f} | "
+              f"{run['phase'].count('open')}, {work['open'][0]:.0f}, "
+              f"{max(work['open'][1:] or [0.0]):.0f} | "
+              f"{run['phase'].count('light')}, {max(work['light']):.0f} | "
+              f"{max(work['refine']):.0f} | {float(np.median(work['refine'])):.0f} | "
               f"{max(frames):.0f} | {tech.iteration} |")
 
 

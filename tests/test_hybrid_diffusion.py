@@ -211,11 +211,14 @@ def test_a_work_budget_draws_samples_in_parts_that_add_up_to_the_whole_sample(ba
         if budget is None:
             assert tech.iteration == 2 and not il.wants_frame
         else:
-            # 20³: z 0–4, y 0–8 of sample 0 in the first frame, nothing complete yet.
-            assert tech.iteration == 0 and tech._next_region == (0, 8) and il.wants_frame
+            # the restart's first part in the first frame, no sample yet
+            assert tech.setup is None and tech.iteration == 0 and il.wants_frame
             frames = 1 + il.converge(max_frames=100)
-            # three bands of rows (8, 8, 4) in each of five slabs of 4 layers, per sample
-            assert tech.iteration == 2 and frames == 2 * 15
+            # the restart: on the GPU the driver, σ_t's storage, then five slabs of 4 layers,
+            # ρ_d's storage, the end; per sample: three bands of rows (8, 8, 4) in each of
+            # five slabs of 4 layers, then its diffusion step
+            restart = 9 if tech._gpu is not None else 6
+            assert tech.iteration == 2 and frames == restart + 2 * 16
         rw.MakeCurrent()
         states[budget] = (tech._gpu.download() if tech._gpu is not None
                           else (tech._rho_d.copy(), tech._rho_s.copy()))
@@ -240,6 +243,78 @@ def test_a_work_budget_bounds_the_source_models_finishing_sweeps():
     tech = il.technique
     assert tech.iteration == 1 and tech.residual < 1e-4 and not il.wants_frame
     assert frames > 5  # slabs, then one batch of sweeps per frame
+    il.release()
+    rw.Finalize()
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize(("backend", "scatter_grid"),
+                         [("auto", "full"), ("cpu", "full"), ("auto", "half"), ("cpu", "half")])
+def test_a_budgeted_accumulation_converges_to_the_unbudgeted_one_bit_for_bit(backend,
+                                                                             scatter_grid):
+    """The source model under the smallest work budget (the restart in z slabs, each sample
+    in regions, each diffusion sweep in z slabs — of the reduced grid's cells with
+    ``scatter_grid = "half"`` —, the finishing sweeps in the same batches between residual
+    checks) ends on the same light, residual and image as one unbudgeted run, also after a
+    transfer-function edit restarts it mid-way."""
+    from vtkvol.engine.offscreen import grab
+
+    results = {}
+    for budget in (None, 1e-3):
+        rw, _ren, il = hd_scene(backend, max_iterations=2, diffusion_steps=2, tolerance=1e-3,
+                                scatter_grid=scatter_grid)
+        il.work_budget_ms = budget
+        for _ in range(3):
+            grab(rw)
+        # an opacity edit mid-way: the accumulation (or its staged restart) starts again
+        il.volume.GetProperty().GetScalarOpacity().AddPoint(0.5, 0.2)
+        il.converge(max_frames=2000)
+        tech = il.technique
+        assert not il.wants_frame and tech.iteration == 2 and tech.residual < 1e-3
+        image = grab(rw)
+        rw.MakeCurrent()
+        d, s = (tech._gpu.download() if tech._gpu is not None
+                else (tech._rho_d.copy(), tech._rho_s.copy()))
+        results[budget] = (d, s, tech.residual, image, tech.stats().recomputes)
+        il.release()
+        rw.Finalize()
+    (a_d, a_s, a_r, a_img, a_n), (b_d, b_s, b_r, b_img, b_n) = results[None], results[1e-3]
+    assert a_s.max() > 1e-3 and a_d.max() > 0.3
+    assert a_s.shape[:3] == ((20, 20, 20) if scatter_grid == "full" else (10, 10, 10))
+    np.testing.assert_array_equal(a_d, b_d)
+    np.testing.assert_array_equal(a_s, b_s)
+    assert a_r == b_r and a_n == b_n == 2
+    np.testing.assert_array_equal(a_img, b_img)
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("backend", ["auto", "cpu"])
+def test_no_budgeted_frame_computes_more_than_one_slab_of_voxels(backend):
+    """Work counted in voxel updates (the restart's per-voxel arrays, samples, diffusion
+    sweeps), not in time: under the smallest budget no frame does more than one slab of
+    4 z layers (GPU path; the numpy path sweeps the whole grid at once), the restart included
+    — before, the restart and each sample's sweep were whole-grid steps inside one frame."""
+    from vtkvol.engine.offscreen import grab
+
+    rw, _ren, il = hd_scene(backend, max_iterations=2, diffusion_steps=1, tolerance=1e-2)
+    slab, grid = 4 * 20 * 20, 20 * 20 * 20
+    bound = slab if backend == "auto" else grid
+    il.work_budget_ms = None
+    grab(rw)  # unbudgeted: restart and samples in one frame
+    tech = il.technique
+    assert tech.last_work_voxels >= grid * 2
+    il.work_budget_ms = 1e-3
+    il.volume.GetProperty().GetScalarOpacity().AddPoint(0.5, 0.2)
+    work = []
+    for _ in range(2000):
+        grab(rw)
+        work.append(tech.last_work_voxels)
+        if not il.wants_frame:
+            break
+    assert not il.wants_frame and tech.iteration == 2 and tech.stats().recomputes == 2
+    assert 0 < max(work) <= bound
+    # the restart alone took five frames of one slab each (20 layers)
+    assert work[:5] == [slab] * 5
     il.release()
     rw.Finalize()
 

@@ -24,6 +24,7 @@ layout(rgba32f) uniform readonly image3D vv_phiIn;         // phi (rgb)
 layout(rgba32f) uniform writeonly image3D vv_phiOut;
 layout(rg32f) uniform writeonly image3D vv_residual;       // (|b - A phi|^2, |b|^2) per voxel
 uniform ivec3 vv_dims;
+uniform int vv_zFirst;          // first z layer of this dispatch (a sweep in z slabs)
 uniform vec3 vv_spacing;        // um
 uniform vec3 vv_origin;         // um, first voxel centre
 uniform int vv_numLights;
@@ -34,7 +35,7 @@ bool outside(ivec3 p) { return any(lessThan(p, ivec3(0))) || any(greaterThanEqua
 
 void main()
 {
-  ivec3 p = ivec3(gl_GlobalInvocationID);
+  ivec3 p = ivec3(gl_GlobalInvocationID) + ivec3(0, 0, vv_zFirst);
   if (outside(p)) return;
   vec4 k = imageLoad(vv_coefficients, p);
   vec3 phi = imageLoad(vv_phiIn, p).rgb;

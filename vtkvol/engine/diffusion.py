@@ -24,14 +24,14 @@ rise monotonically to the solution and φ ≥ 0 at every sweep; they stop on the
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
 import numpy as np
 import vtk
 
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, gl, unbind_images
 from vtkvol.engine.shaders import compute_source
 from vtkvol.engine.technique import ComputePath, Technique, TechniqueStats
 from vtkvol.model.diffusion import DEFAULT_TOLERANCE as _MODEL_TOLERANCE
@@ -497,6 +497,27 @@ def dispatch_groups(grid: Grid) -> tuple[int, int, int]:
     return (-(-nx // GROUP[0]), -(-ny // GROUP[1]), -(-nz // GROUP[2]))
 
 
+def fits(texture: Texture3D | None, shape_zyx: tuple[int, int, int], channels: int) -> bool:
+    """``texture`` exists with this shape and channel count (:func:`storage` keeps it)."""
+    return (texture is not None and texture.shape == tuple(shape_zyx)
+            and texture.channels == channels)
+
+
+def storage(texture: Texture3D | None, render_window: vtk.vtkRenderWindow,
+            shape_zyx: tuple[int, int, int], channels: int, *, zero: bool = False) -> Texture3D:
+    """``texture`` when it already has ``shape_zyx`` and ``channels`` (a restart on the same
+    grid keeps its storage: no reallocation), else a new one (``texture`` released); zeroed
+    on the GPU with ``zero``. Left unbound from texture units (compute uses image units)."""
+    if not fits(texture, shape_zyx, channels):
+        if texture is not None:
+            texture.release()
+        texture = Texture3D(render_window, shape_zyx, channels=channels)
+        texture.tex.Deactivate()  # allocated bound to a unit; image units are separate
+    if zero:
+        texture.clear()
+    return texture
+
+
 class GridPrograms:
     """One diffusion compute shader (``SHADER``), compiled once per light-channel count, and
     the dispatch loop its drivers share: image units bound, sweeps ping-ponged between two
@@ -652,6 +673,11 @@ class GpuSourceDiffusion(GridPrograms):
         return self._phi[0]
 
     @property
+    def coefficients(self) -> Texture3D | None:
+        """The per-voxel coefficients' texture (None before the first restart)."""
+        return self._coefficients
+
+    @property
     def textures(self) -> list[Texture3D]:
         return [*self._phi, *(t for t in (self._coefficients, self._residual, self._source,
                                           self._sigma_s) if t)]
@@ -673,26 +699,64 @@ class GpuSourceDiffusion(GridPrograms):
         """Zero φ; the direct light will have ``channels`` channels on the data ``grid``, one
         per light of ``lights`` (their fall-off applies to the source). ``coefficients`` are
         those of the grid φ is solved on: ``grid``'s, or with a coarse ``scatter`` its
-        points', and then ``fine_sigma_s`` (``[z, y, x]`` per µm, the data grid's σ_s, 0 where
+        cells', and then ``fine_sigma_s`` (``[z, y, x]`` per µm, the data grid's σ_s, 0 where
         empty) is needed for the restriction of q."""
-        self._release_textures()
+        self.allocate_coefficients(coefficients.shape[:3])
+        self.upload_coefficients(coefficients, 0)
+        self.zero(grid, channels, lights, scatter, fine_sigma_s)
+
+    def allocate_coefficients(self, shape_zyx: tuple[int, int, int]) -> None:
+        """Storage for the per-point coefficients of the grid φ is solved on, ``shape_zyx``
+        (kept when it already has that shape), filled by :meth:`upload_coefficients` — a
+        restart in parts."""
+        self._coefficients = storage(self._coefficients, self.render_window, shape_zyx, 4)
+
+    def upload_coefficients(self, slab: np.ndarray, z0: int) -> None:
+        """Coefficients ``[z, y, x, 4]`` (:func:`source_coefficients`) of layers z0… ."""
+        assert self._coefficients is not None
+        self._coefficients.upload_slab(slab, z0)
+        self._coefficients.tex.Deactivate()
+
+    def allocation_steps(self, shape_zyx: tuple[int, int, int]) -> Iterator[None]:
+        """New storage for φ (two textures) and the residual where the solved grid's shape
+        ``shape_zyx`` differs, one texture a step (a large allocation is a large part of a
+        frame); :meth:`zero` then clears them. Between the steps φ is not consistent: show
+        nothing of it."""
+        rw = self.render_window
+        for i in range(2):
+            if len(self._phi) <= i or not fits(self._phi[i], shape_zyx, 4):
+                tex = storage(self._phi[i] if len(self._phi) > i else None, rw, shape_zyx, 4)
+                self._phi = [*self._phi[:i], tex, *self._phi[i + 1:]]
+                yield
+        if not fits(self._residual, shape_zyx, 2):
+            self._residual = storage(self._residual, rw, shape_zyx, 2)
+            yield
+
+    def zero(self, grid: Grid, channels: int, lights: Sequence[LightSource],
+             scatter: ReducedGrid | None = None,
+             fine_sigma_s: np.ndarray | None = None) -> None:
+        """φ and the residual zeroed on the grid they are solved on (``grid``, or a coarse
+        ``scatter``'s; storage kept when its shape is unchanged); the direct light will have
+        ``channels`` channels on ``grid``, one per light of ``lights``. A coarse ``scatter``
+        needs ``fine_sigma_s`` (see :meth:`reset`)."""
         rw = self.render_window
         coarse = scatter is not None and scatter.coarse
-        solve = scatter.grid if coarse else grid  # type: ignore[union-attr]
-        shape = solve.shape_zyx
-        empty = np.zeros((*shape, 4), np.float32)
-        self._phi = [Texture3D(rw, shape, channels=4, data=empty) for _ in range(2)]
-        self._coefficients = Texture3D(rw, shape, channels=4, data=coefficients)
-        self._residual = Texture3D(rw, shape, channels=2,
-                                   data=np.zeros((*shape, 2), np.float32))
+        shape = scatter.grid.shape_zyx if coarse else grid.shape_zyx  # type: ignore[union-attr]
+        old = self._phi or [None, None]
+        self._phi = [storage(t, rw, shape, 4, zero=True) for t in old]
+        self._residual = storage(self._residual, rw, shape, 2, zero=True)
         if coarse:
             if fine_sigma_s is None:
                 raise ValueError("a reduced scattered-light grid needs the data grid's sigma_s")
-            self._source = Texture3D(rw, shape, channels=4, data=empty)
-            self._sigma_s = Texture3D(rw, grid.shape_zyx,
-                                      data=np.ascontiguousarray(fine_sigma_s, np.float32))
-        for tex in self.textures:
-            tex.tex.Deactivate()  # created bound to units; image units are separate
+            self._source = storage(self._source, rw, shape, 4, zero=True)
+            self._sigma_s = storage(self._sigma_s, rw, grid.shape_zyx, 1)
+            self._sigma_s.upload_slab(np.ascontiguousarray(fine_sigma_s, np.float32), 0)
+            self._sigma_s.tex.Deactivate()
+        else:
+            for tex in (self._source, self._sigma_s):
+                if tex is not None:
+                    tex.release()
+            self._source = self._sigma_s = None
         self._grid, self._channels = grid, channels
         self._scatter = scatter if coarse else None
         self._restricted = False
@@ -706,8 +770,52 @@ class GpuSourceDiffusion(GridPrograms):
             sweeps: int, source_changed: bool = True) -> None:
         """``sweeps`` Jacobi sweeps with the source from ``direct`` × ``colors``. On a reduced
         grid q is restricted first when ``source_changed`` (the direct light changed since the
-        last run) or not yet since :meth:`reset`: a restriction is a pass over the data grid,
-        which would cost more than the coarse sweeps it feeds."""
+        last run) or not yet since :meth:`reset` (:meth:`restrict`)."""
+        self.restrict(direct, colors, source_changed)
+        prog = self._bind_sweep(direct, colors, 0)
+        assert self._residual is not None
+        self._residual.bind_image(4, "write")
+        self.sweep(prog, self.solved_grid, self._phi, (2, 3), sweeps, bound=5)
+
+    @property
+    def solved_grid(self) -> Grid:
+        """The grid φ is solved on: the data grid, or the reduced one."""
+        return self._scatter.grid if self._scatter is not None else self._grid
+
+    def restrict(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                 source_changed: bool = True) -> None:
+        """On a reduced grid: q from ``direct`` restricted into the coarse source texture
+        when ``source_changed`` or not yet since :meth:`reset` (a restriction is a pass over
+        the data grid, which would cost more than the coarse sweeps it feeds); nothing on the
+        data grid."""
+        if self._scatter is None or (self._restricted and not source_changed):
+            return
+        self._restrict(direct, colors, self._scatter)
+        self._restricted = True
+
+    def sweep_slab(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                   z0: int, z1: int) -> None:
+        """Layers z0…z1 (of the solved grid) of one Jacobi sweep (a sweep in bounded parts):
+        they read the current φ and write the next one, so the slabs of a sweep add up to
+        :meth:`run`'s sweep bit for bit; :meth:`swap` after its last slab. On a reduced grid
+        :meth:`restrict` must have run since the direct light changed."""
+        prog = self._bind_sweep(direct, colors, z0)
+        assert self._residual is not None
+        self._phi[0].bind_image(2, "read")
+        self._phi[1].bind_image(3, "write")
+        self._residual.bind_image(4, "write")
+        groups = dispatch_groups(self.solved_grid)
+        prog.dispatch((groups[0], groups[1], -(-(z1 - z0) // GROUP[2])))
+        unbind_images(self.render_window, 5)
+        prog.done()
+
+    def swap(self) -> None:
+        """End a sweep drawn in slabs: the φ it wrote becomes the current one."""
+        self._phi.reverse()
+
+    def _bind_sweep(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
+                    z0: int) -> ComputeProgram:
+        """The sweep program bound to its inputs, from layer ``z0`` of the solved grid."""
         assert self._coefficients is not None and self._residual is not None
         scatter = self._scatter
         if scatter is None:
@@ -718,21 +826,17 @@ class GpuSourceDiffusion(GridPrograms):
                                          ("vv_residual", None)), placement=True)
             _colours_uniforms(prog, colors)
             prog.set_uniform_array("vv_falloff", self._falloff, size=4)
-            solve = self._grid
         else:
-            assert self._source is not None and self._sigma_s is not None
-            if source_changed or not self._restricted:
-                self._restrict(direct, colors, scatter)
-                self._restricted = True
+            assert self._source is not None
             prog = self.variant(self.SHADER, 4, source_image=True)
-            solve = scatter.grid
-            self.bind(prog, solve, (("vv_source", self._source),
-                                    ("vv_coefficients", self._coefficients),
-                                    ("vv_phiIn", None), ("vv_phiOut", None),
-                                    ("vv_residual", None)))
-            prog.set_uniform("vv_spacing", *solve.spacing, kind="f")  # vv_origin is unused
-        self._residual.bind_image(4, "write")
-        self.sweep(prog, solve, self._phi, (2, 3), sweeps, bound=5)
+            self.bind(prog, scatter.grid, (("vv_source", self._source),
+                                           ("vv_coefficients", self._coefficients),
+                                           ("vv_phiIn", None), ("vv_phiOut", None),
+                                           ("vv_residual", None)))
+            # vv_origin is unused on a reduced grid
+            prog.set_uniform("vv_spacing", *scatter.grid.spacing, kind="f")
+        prog.set_uniform("vv_zFirst", z0)
+        return prog
 
     def _restrict(self, direct: Texture3D, colors: Sequence[tuple[float, float, float]],
                   scatter: ReducedGrid) -> None:
@@ -758,6 +862,21 @@ class GpuSourceDiffusion(GridPrograms):
         assert self._residual is not None
         r = self._residual.download().astype(np.float64)
         return float(r[..., 0].sum()), float(r[..., 1].sum())
+
+    def residual_layers(self, z0: int, z1: int) -> tuple[np.ndarray, np.ndarray]:
+        """(Σ residual², Σ source²) of each z layer z0…z1 of the last sweep, float64: read
+        back only those layers (a sweep in slabs reads each slab once). Summed layer by layer,
+        so the totals do not depend on how a sweep was cut into slabs."""
+        assert self._residual is not None
+        GL = gl(self.render_window)
+        _nz, ny, nx = self.solved_grid.shape_zyx
+        out = np.empty((z1 - z0, ny, nx, 2), np.float32)
+        GL.glMemoryBarrier(GL.GL_ALL_BARRIER_BITS)
+        self.render_window.GetState().vtkglPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        GL.glGetTextureSubImage(self._residual.handle, 0, 0, 0, z0, nx, ny, z1 - z0, GL.GL_RG,
+                                GL.GL_FLOAT, out.nbytes, out)
+        return (out[..., 0].sum(axis=(1, 2), dtype=np.float64),
+                out[..., 1].sum(axis=(1, 2), dtype=np.float64))
 
     def _release_textures(self) -> None:
         for tex in self.textures:

@@ -201,6 +201,12 @@ class Texture3D:
         GL.glTexSubImage3D(GL.GL_TEXTURE_3D, 0, 0, 0, z0, nx, ny, nz, self._pixel_format,
                            GL.GL_FLOAT, arr)
 
+    def clear(self) -> None:
+        """Set every texel of level 0 to zero on the GPU (``glClearTexImage``: no upload of a
+        zero array — a restart's zeroed state in a fraction of the upload's time)."""
+        GL = gl(self.render_window)
+        GL.glClearTexImage(self.handle, 0, self._pixel_format, GL.GL_FLOAT, None)
+
     def copy_to(self, dst: Texture3D, level: int = 0) -> None:
         """Copy level 0 into level ``level`` of ``dst`` (same size there, same channels) on
         the GPU (``glCopyImageSubData``: no binding, no read-back); shader writes issued
