@@ -41,6 +41,7 @@ from vtkvol.bench.convergence import checkpoints, with_lights
 from vtkvol.bench.measure import Rig, VtkErrors
 from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
 from vtkvol.bench.references import MediumReference, ReferenceBudget, ReferenceCache
+from vtkvol.bench.refine import box_filter, refined_scene
 from vtkvol.bench.scenes import Scene, phantom_scenes
 from vtkvol.engine.renderers import set_renderer
 
@@ -56,30 +57,6 @@ def mse(a: np.ndarray, b: np.ndarray) -> float:
 def psnr(err: float) -> float:
     """PSNR (dB, peak 255) of a mean squared error in levels²."""
     return float("inf") if err <= 0 else 10.0 * np.log10(255.0 ** 2 / err)
-
-
-def refined(scene: Scene) -> Scene:
-    """The same medium on a grid refined 2× per axis: 2n − 1 points over the same box, the
-    identity-TF data (α) resampled trilinearly (exact: the trilinear interpolant restricted to
-    a sub-cell is trilinear), the original unit distance kept."""
-    from scipy.ndimage import zoom
-
-    if scene.opacity_points != [(0.0, 0.0), (1.0, 1.0)]:
-        raise SystemExit("vtkvol: --refine: needs a scene whose data is the opacity "
-                         f"(identity TF); {scene.name} has {scene.opacity_points}")
-    unit = scene.unit_distance
-
-    class Fine(Scene):
-        @property
-        def unit_distance(self) -> float:
-            return unit
-
-    shape = scene.data.shape
-    fine = zoom(scene.data.astype(np.float64), [(2 * k - 1) / k for k in shape], order=1,
-                grid_mode=False)
-    fields = {f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)}
-    fields.update(data=fine.astype(np.float32), spacing=tuple(s / 2 for s in scene.spacing))
-    return Fine(**fields)
 
 
 def regions(ss: np.ndarray) -> dict[str, np.ndarray]:
@@ -138,7 +115,7 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
             for name, orders, seeds in (("ss", "single", (0,)), ("ms", "multiple", (0, 1))):
                 if name in refs:
                     img = reference_image(big, cache, orders, seeds, args.step)
-                    refs[name] = img.reshape(args.image, k, args.image, k, 3).mean(axis=(1, 3))
+                    refs[name] = box_filter(img, k)
         finally:
             big.close()
     ref_noise = mse(refs["ms_a"], refs["ms_b"]) / 4.0 if "ms_a" in refs else 0.0
@@ -193,7 +170,10 @@ def main() -> None:
             if args.pad:
                 base = dataclasses.replace(base, data=np.pad(base.data, args.pad))
             if args.refine:
-                base = refined(base)
+                try:
+                    base = refined_scene(base)
+                except ValueError as exc:
+                    raise SystemExit(f"vtkvol: --refine: {exc}") from None
             for count in (int(c) for c in args.lights.split(",")):
                 for rec in study(with_lights(base, count), args, cache):
                     print(json.dumps(rec), flush=True)
