@@ -149,9 +149,13 @@ def test_budget_edit_in_the_dock_chooses_again(window, qtbot):
     with qtbot.waitSignal(window.auto_quality.chosen, timeout=TIMEOUT_MS) as blocker:
         dock.auto_budget.setValue(0.5)  # widget → model
     assert window.model.illumination.auto_budget_ssim == 0.5
-    # Anything passes 0.5: the cheapest measured method, local shading, is tried first.
-    assert blocker.args[0].choice.method == "local"
-    assert window.model.illumination.method == "local"
+    # Anything passes 0.5: the first candidate tried — the cheapest by this machine's measured
+    # frames, which on a loaded machine is not always local shading — is the pick, and the
+    # model renders it.
+    choice = blocker.args[0].choice
+    assert len(choice.considered) == 1 and choice.predicted_ssim >= 0.5
+    assert choice.method == choice.considered[0]["method"]
+    assert window.model.illumination.method == choice.method
 
 
 def test_unreachable_budget_says_so(window, qtbot):
