@@ -31,6 +31,8 @@ uniform int vv_numLights;
 uniform vec3 vv_color[4];       // colour * intensity of each light
 uniform vec4 vv_falloff[4];     // position (um) and d0 (um; 0 = no fall-off) of each light
 
+//@include direct_irradiance.glsl
+
 bool outside(ivec3 p) { return any(lessThan(p, ivec3(0))) || any(greaterThanEqual(p, vv_dims)); }
 
 void main()
@@ -51,17 +53,7 @@ void main()
 #else
   vec4 rho = imageLoad(vv_direct, p);
   vec3 pos = vv_origin + vv_spacing * vec3(p);
-  vec3 e0 = vec3(0.0);
-  for (int l = 0; l < vv_numLights; ++l)
-  {
-    float f = 1.0;
-    if (vv_falloff[l].w > 0.0)
-    {
-      vec3 r = pos - vv_falloff[l].xyz;
-      f = vv_falloff[l].w * vv_falloff[l].w / max(dot(r, r), 1e-12);
-    }
-    e0 += rho[l] * f * vv_color[l];
-  }
+  vec3 e0 = vv_directIrradiance(rho, pos);
   vec3 q = k.z * e0;
 #endif
   float diag = k.y;

@@ -26,6 +26,8 @@ uniform int vv_numLights;
 uniform vec3 vv_color[4];       // colour * intensity of each light
 uniform vec4 vv_falloff[4];     // position (um) and d0 (um; 0 = no fall-off) of each light
 
+//@include direct_irradiance.glsl
+
 void main()
 {
   ivec3 p = ivec3(gl_GlobalInvocationID);
@@ -51,17 +53,7 @@ void main()
         if (sigmaS <= 0.0) continue;
         vec4 rho = imageLoad(vv_direct, i);
         vec3 pos = vv_origin + vv_spacing * vec3(i);
-        vec3 e0 = vec3(0.0);
-        for (int l = 0; l < vv_numLights; ++l)
-        {
-          float f = 1.0;
-          if (vv_falloff[l].w > 0.0)
-          {
-            vec3 r = pos - vv_falloff[l].xyz;
-            f = vv_falloff[l].w * vv_falloff[l].w / max(dot(r, r), 1e-12);
-          }
-          e0 += rho[l] * f * vv_color[l];
-        }
+        vec3 e0 = vv_directIrradiance(rho, pos);
         sum += w * sigmaS * e0;
       }
     }
