@@ -22,6 +22,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from figure_common import caption_font, shared_stack
 
 ROOT = Path(__file__).resolve().parents[1]
 STACK = "platynereis_nuclei_labels_256x256x103.tif"
@@ -63,13 +64,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-seconds", type=float, default=240.0,
                         help="time budget of a progressive method's refinement (s)")
     args = parser.parse_args(argv)
-    stack = Path(args.data) / STACK
-    if not stack.is_file():
-        print(f"vtkvol: {stack}: not found; pass the shared data folder (see its SOURCES.md)",
-              file=sys.stderr)
+    stack = shared_stack(args.data, STACK)
+    if stack is None:
         return 2
 
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw
 
     from vtkvol.engine.api import render_image
     from vtkvol.io import read_volume
@@ -103,10 +102,7 @@ def main(argv: list[str] | None = None) -> int:
     cell_w, cell_h = round(column * factor), scaled[0].height + caption_h
     canvas = Image.new("RGB", (WIDTH, 2 * cell_h + 3 * gap), "white")
     draw = ImageDraw.Draw(canvas)
-    try:
-        font = ImageFont.truetype("DejaVuSans.ttf", 30)
-    except OSError:
-        font = ImageFont.load_default(size=30)
+    font = caption_font(30)
     for i, (im, (_, caption)) in enumerate(zip(scaled, panels, strict=True)):
         x = gap + (i % 2) * (cell_w + gap)
         y = gap + (i // 2) * (cell_h + gap)

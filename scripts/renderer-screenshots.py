@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from figure_common import caption_font, shared_stack
 
 ROOT = Path(__file__).resolve().parents[1]
 STACK = "Bead_Image1_crop.tif"
@@ -60,13 +61,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--max-seconds", type=float, default=300.0,
                         help="time budget of the path tracer's refinement (s)")
     args = parser.parse_args(argv)
-    stack = Path(args.data) / STACK
-    if not stack.is_file():
-        print(f"vtkvol: {stack}: not found; pass the shared data folder (see its SOURCES.md)",
-              file=sys.stderr)
+    stack = shared_stack(args.data, STACK)
+    if stack is None:
         return 2
 
-    from PIL import Image, ImageDraw, ImageFont
+    from PIL import Image, ImageDraw
 
     from vtkvol.engine.api import render_image
     from vtkvol.io import read_volume
@@ -90,10 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     canvas = Image.new("RGB", (len(panels) * (width + gap) + gap, height + caption_h + 2 * gap),
                        "white")
     draw = ImageDraw.Draw(canvas)
-    try:
-        font = ImageFont.truetype("DejaVuSans.ttf", 17)
-    except OSError:
-        font = ImageFont.load_default(size=17)
+    font = caption_font(17)
     for i, (image, caption) in enumerate(panels):
         x = gap + i * (width + gap)
         canvas.paste(Image.fromarray(np.ascontiguousarray(image)), (x, gap))
