@@ -36,6 +36,7 @@ coarse image). Prints a markdown table; ``--json`` writes the rows too.
 from __future__ import annotations
 
 import argparse
+import cProfile
 import json
 import os
 import shutil
@@ -74,6 +75,9 @@ def main() -> None:
     parser.add_argument("--frames", action="store_true", help="print every frame's duration")
     parser.add_argument("--progressive-timeout", type=float, default=60.0,
                         help="seconds given to a progressive method before moving on")
+    parser.add_argument("--profile", type=Path, metavar="DIR",
+                        help="write each phase's cProfile statistics to DIR/<phase>.prof "
+                             "(where a stall's time goes; the profiler slows Python a little)")
     args = parser.parse_args()
     _reexec_under_xvfb()
 
@@ -167,12 +171,20 @@ def main() -> None:
         marks.clear()
         t0 = time.perf_counter()
         start_ms = clock.nsecsElapsed() / 1e6
+        profiler = cProfile.Profile() if args.profile is not None else None
+        if profiler is not None:
+            profiler.enable()
         reset_gap()
         gesture()
         during = state["max_gap"]
         gesture_s = time.perf_counter() - t0
         reset_gap()
         settled = wait_quiet(args.phase_timeout if timeout_s is None else timeout_s)
+        if profiler is not None:
+            profiler.disable()
+            args.profile.mkdir(parents=True, exist_ok=True)
+            slug = "".join(c if c.isalnum() else "-" for c in name).strip("-")
+            profiler.dump_stats(args.profile / f"{slug}.prof")
         after = state["max_gap"]
         total = time.perf_counter() - t0 - (QUIET_S if settled else 0.0)
         phase_frames = frames[frame_list0:]

@@ -64,6 +64,24 @@ def test_every_trilinear_sample_lies_in_its_bricks_range() -> None:
     assert np.any((values < lo0 - 1e-9) | (values > hi0 + 1e-9))
 
 
+@pytest.mark.parametrize("shape", [(5, 17, 9), (20, 33, 31), (1, 3, 40)])
+@pytest.mark.parametrize("apron", [0, 1, 2])
+@pytest.mark.parametrize("brick", [8, (3, 5, 7)])
+def test_brick_ranges_are_each_bricks_window_min_and_max(shape, apron, brick) -> None:
+    """The separable reduction equals the definition: min/max over the brick and ``apron``
+    voxels around it, clamped at the faces, for partial bricks and anisotropic ones."""
+    rng = np.random.default_rng(5)
+    a = rng.random((*shape, 2)).astype(np.float32)
+    ranges = occupancy.brick_ranges(a, apron=apron, brick=brick)
+    edges = occupancy.brick_shape(brick)
+    for idx in np.ndindex(*ranges.bricks_zyx):
+        window = tuple(slice(max(0, b * e - apron), min(n, (b + 1) * e + apron))
+                       for b, e, n in zip(idx, edges, shape, strict=True))
+        for c in range(2):
+            assert ranges.lo[c][idx] == a[(*window, c)].min()
+            assert ranges.hi[c][idx] == a[(*window, c)].max()
+
+
 def test_brick_ranges_of_nan_never_skip_and_bad_shapes_are_refused() -> None:
     a = np.zeros((8, 8, 16), np.float32)
     a[2, 2, 12] = np.nan

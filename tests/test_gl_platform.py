@@ -59,3 +59,15 @@ def test_an_unknown_platform_or_a_switch_after_loading_is_refused():
                           timeout=120)
     assert done.stdout.strip() == "PyOpenGL is already loaded for egl; it cannot switch to glx"
     assert GLUnavailableError.__module__ == "vtkvol.engine.errors"
+
+
+def test_loading_in_the_background_imports_pyopengl_for_the_configured_platform():
+    """The app starts PyOpenGL's ~1 s first import on a worker thread, so that no frame pays
+    for it; the platform is the configured one and the environment is left as it was."""
+    found = probe('engine_gl.configure_gl_platform("glx")\n'
+                  'import sys\n'
+                  'assert "OpenGL.GL" not in sys.modules\n'
+                  'engine_gl.load_in_background().join(120)\n'
+                  'assert "OpenGL.GL" in sys.modules and engine_gl._GL is not None',
+                  PYOPENGL_PLATFORM="egl")
+    assert found == {"env": "egl", "loaded": "GLXPlatform"}

@@ -147,6 +147,48 @@ def test_a_dearer_coarse_frame_thins_the_strips():
     assert refiner.next_tile(VIEW).tile[3] == 10  # 30 rows fitted the budget before
 
 
+def test_a_cheap_strip_does_not_widen_the_next_one():
+    """A transfer-function edit emptied the top rows: the first strip costs a tenth of its
+    prediction. That says nothing of the rows below it, so the next strip is planned from
+    their learned cost as it was (it took 2–4 budgets on llvmpipe when a cheap strip halved
+    the prediction for the rest)."""
+    refiner = measured(4.0)
+    refiner.frame_done(refiner.plan_frame(False, VIEW, 2.0), FRAME_BUDGET_MS, VIEW)
+    while (tile := refiner.next_tile(VIEW)) is not None:  # uniform rows, 4 budgets in all
+        refiner.frame_done(tile, 4 * FRAME_BUDGET_MS * tile.tile[3] / VIEW[1], VIEW)
+    per_row = 4 * FRAME_BUDGET_MS / VIEW[1]
+    refiner.frame_done(refiner.plan_frame(False, VIEW, 2.0), FRAME_BUDGET_MS, VIEW)
+    first = refiner.next_tile(VIEW)
+    refiner.frame_done(first, 0.1 * per_row * first.tile[3], VIEW)
+    second = refiner.next_tile(VIEW)
+    assert second.tile[3] * per_row <= FRAME_BUDGET_MS * (1 + 1e-9)
+    # A dearer strip still thins the next one at once.
+    refiner.frame_done(second, 2.0 * per_row * second.tile[3], VIEW)
+    assert refiner.next_tile(VIEW).tile[3] * per_row * 2.0 <= FRAME_BUDGET_MS * (1 + 1e-9)
+
+
+def test_a_band_too_dear_for_one_frame_is_drawn_in_pieces_side_by_side():
+    """On a slow machine 4 rows through the specimen took up to 1.5 s: such a band is drawn
+    in pieces across the view, each predicted within the budget, covering it once."""
+    refiner = measured(VIEW[1] / MIN_TILE_ROWS * 3.0)  # 4 rows cost 3 budgets
+    coarse = refiner.plan_frame(False, VIEW, 2.0)
+    rays = VIEW[0] * VIEW[1] / coarse.image_factor ** 2
+    refiner.frame_done(coarse, refiner.predict_ms(False, rays), VIEW)  # as predicted
+    covered = np.zeros((VIEW[1], VIEW[0]), int)
+    frames = 0
+    while (tile := refiner.next_tile(VIEW)) is not None:
+        x, y, w, h = tile.tile
+        assert h == MIN_TILE_ROWS and w < VIEW[0]
+        covered[y:y + h, x:x + w] += 1
+        frames += 1
+        refiner.frame_done(tile, 3.0 * FRAME_BUDGET_MS * w / VIEW[0], VIEW)
+        if frames == 2:  # mid-band: the band counts only when all its pieces are drawn
+            assert refiner.progress(VIEW) == 0.0
+    assert (covered == 1).all()
+    assert frames == 3 * VIEW[1] // MIN_TILE_ROWS
+    assert refiner.complete
+
+
 def test_before_any_frame_the_first_one_is_coarse():
     assert Refiner().plan_frame(False, VIEW, 2.0) == Frame("coarse", 4.0)
 

@@ -110,11 +110,16 @@ def configure_gl_platform(app: QApplication) -> None:
         return
     from vtkvol.engine.errors import GLUnavailableError
     from vtkvol.engine.gl import configure_gl_platform as use_gl_platform
+    from vtkvol.engine.gl import load_in_background
 
     try:
         use_gl_platform(gl_platform)  # the one place that decides it (vtkvol.engine.gl)
     except GLUnavailableError as exc:  # PyOpenGL already loaded in this process (tests)
         logging.getLogger(__name__).warning("vtkvol: %s", exc)
+        return
+    # Its first import takes about a second: on a worker thread now, not in the first frame
+    # that needs it (the first after opening a file froze that long).
+    load_in_background()
 
 
 class MainWindow(QMainWindow):

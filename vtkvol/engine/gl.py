@@ -12,8 +12,10 @@ Every function here expects the render window's context to be current; the techn
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import os
+import threading
 from collections.abc import Sequence
 from typing import Any, ClassVar
 
@@ -26,6 +28,8 @@ from vtkvol.engine.errors import GLUnavailableError as GLUnavailableError
 _GL: Any = None
 #: The platforms PyOpenGL can be loaded for: EGL (offscreen, Wayland) and GLX (an X context).
 GL_PLATFORMS = ("egl", "glx")
+#: Serialises PyOpenGL's first import (:func:`load_in_background` runs it on a worker thread).
+_LOAD_LOCK = threading.Lock()
 #: The platform chosen by :func:`configure_gl_platform`; None lets the first render window decide.
 _PLATFORM: str | None = None
 
@@ -57,7 +61,11 @@ def gl(render_window: vtk.vtkRenderWindow | None = None) -> Any:
     current, which is what VTK made current.
     """
     global _GL, _PLATFORM
-    if _GL is None:
+    if _GL is not None:
+        return _GL
+    with _LOAD_LOCK:
+        if _GL is not None:  # loaded meanwhile by another thread
+            return _GL
         platform = _PLATFORM or os.environ.get("PYOPENGL_PLATFORM")
         if platform is None:
             name = type(render_window).__name__ if render_window is not None else ""
@@ -75,6 +83,24 @@ def gl(render_window: vtk.vtkRenderWindow | None = None) -> Any:
                 os.environ["PYOPENGL_PLATFORM"] = before
         _GL, _PLATFORM = GL, platform
     return _GL
+
+
+def load_in_background() -> threading.Thread:
+    """Start PyOpenGL's first import (:func:`gl`) on a daemon thread and return the thread.
+
+    The import takes about a second of Python on a slow machine, and the first technique to
+    need it (the empty-space grid's upload) ran it inside a frame: the app's first frame after
+    opening or cropping froze that long (1.75 s measured on the 2-core llvmpipe machine). Call
+    it once the platform is known (:func:`configure_gl_platform`). The import needs no GL
+    context, and a failure is left for :func:`gl` to report where GL is used.
+    """
+    def load() -> None:
+        with contextlib.suppress(GLUnavailableError):
+            gl()
+
+    thread = threading.Thread(target=load, name="vtkvol-pyopengl-import", daemon=True)
+    thread.start()
+    return thread
 
 
 def compute_supported(render_window: vtk.vtkRenderWindow) -> bool:

@@ -102,12 +102,16 @@ def brick_ranges(values: np.ndarray, apron: int = 1, brick: Brick = BRICK) -> Br
     shape = tuple(int(n) for n in values.shape[:3])
     grid = brick_grid(shape, brick)
     los, his = [], []
+    edges = brick_shape(brick)
     for c in range(values.shape[3]):
-        channel = values[..., c]
-        lo = _dilate(channel, apron, np.minimum)
-        hi = _dilate(channel, apron, np.maximum)
-        lo = _block_reduce(lo, grid, brick, np.min).astype(np.float64)
-        hi = _block_reduce(hi, grid, brick, np.max).astype(np.float64)
+        lo = hi = values[..., c]
+        # min/max over a box is separable: reduce x, then y, then z, each over its bricks
+        # and their aprons; after the first axis the arrays are a brick's width smaller.
+        for axis in (2, 1, 0):
+            lo = _reduce_axis(lo, axis, grid[axis], edges[axis], apron, np.minimum)
+            hi = _reduce_axis(hi, axis, grid[axis], edges[axis], apron, np.maximum)
+        lo = lo.astype(np.float64)
+        hi = hi.astype(np.float64)
         bad = np.isnan(lo) | np.isnan(hi)
         lo[bad], hi[bad] = -np.inf, np.inf
         los.append(lo)
@@ -115,30 +119,25 @@ def brick_ranges(values: np.ndarray, apron: int = 1, brick: Brick = BRICK) -> Br
     return BrickRanges(np.stack(los), np.stack(his), apron, shape)  # type: ignore[arg-type]
 
 
-def _dilate(a: np.ndarray, radius: int, op: np.ufunc) -> np.ndarray:
-    """Running ``op`` (min or max) over a window of ±``radius`` voxels on every axis."""
-    out = a
-    for axis in range(3):
-        n = out.shape[axis]
-        acc = out.copy()
-        for s in range(1, min(radius, n - 1) + 1):
-            lower = [slice(None)] * 3
-            upper = [slice(None)] * 3
-            lower[axis], upper[axis] = slice(0, n - s), slice(s, n)
-            # acc[i] ∘= out[i + s] and acc[i + s] ∘= out[i]
-            op(acc[tuple(lower)], out[tuple(upper)], out=acc[tuple(lower)])
-            op(acc[tuple(upper)], out[tuple(lower)], out=acc[tuple(upper)])
-        out = acc
+def _reduce_axis(a: np.ndarray, axis: int, bricks: int, edge: int, apron: int,
+                 op: np.ufunc) -> np.ndarray:
+    """``op`` (np.minimum or np.maximum) along ``axis`` over each brick of ``edge`` voxels and
+    ``apron`` voxels either side, clamped at the faces (clamp-to-edge sampling): the axis
+    shrinks to ``bricks``. NaN propagates, as ``op`` does."""
+    n = a.shape[axis]
+    padded = bricks * edge - n
+    if padded:  # the last brick is partial: repeat the face voxel (it is in its window)
+        a = np.concatenate([a, np.repeat(a.take([n - 1], axis=axis), padded, axis=axis)],
+                           axis=axis)
+    shape = (*a.shape[:axis], bricks, edge, *a.shape[axis + 1:])
+    out = op.reduce(a.reshape(shape), axis=axis + 1)
+    starts = np.arange(bricks) * edge
+    for s in range(1, apron + 1):
+        before = np.clip(starts - s, 0, n - 1)
+        after = np.clip(starts + edge - 1 + s, 0, n - 1)
+        op(out, a.take(before, axis=axis), out=out)
+        op(out, a.take(after, axis=axis), out=out)
     return out
-
-
-def _block_reduce(a: np.ndarray, grid: tuple[int, int, int], brick: Brick, op) -> np.ndarray:
-    ez, ey, ex = brick_shape(brick)
-    pad = [(0, g * e - n) for g, e, n in zip(grid, (ez, ey, ex), a.shape, strict=True)]
-    if any(p for _, p in pad):
-        a = np.pad(a, pad, mode="edge")
-    bz, by, bx = grid
-    return op(a.reshape(bz, ez, by, ey, bx, ex), axis=(1, 3, 5))
 
 
 def widen_for_corrected(ranges: BrickRanges) -> BrickRanges:
