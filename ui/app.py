@@ -503,6 +503,10 @@ class MainWindow(QMainWindow):
             # Before the batch's event: the player must not take time point 0 for a request.
             self.time_player.data_opened(data, time_index,
                                          memory_budget_bytes=self.gpu_budget())
+            # The time bar appearing resizes the 3-D view, which Qt repaints at once: before
+            # the new scene exists that frame is empty, after it the new data's first frame
+            # (texture upload and shader build, ~1 s on llvmpipe) ran inside this call.
+            self._update_time_bar()
             self.document.opened(data, voxel_size_given=voxel_size is not None,
                                  sample_args=sample_args)
             self._show_data(data, reset_channels=False)

@@ -105,9 +105,9 @@ def brick_ranges(values: np.ndarray, apron: int = 1, brick: Brick = BRICK) -> Br
     edges = brick_shape(brick)
     for c in range(values.shape[3]):
         lo = hi = values[..., c]
-        # min/max over a box is separable: reduce x, then y, then z, each over its bricks
+        # min/max over a box is separable: reduce z, then y, then x, each over its bricks
         # and their aprons; after the first axis the arrays are a brick's width smaller.
-        for axis in (2, 1, 0):
+        for axis in (0, 1, 2):
             lo = _reduce_axis(lo, axis, grid[axis], edges[axis], apron, np.minimum)
             hi = _reduce_axis(hi, axis, grid[axis], edges[axis], apron, np.maximum)
         lo = lo.astype(np.float64)
