@@ -71,3 +71,36 @@ def test_measuring_frames_are_not_the_views_frames(window, monkeypatch):
     measured = [s for s in seen if s[2] is not None]
     assert measured, "no measurement ran before the full frame"
     assert all(before == after for before, after, _ in measured)
+
+
+def test_a_slow_measurement_leaves_the_frame_to_the_next_event_loop_pass(window, monkeypatch,
+                                                                          qtbot):
+    """Measuring frames and the frame in one paint held the event loop for both (0.65 s with
+    the shadow volume on a loaded llvmpipe machine): after a measurement longer than
+    SPLIT_WORK_MS the frame waits for the next pass, and events are handled in between."""
+    import time
+
+    from PySide6.QtCore import QTimer
+
+    from vtkvol.ui.viewport import SPLIT_WORK_MS
+
+    viewport, scene = window.viewport, window.viewport.scene
+    window.model.illumination.method = "shadow_volume"
+    window.model.render.auto_exposure = True
+    viewport.render_now()
+    events: list[str] = []
+    measure = scene.update_exposure
+
+    def slow() -> bool:
+        changed = measure()
+        if scene.exposure_measurement is not None and not events:
+            time.sleep(2 * SPLIT_WORK_MS / 1e3)
+            events.append("measured")
+            QTimer.singleShot(0, lambda: events.append("event"))
+        return changed
+
+    monkeypatch.setattr(scene, "update_exposure", slow)
+    viewport.frameRendered.connect(lambda *_: events.append("frame"))
+    window.model.lights[0].intensity = 0.7  # the light changed: measured again
+    qtbot.waitUntil(lambda: "frame" in events, timeout=60000)
+    assert events[:3] == ["measured", "event", "frame"], events

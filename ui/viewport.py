@@ -72,6 +72,9 @@ if TYPE_CHECKING:
 SETTLE_MS = 180
 #: The intensity probe reads the voxel under the pointer once it rests this long (ms).
 PROBE_DELAY_MS = 80
+#: Work before a frame (the automatic exposure's measuring frames) longer than this (ms)
+#: leaves the frame to the next event-loop pass.
+SPLIT_WORK_MS = 50.0
 
 
 class ScreenshotCancelled(Exception):
@@ -101,8 +104,11 @@ class ViewWidget(QtInteractor):
         self.can_reuse_frame = all(hasattr(self, name)
                                    for name in ("_blit", "_RenderWindow", "_in_paint"))
         #: Called in a paint that renders, just before the frame, with the context current
-        #: (the viewport measures the automatic exposure there).
-        self.before_frame: Callable[[], None] | None = None
+        #: (the viewport measures the automatic exposure there); when it returns True the
+        #: frame is left to the next paint, so the event loop runs in between.
+        self.before_frame: Callable[[], bool] | None = None
+        #: Set while a caller needs the frame drawn in this paint (``Viewport.render_now``).
+        self.synchronous = False
 
     def initializeGL(self) -> None:
         super().initializeGL()
@@ -123,8 +129,14 @@ class ViewWidget(QtInteractor):
             self._show_last_frame(rw)
             return
         self.needs_render = False
-        if self.before_frame is not None and rw is not None and rw.GetReadyForRendering():
-            self.before_frame()
+        ready = rw is not None and rw.GetReadyForRendering()
+        if (self.before_frame is not None and ready and self.before_frame() and reusable
+                and not self.synchronous):
+            # The work before the frame took a while: the frame in a pass of its own.
+            self.needs_render = True
+            self._show_last_frame(rw)
+            self.update()
+            return
         super().paintGL()
 
     def _show_last_frame(self, rw: vtk.vtkRenderWindow) -> None:
@@ -496,7 +508,11 @@ class Viewport(QWidget):
             return
         self._plan_full()
         self.plotter.needs_render = True
-        self.plotter.repaint()
+        self.plotter.synchronous = True
+        try:
+            self.plotter.repaint()
+        finally:
+            self.plotter.synchronous = False
 
     # -- progressive refinement (vtkvol.ui.refine) ---------------------------------------------
     def full_frame_ms(self) -> float | None:
@@ -635,21 +651,26 @@ class Viewport(QWidget):
                 "Illumination to compute it.")
         return True
 
-    def _before_frame(self) -> None:
+    def _before_frame(self) -> bool:
         """A full-quality frame is about to render: measure the automatic exposure first if
-        the light changed (two coarse frames, not shown; not while the view moves)."""
+        the light changed (two coarse frames, not shown; not while the view moves). Returns
+        True when the measurement took long enough that the frame should wait for the next
+        event-loop pass (the two together held the loop 0.65 s with the shadow volume on a
+        loaded llvmpipe machine)."""
         scene = self.scene
         if self._closed or scene is None or scene.interactive:
-            return
+            return False
         # The measuring frames are not the view's: no planned strip or image factor applies
         # to them, and they count neither as frames nor in the refiner's cost per row.
         self._measuring = True
+        t0 = time.perf_counter()
         try:
             scene.update_exposure()
         except Exception:  # a failed measurement keeps the last exposure; the view must draw
             logging.getLogger(__name__).exception("automatic exposure failed")
         finally:
             self._measuring = False
+        return (time.perf_counter() - t0) * 1e3 > SPLIT_WORK_MS
 
     def _on_frame_start(self, *_: Any) -> None:
         if self._measuring:
