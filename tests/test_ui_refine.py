@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from PySide6.QtCore import QTimer
 
-from vtkvol.ui.refine import FRAME_BUDGET_MS, MIN_TILE_ROWS, Frame, Refiner
+from vtkvol.ui.refine import FRAME_BUDGET_MS, MIN_TILE_ROWS, ONE_OFF_FACTOR, Frame, Refiner
 
 VIEW = (200, 120)
 
@@ -187,6 +187,24 @@ def test_a_band_too_dear_for_one_frame_is_drawn_in_pieces_side_by_side():
     assert (covered == 1).all()
     assert frames == 3 * VIEW[1] // MIN_TILE_ROWS
     assert refiner.complete
+
+
+def test_a_frame_with_one_off_work_is_very_coarse_and_teaches_nothing():
+    """A new texture's upload or a program's first build rides on the next frame (0.3–0.5 s
+    on llvmpipe): it casts few rays, and its time is not taken for what its rays cost."""
+    refiner = measured(4.0)
+    assert refiner.plan_frame(False, VIEW, 2.0) == Frame("coarse", 2.0)
+    refiner.expect_one_off()
+    first = refiner.plan_frame(False, VIEW, 2.0)
+    assert first == Frame("coarse", ONE_OFF_FACTOR)
+    before = refiner.predict_ms(False, VIEW[0] * VIEW[1])
+    refiner.frame_done(first, 20 * FRAME_BUDGET_MS, VIEW)  # the build took 5 s
+    assert refiner.predict_ms(False, VIEW[0] * VIEW[1]) == before
+    assert refiner.plan_frame(False, VIEW, 2.0) == Frame("coarse", 2.0)
+    # A machine that renders a full frame within the budget is not coarsened for it.
+    fast = measured(0.5)
+    fast.expect_one_off()
+    assert fast.plan_frame(False, VIEW, 2.0) == Frame("full", 1.0)
 
 
 def test_before_any_frame_the_first_one_is_coarse():

@@ -53,6 +53,9 @@ WORK_BUDGET_MS = 0.5 * FRAME_BUDGET_MS
 FACTORS = (1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 12.0, 16.0)
 #: The first coarse frame, before any frame was measured.
 UNMEASURED_FACTOR = 4.0
+#: The least image sample distance of a frame that carries one-off GL work (see
+#: :meth:`Refiner.expect_one_off`).
+ONE_OFF_FACTOR = 8.0
 #: The thinnest strip (rows): below this, a frame's fixed cost dominates.
 MIN_TILE_ROWS = 4
 #: A band of :data:`MIN_TILE_ROWS` rows predicted over the budget (rays through a dense
@@ -118,6 +121,8 @@ class Refiner:
         self.coarse_factor = 1.0
         #: Whether the last frame that finished showed the view at full quality throughout.
         self.complete = True
+        #: The next frame carries one-off GL work (:meth:`expect_one_off`).
+        self._one_off = False
 
     # -- cost model -------------------------------------------------------------------------
     def predict_ms(self, interactive: bool, rays: float) -> float | None:
@@ -142,9 +147,21 @@ class Refiner:
                 return factor
         return max(minimum, FACTORS[-1])
 
+    def expect_one_off(self) -> None:
+        """The next frame carries one-off GL work besides its rays: a new volume texture's
+        upload (a file opened, a time step) or a program's first build (another method; on
+        llvmpipe LLVM compiles it inside the draw: 0.3–0.5 s measured for VTK's ray caster,
+        uninterruptible). That frame is planned at least :data:`ONE_OFF_FACTOR` coarse, so
+        it casts few rays besides, and its time is not learned as the cost of its rays."""
+        self._one_off = True
+
     def frame_done(self, frame: Frame, frame_ms: float, view: tuple[int, int]) -> None:
         """Learn from a finished frame: ``frame_ms`` for the rays ``frame`` cast in a view of
         ``view`` (width, height) display pixels."""
+        if frame.kind == "coarse" and self._one_off:  # its time is not the rays' cost
+            self._one_off = False
+            self.complete = False
+            return
         if frame.tile is not None:
             rows = self._rows(view)
             _x, y, w, h = frame.tile
@@ -214,8 +231,10 @@ class Refiner:
             return Frame("interactive", self.fit_factor(True, view, interactive_factor))
         predicted = self.predict_ms(False, float(view[0] * view[1]))
         if predicted is not None and predicted <= self.budget_ms:
+            self._one_off = False  # a machine this fast builds and uploads fast too
             return Frame("full", 1.0)
-        self.coarse_factor = self.fit_factor(False, view, 1.0)
+        least = ONE_OFF_FACTOR if self._one_off else 1.0
+        self.coarse_factor = self.fit_factor(False, view, least)
         if self.coarse_factor <= 1.0:
             return Frame("full", 1.0)
         if self._coarse_ray_ms is not None:  # the rows were learned with that coarse frame

@@ -335,6 +335,8 @@ class Viewport(QWidget):
         #: the model's quality, as before issue 25.
         self.progressive_refinement = True
         self.refiner = Refiner()
+        #: The (method, renderer) the last planned frame drew with.
+        self._planned_look: tuple[str, str] | None = None
         #: What the next frame renders (set before each paint that renders).
         self._frame = Frame("full", 1.0)
         self._frame_fresh = False  # _frame was planned for the next frame, not rendered yet
@@ -451,6 +453,7 @@ class Viewport(QWidget):
             self.scene.progress.connect(self.illuminationProgress.emit)
         else:
             self.scene.set_data(data, reset_channels=reset_channels)
+        self.refiner.expect_one_off()  # the new texture's upload (and the first shader build)
         self._update_gizmo()
         self._update_clip_widget()
         self.request_render()
@@ -461,6 +464,7 @@ class Viewport(QWidget):
         if self._closed or self.scene is None:
             return
         self.scene.set_voxels(data)
+        self.refiner.expect_one_off()  # the new voxels' texture upload
         self.request_render()
 
     @property
@@ -534,9 +538,14 @@ class Viewport(QWidget):
     def _plan_frame(self) -> None:
         """Choose the next frame's quality for a new request (cancels any refinement)."""
         self._refine_timer.stop()
+        # Another method or renderer: its programs are built in its first frame.
+        look = (self.model.illumination.method, self.model.render.renderer)
+        new_look, self._planned_look = look != self._planned_look, look
         if self.scene is None or not self.progressive_refinement:
             self._plan_full()
             return
+        if new_look:
+            self.refiner.expect_one_off()
         self._frame = self.refiner.plan_frame(
             self.scene.interactive, self._view_px(),
             float(self.model.render.interactive_image_factor))
