@@ -135,7 +135,9 @@ class ViewWidget(QtInteractor):
             # The work before the frame took a while: the frame in a pass of its own.
             self.needs_render = True
             self._show_last_frame(rw)
-            self.update()
+            # Through a zero timer, not update(): Qt sends posted events before timers that
+            # are overdue, so the repaint would follow at once and the loop still not run.
+            QTimer.singleShot(0, self.update)
             return
         super().paintGL()
 
