@@ -25,6 +25,8 @@ image size and box-filters it, as the path tracer's jittered pixel does.
 ``--refined-supersample``× pixel box; the in-scattered light of the bench's reference
 upsampled) and adds ``psnr_refined`` (PSNR(M, refined reference)) and the refined region means
 to every checkpoint: the bench's reference and the refined one against the same camera runs.
+``--variants 4:0.125:4,2:0.0625:8`` adds more refined references (grid factor : step in unit
+distances : supersampling), each as ``psnr_<variant>``, to locate what remains.
 
 Run (one scene and light count takes 1–4 minutes on a 2-core llvmpipe machine at the
 defaults): ``python benchmarks/two_truths_bias.py [--size 24] [--image 64] [--paths 1024]
@@ -142,6 +144,16 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
         refined = render_refined(fine, args.image, wanted)
         fine.release()
         refined_seconds = time.perf_counter() - t0
+    variants: dict[str, dict[str, np.ndarray]] = {}
+    for text in filter(None, args.variants.split(",")):
+        factor, step, supersample = text.split(":")
+        fine = RefinedReferences(cache, scene, Refinement(int(factor), float(step),
+                                                          int(supersample)))
+        wanted = {"ss": MediumReference(orders="single", seeds=(0,))}
+        if "multiple" in args.modes:
+            wanted["ms"] = MediumReference(orders="multiple", seeds=(0, 1))
+        variants[text] = render_refined(fine, args.image, wanted)
+        fine.release()
     ref_noise = mse(refs["ms_a"], refs["ms_b"]) / 4.0 if "ms_a" in refs else 0.0
     for mode in args.modes:
         ref = refs["ms" if mode == "multiple" else "ss"]
@@ -165,6 +177,9 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
                 for name, mask in reg.items():
                     if mask.any():
                         rec[name + "_refined"] = round(float((m - fine_ref)[mask].mean()), 3)
+            for text, images in variants.items():
+                rec["psnr_" + text] = round(psnr(mse(m, images["ms" if mode == "multiple"
+                                                              else "ss"])), 2)
             for name, mask in reg.items():
                 if mask.any():
                     rec[name] = round(float((m - ref)[mask].mean()), 3)
@@ -193,6 +208,9 @@ def main() -> None:
     parser.add_argument("--factor", type=int, default=2, help="the refined light grid's factor")
     parser.add_argument("--refined-step", type=float, default=0.125)
     parser.add_argument("--refined-supersample", type=int, default=4)
+    parser.add_argument("--variants", default="",
+                        help="more refined references, factor:step:supersample,... "
+                             "(each adds psnr_<factor:step:supersample>)")
     args = parser.parse_args()
     args.modes = args.modes.split(",")
     if not set(args.modes) <= {"single", "multiple"}:

@@ -105,3 +105,46 @@ def test_refined_reference_is_closer_to_the_camera_path_tracer() -> None:
     assert biased.sum() >= 10
     assert (np.abs(camera - refined)[biased].mean()
             < 0.5 * np.abs(camera - bench)[biased].mean())
+
+
+def test_two_truths_against_the_refined_reference_keeps_the_bench_psnr_beside_it() -> None:
+    from vtkvol.bench.convergence import two_truths
+
+    rng = np.random.default_rng(1)
+    truth = rng.integers(40, 200, (8, 8, 3)).astype(np.float64)
+    a, b = truth + 2.0, truth - 2.0  # camera runs: mean = truth, noise 4 levels²
+    refs = {"ms": (truth + 6).astype(np.uint8), "ms_a": (truth + 7).astype(np.uint8),
+            "ms_b": (truth + 5).astype(np.uint8)}
+    _m, plain = two_truths(a, b, refs)
+    assert "psnr_two_truths_bench" not in plain
+    assert np.isclose(plain["psnr_two_truths"], 10 * np.log10(255 ** 2 / 36), atol=0.01)
+    _m, refined = two_truths(a, b, {**refs, "ms_refined": truth.astype(np.uint8)})
+    assert refined["psnr_two_truths_bench"] == plain["psnr_two_truths"]
+    assert refined["psnr_two_truths"] == float("inf")
+    assert refined["floor_psnr"] == plain["floor_psnr"]  # same in-scattered light: same floor
+    assert refined["agree"] and not plain["agree"]
+
+
+def test_convergence_study_compares_the_two_truths_with_the_refined_reference(tmp_path) -> None:
+    """``vtkvol bench --scattering``'s study (tiny: 16³, 32², 8 camera paths, translucency
+    only): the camera path tracer's final record holds the PSNR against the refined reference
+    and, beside it, against the bench's; the table says which reference it used."""
+    import io
+
+    from vtkvol.bench.convergence import StudyConfig, run
+
+    scene = next(s for s in phantom_scenes(16) if s.name == "sphere_over_slab")
+    result = run(StudyConfig(mode="test", size=16, image_size=32, light_counts=(1,),
+                             max_seconds=10.0, camera_paths=8, half_angle_frames=0),
+                 tmp_path, [scene], ["translucency"],
+                 budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
+                 stream=io.StringIO())
+    last = [r for r in result["records"] if r["method"] == "camera_path_tracer"][-1]
+    assert last["two_truths_reference"] == "grid 2×, step 0.125, 4× pixel box"
+    assert last["refined_reference_s"] > 0
+    assert 10 < last["psnr_two_truths_bench"] < 60 and 10 < last["psnr_two_truths"] < 60
+    assert last["psnr_two_truths"] != last["psnr_two_truths_bench"]
+    md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
+    assert "Refined reference: grid 2×, step 0.125, 4× pixel box." in md
+    assert (f"| sphere_over_slab | 1 | 8 | {last['psnr_two_truths']:.1f} | "
+            f"{last['psnr_two_truths_bench']:.1f} | ") in md
