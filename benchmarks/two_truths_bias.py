@@ -25,8 +25,9 @@ image size and box-filters it, as the path tracer's jittered pixel does.
 ``--refined-supersample``× pixel box; the in-scattered light of the bench's reference
 upsampled) and adds ``psnr_refined`` (PSNR(M, refined reference)) and the refined region means
 to every checkpoint: the bench's reference and the refined one against the same camera runs.
-``--variants 4:0.125:4,2:0.0625:8`` adds more refined references (grid factor : step in unit
-distances : supersampling), each as ``psnr_<variant>``, to locate what remains.
+``--variants 4:0.125:4,2:0.0625:8:0`` adds more refined references (grid factor : step in
+unit distances : supersampling [: face_voxels, where the in-scattered light is recomputed on
+the fine grid; default 1]), each as ``psnr_<variant>``, to locate what remains.
 
 Run (one scene and light count takes 1–4 minutes on a 2-core llvmpipe machine at the
 defaults): ``python benchmarks/two_truths_bias.py [--size 24] [--image 64] [--paths 1024]
@@ -137,7 +138,8 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
     if args.refined:
         t0 = time.perf_counter()
         fine = RefinedReferences(cache, scene, Refinement(args.factor, args.refined_step,
-                                                          args.refined_supersample))
+                                                          args.refined_supersample,
+                                                          args.face_voxels))
         wanted = {"ss": MediumReference(orders="single", seeds=(0,))}
         if "multiple" in args.modes:
             wanted["ms"] = MediumReference(orders="multiple", seeds=(0, 1))
@@ -146,9 +148,10 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
         refined_seconds = time.perf_counter() - t0
     variants: dict[str, dict[str, np.ndarray]] = {}
     for text in filter(None, args.variants.split(",")):
-        factor, step, supersample = text.split(":")
+        factor, step, supersample, *faces = text.split(":")
         fine = RefinedReferences(cache, scene, Refinement(int(factor), float(step),
-                                                          int(supersample)))
+                                                          int(supersample),
+                                                          float(faces[0]) if faces else 1.0))
         wanted = {"ss": MediumReference(orders="single", seeds=(0,))}
         if "multiple" in args.modes:
             wanted["ms"] = MediumReference(orders="multiple", seeds=(0, 1))
@@ -177,8 +180,8 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
                 for name, mask in reg.items():
                     if mask.any():
                         rec[name + "_refined"] = round(float((m - fine_ref)[mask].mean()), 3)
-            for text, images in variants.items():
-                rec["psnr_" + text] = round(psnr(mse(m, images["ms" if mode == "multiple"
+            for text, variant in variants.items():
+                rec["psnr_" + text] = round(psnr(mse(m, variant["ms" if mode == "multiple"
                                                               else "ss"])), 2)
             for name, mask in reg.items():
                 if mask.any():
@@ -208,9 +211,11 @@ def main() -> None:
     parser.add_argument("--factor", type=int, default=2, help="the refined light grid's factor")
     parser.add_argument("--refined-step", type=float, default=0.125)
     parser.add_argument("--refined-supersample", type=int, default=4)
+    parser.add_argument("--face-voxels", type=float, default=1.0,
+                        help="in-scattered light recomputed this close to a box face")
     parser.add_argument("--variants", default="",
-                        help="more refined references, factor:step:supersample,... "
-                             "(each adds psnr_<factor:step:supersample>)")
+                        help="more refined references, factor:step:supersample[:face_voxels],"
+                             "... (each adds psnr_<variant>)")
     args = parser.parse_args()
     args.modes = args.modes.split(",")
     if not set(args.modes) <= {"single", "multiple"}:

@@ -47,9 +47,10 @@ def test_upsample_keeps_the_trilinear_field_and_refined_scene_keeps_the_medium()
 
 
 def test_refinement_refuses_nonsense_settings() -> None:
-    with pytest.raises(ValueError, match="needs factor ≥ 1, supersample ≥ 1 and step > 0"):
+    with pytest.raises(ValueError,
+                       match="needs factor ≥ 1, supersample ≥ 1, step > 0 and face_voxels ≥ 0"):
         Refinement(factor=0)
-    assert Refinement().label == "grid 2×, step 0.125, 4× pixel box"
+    assert Refinement().label == "grid 2×, step 0.125, 4× pixel box, S at faces 1"
 
 
 def test_refined_reference_is_closer_to_the_camera_path_tracer() -> None:
@@ -58,7 +59,7 @@ def test_refined_reference_is_closer_to_the_camera_path_tracer() -> None:
     one. The refined reference has a markedly smaller squared error (under half; measured
     101 → 15.5 levels², the camera mean's own noise 4.6), and where the bench's reference is
     biased most (the object's pixels that differ from the camera by over 3 levels) the
-    refined one's mean error is less than half. With ``Refinement(1, 0.5, 1)`` (no
+    refined one's mean error is less than half. With ``Refinement(1, 0.5, 1, 0)`` (no
     refinement) both are equal and the test fails."""
     from vtkvol.bench.measure import Rig, VtkErrors
     from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
@@ -140,11 +141,11 @@ def test_convergence_study_compares_the_two_truths_with_the_refined_reference(tm
                  budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
                  stream=io.StringIO())
     last = [r for r in result["records"] if r["method"] == "camera_path_tracer"][-1]
-    assert last["two_truths_reference"] == "grid 2×, step 0.125, 4× pixel box"
+    assert last["two_truths_reference"] == "grid 2×, step 0.125, 4× pixel box, S at faces 1"
     assert last["refined_reference_s"] > 0
     assert 10 < last["psnr_two_truths_bench"] < 60 and 10 < last["psnr_two_truths"] < 60
     assert last["psnr_two_truths"] != last["psnr_two_truths_bench"]
     md = (tmp_path / "benchmarks.md").read_text(encoding="utf-8")
-    assert "Refined reference: grid 2×, step 0.125, 4× pixel box." in md
+    assert "Refined reference: grid 2×, step 0.125, 4× pixel box, S at faces 1." in md
     assert (f"| sphere_over_slab | 1 | 8 | {last['psnr_two_truths']:.1f} | "
             f"{last['psnr_two_truths_bench']:.1f} | ") in md
