@@ -25,10 +25,11 @@ checkpoint is also compared with M (``psnr_pt``): the medium techniques and, cha
 them, :data:`ALSO_CHARTED` (translucency, the surface model's look of scattered light).
 With ``StudyConfig.refined_reference`` (on by default) the two truths are compared against
 the **refined** ``ms`` reference of :mod:`vtkvol.bench.refine` (light grid 2× per axis, ray
-cast at 0.125 unit distances, 4× pixel box filter; the same in-scattered light), which removes
-most of the bench reference's discretisation bias at cut box faces (docs/benchmarks.md, "The
-two truths with a refined reference"); the bench's own reference stays what every technique
-is measured against, and its two-truths PSNR is kept as ``psnr_two_truths_bench``.
+cast at 0.125 unit distances, 4× pixel box filter; the bench's in-scattered light upsampled,
+recomputed on the fine grid within one voxel of a box face), which removes most of the bench
+reference's discretisation bias (docs/benchmarks.md, "The two truths with a refined
+reference"); the bench's own reference stays what every technique is measured against,
+and its two-truths PSNR is kept as ``psnr_two_truths_bench``.
 Half-angle slicing (``half_angle_slicing``, :func:`study_half_angle`) is measured the same
 way with one light only (it refuses more): its jittered frames are its iterations.
 
