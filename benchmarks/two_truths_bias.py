@@ -147,11 +147,8 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
         fine.release()
         refined_seconds = time.perf_counter() - t0
     variants: dict[str, dict[str, np.ndarray]] = {}
-    for text in filter(None, args.variants.split(",")):
-        factor, step, supersample, *faces = text.split(":")
-        fine = RefinedReferences(cache, scene, Refinement(int(factor), float(step),
-                                                          int(supersample),
-                                                          float(faces[0]) if faces else 1.0))
+    for text, refinement in args.refinements.items():
+        fine = RefinedReferences(cache, scene, refinement)
         wanted = {"ss": MediumReference(orders="single", seeds=(0,))}
         if "multiple" in args.modes:
             wanted["ms"] = MediumReference(orders="multiple", seeds=(0, 1))
@@ -220,6 +217,17 @@ def main() -> None:
     args.modes = args.modes.split(",")
     if not set(args.modes) <= {"single", "multiple"}:
         raise SystemExit(f"vtkvol: --modes: {args.modes} must be single and/or multiple")
+    args.refinements = {}
+    for text in filter(None, args.variants.split(",")):
+        try:
+            factor, step, supersample, *faces = text.split(":")
+            if len(faces) > 1:
+                raise ValueError("too many fields")
+            args.refinements[text] = Refinement(int(factor), float(step), int(supersample),
+                                                float(faces[0]) if faces else 1.0)
+        except ValueError as exc:
+            raise SystemExit(f"vtkvol: --variants: {text!r} is not "
+                             f"factor:step:supersample[:face_voxels] ({exc})") from None
     cache = ReferenceCache(ReferenceBudget(step=0.5, light_rays=32, scatter_paths=args.ref_paths))
     names = args.scenes.split(",")
     with VtkErrors(), registered():
