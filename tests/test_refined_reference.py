@@ -149,3 +149,22 @@ def test_convergence_study_compares_the_two_truths_with_the_refined_reference(tm
     assert "Refined reference: grid 2×, step 0.125, 4× pixel box, S at faces 1." in md
     assert (f"| sphere_over_slab | 1 | 8 | {last['psnr_two_truths']:.1f} | "
             f"{last['psnr_two_truths_bench']:.1f} | ") in md
+
+
+def test_in_scattered_light_is_recomputed_only_near_the_box_faces() -> None:
+    """The refined S: the bench's Monte-Carlo volume upsampled, except within ``face_voxels``
+    coarse voxels of a box face, where it is recomputed on the fine grid (same seed, paths)."""
+    scene = _slab()
+    cache = ReferenceCache(ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4))
+    coarse = cache.scattered(scene, scene.albedo, scene.phase_g, 0)
+    fine = RefinedReferences(cache, scene, Refinement(face_voxels=1.0))
+    s = fine.scattered(scene.albedo, scene.phase_g, 0)
+    up = upsample(coarse, 2)
+    near = fine.face_mask()
+    assert near.shape == s.shape == (23, 23, 23)
+    # within 1 coarse voxel = 2 fine voxels of a face, nowhere else
+    assert near[:, 11, 2].all() and near[11, 11, :3].all() and not near[11, 11, 3:20].any()
+    assert np.array_equal(s[~near], up[~near])
+    assert not np.allclose(s[near & (up > 0)], up[near & (up > 0)])
+    plain = RefinedReferences(cache, scene, Refinement(face_voxels=0.0))
+    assert np.array_equal(plain.scattered(scene.albedo, scene.phase_g, 0), up)
