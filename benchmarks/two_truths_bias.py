@@ -20,11 +20,20 @@ covering the same box; the data are the trilinear α resampled there, which is t
 medium, the unit distance is kept); ``--supersample K`` also renders the reference at K× the
 image size and box-filters it, as the path tracer's jittered pixel does.
 
+``--refined`` also computes, in the same run, the refined reference of
+:mod:`vtkvol.bench.refine` (light grid ``--factor``× per axis, step ``--refined-step``,
+``--refined-supersample``× pixel box; the in-scattered light of the bench's reference
+upsampled) and adds ``psnr_refined`` (PSNR(M, refined reference)) and the refined region means
+to every checkpoint: the bench's reference and the refined one against the same camera runs.
+``--variants 4:0.125:4,2:0.0625:8:0`` adds more refined references (grid factor : step in
+unit distances : supersampling [: face_voxels, where the in-scattered light is recomputed on
+the fine grid; default 1]), each as ``psnr_<variant>``, to locate what remains.
+
 Run (one scene and light count takes 1–4 minutes on a 2-core llvmpipe machine at the
 defaults): ``python benchmarks/two_truths_bias.py [--size 24] [--image 64] [--paths 1024]
 [--ref-paths 32] [--scenes sphere_over_slab,hollow_sphere,cells] [--lights 1,3]
-[--modes multiple,single] [--pad 0] [--refine] [--supersample 1]``; one JSON line per
-checkpoint on stdout.
+[--modes multiple,single] [--pad 0] [--refine] [--supersample 1] [--refined --factor 2]``;
+one JSON line per checkpoint on stdout.
 """
 
 from __future__ import annotations
@@ -41,7 +50,13 @@ from vtkvol.bench.convergence import checkpoints, with_lights
 from vtkvol.bench.measure import Rig, VtkErrors
 from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
 from vtkvol.bench.references import MediumReference, ReferenceBudget, ReferenceCache
-from vtkvol.bench.refine import box_filter, refined_scene
+from vtkvol.bench.refine import (
+    RefinedReferences,
+    Refinement,
+    box_filter,
+    refined_scene,
+    render_refined,
+)
 from vtkvol.bench.scenes import Scene, phantom_scenes
 from vtkvol.engine.renderers import set_renderer
 
@@ -118,6 +133,27 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
                     refs[name] = box_filter(img, k)
         finally:
             big.close()
+    refined: dict[str, np.ndarray] = {}
+    refined_seconds = 0.0
+    if args.refined:
+        t0 = time.perf_counter()
+        fine = RefinedReferences(cache, scene, Refinement(args.factor, args.refined_step,
+                                                          args.refined_supersample,
+                                                          args.face_voxels))
+        wanted = {"ss": MediumReference(orders="single", seeds=(0,))}
+        if "multiple" in args.modes:
+            wanted["ms"] = MediumReference(orders="multiple", seeds=(0, 1))
+        refined = render_refined(fine, args.image, wanted)
+        fine.release()
+        refined_seconds = time.perf_counter() - t0
+    variants: dict[str, dict[str, np.ndarray]] = {}
+    for text, refinement in args.refinements.items():
+        fine = RefinedReferences(cache, scene, refinement)
+        wanted = {"ss": MediumReference(orders="single", seeds=(0,))}
+        if "multiple" in args.modes:
+            wanted["ms"] = MediumReference(orders="multiple", seeds=(0, 1))
+        variants[text] = render_refined(fine, args.image, wanted)
+        fine.release()
     ref_noise = mse(refs["ms_a"], refs["ms_b"]) / 4.0 if "ms_a" in refs else 0.0
     for mode in args.modes:
         ref = refs["ms" if mode == "multiple" else "ss"]
@@ -134,6 +170,16 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache) -> list
                 "reference_floor": round(psnr(ref_noise), 2) if mode == "multiple" else None,
                 "reference_seconds": round(ref_seconds, 1),
             }
+            if refined:
+                fine_ref = refined["ms" if mode == "multiple" else "ss"]
+                rec["psnr_refined"] = round(psnr(mse(m, fine_ref)), 2)
+                rec["refined_seconds"] = round(refined_seconds, 1)
+                for name, mask in reg.items():
+                    if mask.any():
+                        rec[name + "_refined"] = round(float((m - fine_ref)[mask].mean()), 3)
+            for text, variant in variants.items():
+                rec["psnr_" + text] = round(psnr(mse(m, variant["ms" if mode == "multiple"
+                                                              else "ss"])), 2)
             for name, mask in reg.items():
                 if mask.any():
                     rec[name] = round(float((m - ref)[mask].mean()), 3)
@@ -157,10 +203,31 @@ def main() -> None:
     parser.add_argument("--pad", type=int, default=0)
     parser.add_argument("--refine", action="store_true")
     parser.add_argument("--supersample", type=int, default=1)
+    parser.add_argument("--refined", action="store_true",
+                        help="also compare with vtkvol.bench.refine's refined reference")
+    parser.add_argument("--factor", type=int, default=2, help="the refined light grid's factor")
+    parser.add_argument("--refined-step", type=float, default=0.125)
+    parser.add_argument("--refined-supersample", type=int, default=4)
+    parser.add_argument("--face-voxels", type=float, default=1.0,
+                        help="in-scattered light recomputed this close to a box face")
+    parser.add_argument("--variants", default="",
+                        help="more refined references, factor:step:supersample[:face_voxels],"
+                             "... (each adds psnr_<variant>)")
     args = parser.parse_args()
     args.modes = args.modes.split(",")
     if not set(args.modes) <= {"single", "multiple"}:
         raise SystemExit(f"vtkvol: --modes: {args.modes} must be single and/or multiple")
+    args.refinements = {}
+    for text in filter(None, args.variants.split(",")):
+        try:
+            factor, step, supersample, *faces = text.split(":")
+            if len(faces) > 1:
+                raise ValueError("too many fields")
+            args.refinements[text] = Refinement(int(factor), float(step), int(supersample),
+                                                float(faces[0]) if faces else 1.0)
+        except ValueError as exc:
+            raise SystemExit(f"vtkvol: --variants: {text!r} is not "
+                             f"factor:step:supersample[:face_voxels] ({exc})") from None
     cache = ReferenceCache(ReferenceBudget(step=0.5, light_rays=32, scatter_paths=args.ref_paths))
     names = args.scenes.split(",")
     with VtkErrors(), registered():
