@@ -105,7 +105,7 @@ def main(argv: list[str] | None = None) -> int:
                              scatter_bounces=FULL_BUDGET.scatter_bounces)
     cache = ReferenceCache(budget)
     wanted = set(args.techniques.split(","))
-    print(f"| code | scene | lights | technique | model | iterations | image | (a) direct vs ss | "
+    print("| code | scene | lights | technique | model | iterations | image | (a) direct vs ss | "
           "(b) total | (c) T.d + R.s | (d) R.d + T.s | ss vs ms | floor |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
     with VtkErrors(), registered():
