@@ -285,7 +285,9 @@ def jacobi_sweep(phi: np.ndarray, q: np.ndarray, coefficients: np.ndarray,
                  grid: Grid) -> tuple[np.ndarray, float, float]:
     """One Jacobi sweep of the source model's system (``phi``, ``q`` ``[z, y, x, 3]``):
     (new φ, Σ residual² of the old φ, Σ q²). Every coefficient is ≥ 0, so φ ≥ 0 whenever
-    q ≥ 0 and the old φ ≥ 0. ``shaders/source_diffusion.comp.glsl`` is its GPU twin."""
+    q ≥ 0 and the old φ ≥ 0. An empty voxel (no unknown) next to the medium gets the mean of
+    its medium neighbours' old φ (:func:`surface_fill`), the others 0.
+    ``shaders/source_diffusion.comp.glsl`` is its GPU twin."""
     d = coefficients[..., 0]
     inside = d > 0
     diag = coefficients[..., 1].copy()
@@ -305,10 +307,35 @@ def jacobi_sweep(phi: np.ndarray, q: np.ndarray, coefficients: np.ndarray,
             acc += cond[..., None] * pn
     safe = np.where(inside, diag, np.float32(1.0))[..., None]
     residual = np.where(inside[..., None], acc - safe * phi, np.float32(0.0))
-    new = np.where(inside[..., None], acc / safe, np.float32(0.0)).astype(np.float32)
+    new = np.where(inside[..., None], acc / safe, surface_fill(phi, inside)).astype(np.float32)
     q_in = np.where(inside[..., None], q, np.float32(0.0))
     return new, float((residual.astype(np.float64) ** 2).sum()), float(
         (q_in.astype(np.float64) ** 2).sum())
+
+
+def surface_fill(phi: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """φ (``[z, y, x, c]``) carried out of the medium one voxel: at every voxel the mean of φ
+    over its medium (``inside``) neighbours in the 26-neighbourhood, 0 without any (float32).
+    Why: the scattered light is sampled trilinearly at every visible point, and a point in the
+    medium's outer half voxel interpolates towards the empty voxels beside it; with φ = 0
+    there, every surface darkens (the Monte-Carlo reference's in-scattered light is about the
+    surface's value there). Issue 24's error split measured +0.7 to +5 dB in the image. The
+    empty voxels are no unknowns: the fill never feeds back into the medium's equations."""
+    nz, ny, nx = inside.shape
+    w = np.pad(inside.astype(np.float32), 1)
+    v = np.pad(np.where(inside[..., None], phi, np.float32(0.0)).astype(np.float32),
+               ((1, 1), (1, 1), (1, 1), (0, 0)))
+    acc = np.zeros(phi.shape, np.float32)
+    count = np.zeros(inside.shape, np.float32)
+    for dz in range(3):
+        for dy in range(3):
+            for dx in range(3):
+                if dz == dy == dx == 1:
+                    continue
+                acc += v[dz:dz + nz, dy:dy + ny, dx:dx + nx]
+                count += w[dz:dz + nz, dy:dy + ny, dx:dx + nx]
+    return np.where(count[..., None] > 0, acc / np.maximum(count, 1.0)[..., None],
+                    np.float32(0.0)).astype(np.float32)
 
 
 def relative_residual(residual2: float, source2: float) -> float:
