@@ -4,8 +4,9 @@ The diffusion machinery it shares with hybrid diffusion is the engine's
 (:mod:`vtkvol.engine.diffusion`).
 
 State lives on the data grid: ρ_l for up to four lights (one per channel of one texture) and
-the scattered RGB light ρ_s. ``diffusion_model = "source"`` computes ρ_l at the restart in one
-propagation pass (the first frame shows converged direct light) and then refines ρ_s by Jacobi
+the scattered RGB light ρ_s. ``diffusion_model = "source"`` computes ρ_l at the restart by
+ray-marching every voxel's transmittance to the light (the first frame shows the final direct
+light) and then refines ρ_s by Jacobi
 sweeps until the residual tolerance; ``"published"`` convects and diffuses ρ_l together.
 It restarts when the opacity, the lights, the material or a parameter marked ACCUMULATION
 changes (``Changes.reset_accumulation``), never for the camera.
@@ -123,9 +124,9 @@ class ConvectionDiffusion(GridScattering):
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
         values: Mapping[str, Any],
     ) -> np.ndarray:
-        """The converged convected light ρ of ``light`` alone at every voxel, ``[z, y, x]``
-        (0…1): what this technique uses as the direct light's visibility (source model: one
-        propagation pass; published: the one field, diffusion included)."""
+        """The final direct light ρ of ``light`` alone at every voxel, ``[z, y, x]`` (0…1):
+        what this technique uses as the direct light's visibility (source model: the
+        ray-marched transmittance; published: the one convected field, diffusion included)."""
         merged = {**self.defaults(), **values}
         grid = cpu.Grid(opacity.shape, spacing, self._origin())
         sigma_t = cpu.extinction(opacity, self.host.unit_distance)
@@ -269,8 +270,8 @@ class GpuTransport:
         return prog
 
     def reset(self, setup: Setup) -> None:
-        """New textures for ``setup``; the source model's direct light is converged here (one
-        propagation pass: the first frame already shows it)."""
+        """New textures for ``setup``; the source model's direct light is final here (one ray
+        march per voxel and light: the first frame already shows it)."""
         self._release_textures()
         rw = self.render_window
         shape = setup.grid.shape_zyx

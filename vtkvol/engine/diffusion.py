@@ -357,7 +357,7 @@ def solve_source(q: np.ndarray, coefficients: np.ndarray, grid: Grid,
     return phi, max_sweeps
 
 
-# -- the published model's direct light: one propagation pass ------------------------------------
+# -- the upwind convection's steady state (KD's former warm start), the exact march -------------
 def steady_convection_sweep(rho: np.ndarray, sigma_a: np.ndarray, u: np.ndarray, grid: Grid,
                             source: np.ndarray | None = None) -> np.ndarray:
     """One sweep of the *steady state* of the split upwind convection (plugins'
