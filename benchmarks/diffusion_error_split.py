@@ -25,8 +25,9 @@ direct light is RGB irradiance (its shader adds it to the in-scattered light, ph
 isotropic for these scenes), so it is rendered as irradiance with zero visibility.
 
 Run: ``nice -n 19 python benchmarks/diffusion_error_split.py [--size 20] [--image 64]
-[--lights 1] [--before]`` (prints Markdown). ``--before`` is only a label; run it once with
-``PYTHONPATH`` pointing at another checkout to get that code's figures in the same table.
+[--lights 1] [--scenes sphere_over_slab,...] [--label before]`` (prints Markdown). ``--label``
+only names the rows; run it once with ``PYTHONPATH`` pointing at another checkout to get that
+code's figures in the same table.
 """
 
 from __future__ import annotations
@@ -100,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--max-seconds", type=float, default=60.0)
     ap.add_argument("--label", default="")
     ap.add_argument("--techniques", default="KD,HD")
+    ap.add_argument("--scenes", default="", help="comma-separated scene names (default: all)")
     args = ap.parse_args(argv)
     budget = ReferenceBudget(step=0.5, light_rays=8, scatter_paths=args.paths,
                              scatter_bounces=FULL_BUDGET.scatter_bounces)
@@ -119,6 +121,8 @@ def main(argv: list[str] | None = None) -> int:
                 return rig.image()
 
             for scene in phantom_scenes(args.size):
+                if args.scenes and scene.name not in args.scenes.split(","):
+                    continue
                 lit = with_lights(scene, args.lights)
                 rig.load(lit)
                 ms_vol = MediumReference(seeds=(0, 1)).volumes(cache, lit)
