@@ -75,7 +75,9 @@ def run_kd(model: str, opacity: np.ndarray, albedo: float, medium: np.ndarray,
     t0 = time.perf_counter()
     t = kd.Transport(grid, [light], [(1.0, 1.0, 1.0)], sigma_a, lam,
                      model="source" if model == "source" else "published",
-                     coefficients=D.source_coefficients(sigma_t, grid, albedo))
+                     coefficients=D.source_coefficients(sigma_t, grid, albedo),
+                     # the source model's direct light is ray-marched, as the technique's
+                     sigma_t=sigma_t if model == "source" else None, unit_distance=1.0)
     u = D.propagation(grid, light)
     curve = []
     end = 4 * kd.iterations_to_cross(grid)

@@ -24,8 +24,11 @@ the paper leaves open and how it is decided (docs/multiple-scattering.md has the
   then diffuses the same ρ_l with ρ_l' = ρ_l + λ(x)·Σ_a w_a ∂²_a ρ_l (eq. 14 with its missing ρ(t)
   term restored), w_a = (Δx_min/Δx_a)², λ = a·σ_t·Δx_min clamped to the stability bound
   1/(2 Σ w_a); zero flux at the box. ρ_l is all the light; the scattered volume stays 0.
-* **source**: the direct light is the converged convection from one propagation pass (warm
-  start, :func:`vtkvol.engine.diffusion.steady_convection_sweep`); each iteration is then
+* **source**: the direct light is final at the restart (warm start): the transmittance
+  ray-marched from every voxel centre to the light (:func:`vtkvol.engine.diffusion.
+  marched_transmittance`, exact up to the march's midpoint rule; the upwind convection's
+  steady state smears shadow edges oblique to the grid, which cost 4–8 dB in the image —
+  docs/benchmarks.md, issue 24's error split); each iteration is then
   ``diffusion_steps`` Jacobi sweeps of the source model for the scattered light ρ_s — on the
   data grid, or with a coarse ``scatter`` grid (``scatter_grid`` "half"/"quarter",
   :mod:`vtkvol.engine.coarse_diffusion`) on its cells, from the restricted source.
@@ -51,6 +54,7 @@ from vtkvol.engine.diffusion import (  # noqa: F401  (re-exported: KD's numpy AP
     iterations_to_cross,
     jacobi_sweep,
     light_quadrature,
+    marched_transmittance,
     propagation,
     propagation_sweeps,
     relative_residual,
@@ -123,6 +127,11 @@ class Transport:
     coefficients: np.ndarray | None = None
     scatter: ScatterGrid | None = None
     scatter_coefficients: np.ndarray | None = None
+    #: Source model: the extinction σ_t (per µm, ``[z, y, x]``) and the opacity's unit
+    #: distance (µm) the direct light is ray-marched through (the exact transmittance); None:
+    #: the steady state of the upwind convection instead (smeared at oblique shadow edges).
+    sigma_t: np.ndarray | None = None
+    unit_distance: float = 1.0
     rho: np.ndarray = field(init=False)
     rho_s: np.ndarray = field(init=False)
     iteration: int = field(init=False, default=0)
@@ -152,20 +161,22 @@ class Transport:
             self._q = q
 
     def warm_start(self) -> None:
-        """The converged convected light of every light, in one propagation pass (a sized
-        light: the weighted passes of :func:`~vtkvol.engine.diffusion.light_quadrature`)."""
+        """The final direct light of every light at once (a sized light: the weighted sum over
+        its :func:`~vtkvol.engine.diffusion.light_quadrature`): with ``sigma_t``, the
+        transmittance ray-marched from every voxel centre
+        (:func:`~vtkvol.engine.diffusion.marched_transmittance`); without, the converged
+        upwind convection in one propagation pass."""
         for i, light in enumerate(self.lights):
-            quadrature = light_quadrature(light)
-            if len(quadrature) == 1:
-                parts = [(self._u[i], self._sources[i], 1.0)]
-            else:
-                parts = [(propagation(self.grid, ideal), source_mask(self.grid, ideal), weight)
-                         for ideal, weight in quadrature]
             total = np.zeros(self.grid.shape_zyx, np.float32)
-            for u, source, weight in parts:
-                rho = self.rho[i].copy()
-                for _ in range(propagation_sweeps(self.grid)):
-                    rho = steady_convection_sweep(rho, self.sigma_a, u, self.grid, source)
+            for ideal, weight in light_quadrature(light):
+                if self.sigma_t is not None:
+                    rho = marched_transmittance(self.sigma_t, self.grid, ideal,
+                                                self.unit_distance)
+                else:
+                    u, source = propagation(self.grid, ideal), source_mask(self.grid, ideal)
+                    rho = np.zeros(self.grid.shape_zyx, np.float32)
+                    for _ in range(propagation_sweeps(self.grid)):
+                        rho = steady_convection_sweep(rho, self.sigma_a, u, self.grid, source)
                 total += np.float32(weight) * rho
             self.rho[i] = total
 

@@ -4,8 +4,9 @@ The diffusion machinery it shares with hybrid diffusion is the engine's
 (:mod:`vtkvol.engine.diffusion`).
 
 State lives on the data grid: ρ_l for up to four lights (one per channel of one texture) and
-the scattered RGB light ρ_s. ``diffusion_model = "source"`` computes ρ_l at the restart in one
-propagation pass (the first frame shows converged direct light) and then refines ρ_s by Jacobi
+the scattered RGB light ρ_s. ``diffusion_model = "source"`` computes ρ_l at the restart by
+ray-marching every voxel's transmittance to the light (the first frame shows the final direct
+light) and then refines ρ_s by Jacobi
 sweeps until the residual tolerance; ``"published"`` convects and diffuses ρ_l together.
 It restarts when the opacity, the lights, the material or a parameter marked ACCUMULATION
 changes (``Changes.reset_accumulation``), never for the camera.
@@ -22,13 +23,14 @@ import vtk
 
 from vtkvol.engine.coarse_diffusion import ScatterGrid
 from vtkvol.engine.diffusion import (
+    MARCH_STEP_EDGES,
+    MAX_OPACITY,
     GpuFieldDiffusion,
     GpuSourceDiffusion,
     GridScattering,
     dispatch_groups,
     light_channels,
     light_quadrature,
-    propagation_sweeps,
     relative_residual,
     source_coefficients,
 )
@@ -122,9 +124,9 @@ class ConvectionDiffusion(GridScattering):
         self, opacity: np.ndarray, spacing: tuple[float, float, float], light: LightSpec,
         values: Mapping[str, Any],
     ) -> np.ndarray:
-        """The converged convected light ρ of ``light`` alone at every voxel, ``[z, y, x]``
-        (0…1): what this technique uses as the direct light's visibility (source model: one
-        propagation pass; published: the one field, diffusion included)."""
+        """The final direct light ρ of ``light`` alone at every voxel, ``[z, y, x]`` (0…1):
+        what this technique uses as the direct light's visibility (source model: the
+        ray-marched transmittance; published: the one convected field, diffusion included)."""
         merged = {**self.defaults(), **values}
         grid = cpu.Grid(opacity.shape, spacing, self._origin())
         sigma_t = cpu.extinction(opacity, self.host.unit_distance)
@@ -167,8 +169,12 @@ class Setup:
                  colors: list[tuple[float, float, float]], sigma_a: np.ndarray,
                  lam: np.ndarray, model: str, coefficients: np.ndarray | None,
                  scatter: ScatterGrid | None = None,
-                 scatter_coefficients: np.ndarray | None = None) -> None:
+                 scatter_coefficients: np.ndarray | None = None,
+                 sigma_t: np.ndarray | None = None, unit_distance: float = 1.0) -> None:
         self.grid, self.lights, self.colors = grid, lights, colors
+        #: Extinction (per µm) and unit distance (µm) the source model's direct light is
+        #: ray-marched through.
+        self.sigma_t, self.unit_distance = sigma_t, unit_distance
         self.sigma_a, self.lam = sigma_a, lam
         self.model, self.coefficients = model, coefficients
         self.scatter = scatter if scatter is not None else ScatterGrid(grid, 1)
@@ -200,13 +206,15 @@ class Setup:
         scatter_coefficients = (scatter.coefficients(sigma_t, albedo, phase_g)
                                 if scatter.coarse else None)
         return cls(grid, lights, colors, sigma_a, lam, model,  # type: ignore[arg-type]
-                   coefficients, scatter, scatter_coefficients)
+                   coefficients, scatter, scatter_coefficients,
+                   sigma_t if model == "source" else None, unit_distance)
 
     def transport(self, diffusion_steps: int) -> cpu.Transport:
         return cpu.Transport(self.grid, self.lights, self.colors, self.sigma_a, self.lam,
                              diffusion_steps=diffusion_steps, model=self.model,  # type: ignore[arg-type]
                              coefficients=self.coefficients, scatter=self.scatter,
-                             scatter_coefficients=self.scatter_coefficients)
+                             scatter_coefficients=self.scatter_coefficients,
+                             sigma_t=self.sigma_t, unit_distance=self.unit_distance)
 
 
 class GpuTransport:
@@ -262,8 +270,8 @@ class GpuTransport:
         return prog
 
     def reset(self, setup: Setup) -> None:
-        """New textures for ``setup``; the source model's direct light is converged here (one
-        propagation pass: the first frame already shows it)."""
+        """New textures for ``setup``; the source model's direct light is final here (one ray
+        march per voxel and light: the first frame already shows it)."""
         self._release_textures()
         rw = self.render_window
         shape = setup.grid.shape_zyx
@@ -288,31 +296,71 @@ class GpuTransport:
             self._warm_start(setup)
 
     def _warm_start(self, setup: Setup) -> None:
-        """The source model's converged direct light: one propagation pass, or for sized
-        lights the weighted passes of their :func:`~vtkvol.engine.diffusion.light_quadrature`
-        (each steady pass converges from any start), summed in numpy."""
-        quadratures = [light_quadrature(light) for light in setup.lights]
-        sweeps = propagation_sweeps(setup.grid)
-        if all(len(q) == 1 for q in quadratures):
-            self._convect(sweeps, steady=True)
-            return
-        count = max(len(q) for q in quadratures)
-        total: np.ndarray | None = None
-        for k in range(count):
-            # An ideal light takes part in every pass with weight 1/count (the same light); a
-            # shorter quadrature (a point light's six points beside a cone's seven) sits out.
-            parts = [(q[0][0], 1.0 / count) if len(q) == 1
-                     else (q[k] if k < len(q) else (q[0][0], 0.0)) for q in quadratures]
-            self._lights = [ideal for ideal, _ in parts]
-            self._convect(sweeps, steady=True)
-            weights = np.asarray([w for _, w in parts], np.float32)
-            rho = self._rho[0].download()
-            weighted = rho * (weights[0] if rho.ndim == 3 else np.pad(
-                weights, (0, rho.shape[-1] - len(weights))))
-            total = weighted if total is None else total + weighted
-        self._lights = setup.lights
-        assert total is not None
-        self._rho[0].upload(total.astype(np.float32))
+        """The source model's final direct light: every voxel's transmittance ray-marched to
+        each light (``march.comp.glsl``), or for sized lights the weighted marches of their
+        :func:`~vtkvol.engine.diffusion.light_quadrature`, summed in numpy."""
+        assert setup.sigma_t is not None
+        rw = self.render_window
+        alpha = (-np.expm1(-setup.sigma_t.astype(np.float64) * setup.unit_distance)).astype(
+            np.float32)
+        alpha_tex = Texture3D(rw, setup.grid.shape_zyx, data=alpha)
+        alpha_tex.tex.Deactivate()
+        try:
+            quadratures = [light_quadrature(light) for light in setup.lights]
+            if all(len(q) == 1 for q in quadratures):
+                self._march(alpha_tex, setup)
+                return
+            count = max(len(q) for q in quadratures)
+            total: np.ndarray | None = None
+            for k in range(count):
+                # An ideal light takes part in every pass with weight 1/count (the same
+                # light); a shorter quadrature (a point light's six points beside a cone's
+                # seven) sits out.
+                parts = [(q[0][0], 1.0 / count) if len(q) == 1
+                         else (q[k] if k < len(q) else (q[0][0], 0.0)) for q in quadratures]
+                self._lights = [ideal for ideal, _ in parts]
+                self._march(alpha_tex, setup)
+                weights = np.asarray([w for _, w in parts], np.float32)
+                rho = self._rho[0].download()
+                weighted = rho * (weights[0] if rho.ndim == 3 else np.pad(
+                    weights, (0, rho.shape[-1] - len(weights))))
+                total = weighted if total is None else total + weighted
+            self._lights = setup.lights
+            assert total is not None
+            self._rho[0].upload(total.astype(np.float32))
+        finally:
+            alpha_tex.release()
+
+    def _march(self, alpha: Texture3D, setup: Setup) -> None:
+        """One dispatch of ``march.comp.glsl`` for the current ideal lights into ρ."""
+        grid = self._grid
+        nz, ny, nx = grid.shape_zyx
+        prog = self.program("march", self._channels)
+        light_vecs: list[float] = []
+        for light in self._lights:
+            if light.kind == "point":
+                light_vecs += [*light.vector, 1.0]
+            else:
+                w = np.asarray(light.vector, np.float64)
+                w /= max(float(np.linalg.norm(w)), 1e-30)
+                light_vecs += [*(float(c) for c in w), 0.0]
+        light_vecs += [0.0] * (16 - len(light_vecs))
+        prog.use()
+        prog.set_uniform("vv_rhoOut", 0)
+        prog.set_uniform("vv_alpha", 1)
+        prog.set_uniform("vv_dims", nx, ny, nz)
+        prog.set_uniform("vv_origin", *grid.origin, kind="f")
+        prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
+        prog.set_uniform("vv_unitDistance", float(setup.unit_distance), kind="f")
+        prog.set_uniform("vv_step", MARCH_STEP_EDGES * min(grid.spacing), kind="f")
+        prog.set_uniform("vv_maxOpacity", float(MAX_OPACITY), kind="f")
+        prog.set_uniform("vv_numLights", len(self._lights))
+        prog.set_uniform_array("vv_lightVec", light_vecs, size=4)
+        self._rho[0].bind_image(0, "write")
+        alpha.bind_image(1, "read")
+        prog.dispatch(dispatch_groups(grid))
+        unbind_images(self.render_window, 2)
+        prog.done()
 
     def _convect(self, iterations: int, steady: bool, diffusion_steps: int = 0) -> None:
         """``iterations`` convection dispatches (time steps, or steady sweeps), each followed by

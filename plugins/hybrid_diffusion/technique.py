@@ -55,9 +55,13 @@ class Setup:
                  colors: list[tuple[float, float, float]], lam: np.ndarray, model: str = "source",
                  coefficients: np.ndarray | None = None,
                  bricks: np.ndarray | None = None, scatter: ScatterGrid | None = None,
-                 scatter_coefficients: np.ndarray | None = None) -> None:
+                 scatter_coefficients: np.ndarray | None = None,
+                 unit_distance: float | None = None) -> None:
         self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
             grid, sigma_t, lights, colors, lam)
+        #: The opacity's unit distance (µm): the tracker samples the extinction of the
+        #: interpolated opacity (:func:`.cpu.extinction_at`); None: σ_t interpolated linearly.
+        self.unit_distance = unit_distance
         self.model, self.coefficients = model, coefficients
         #: The per-brick majorant grid (``majorant = "bricks"``), None for the global one.
         self.bricks = bricks
@@ -77,7 +81,8 @@ class Setup:
     def build(cls, grid: kd.Grid, sigma_t: np.ndarray, specs: list[Any],
               albedo: float, model: str = "source", phase_g: float = 0.0,
               majorant: str = "global", scatter_grid: str = "full",
-              coefficients: np.ndarray | None = None, lam: np.ndarray | None = None) -> Setup:
+              coefficients: np.ndarray | None = None, lam: np.ndarray | None = None,
+              unit_distance: float | None = None) -> Setup:
         """``coefficients`` and ``lam``: the per-voxel arrays when already computed (a restart
         builds them in z slabs, :meth:`HybridDiffusion._stages`), else computed here."""
         specs = specs[:4]
@@ -99,7 +104,7 @@ class Setup:
                                 if scatter.coarse else None)
         return cls(grid, sigma_t, lights, colors, lam, model,
                    coefficients if model == "source" else None, bricks, scatter,
-                   scatter_coefficients)
+                   scatter_coefficients, unit_distance)
 
 
 class HybridDiffusion(GridScattering):
@@ -264,7 +269,7 @@ class HybridDiffusion(GridScattering):
         self.setup = Setup.build(grid, sigma_t, host.light_specs(), host.albedo, model,
                                  host.phase_g, str(values["majorant"]),
                                  str(values["scatter_grid"]), coefficients=coefficients,
-                                 lam=lam)
+                                 lam=lam, unit_distance=host.unit_distance)
         if gpu is not None:
             yield from self._gl_steps(gpu.state_steps(self.setup))
             gpu = self._gpu
@@ -484,13 +489,15 @@ class HybridDiffusion(GridScattering):
         grid = kd.Grid(opacity.shape, spacing, self._origin())
         sigma_t = kd.extinction(opacity, self.host.unit_distance)
         setup = Setup.build(grid, sigma_t, [light], self.host.albedo,
-                            majorant=str(merged["majorant"]))
+                            majorant=str(merged["majorant"]),
+                            unit_distance=self.host.unit_distance)
         mean = np.zeros((*grid.shape_zyx, 3), np.float32)
         for k in range(int(merged["max_iterations"])):
             sample = cpu.direct_sample(sigma_t, grid, setup.lights, [(1.0, 1.0, 1.0)],
                                        bricks=setup.bricks,
                                        iteration=k, seed=int(merged["seed"]),
-                                       estimator=merged["estimator"], light_sampling="all")
+                                       estimator=merged["estimator"], light_sampling="all",
+                                       unit_distance=setup.unit_distance)
             mean += (sample - mean) / np.float32(k + 1)
         return mean[..., 0]
 
@@ -506,6 +513,7 @@ class HybridDiffusion(GridScattering):
             setup.sigma_t, setup.grid, setup.lights, setup.colors, iteration=self.iteration,
             seed=int(values["seed"]), estimator=values["estimator"],
             light_sampling=values["light_sampling"], region=region, bricks=setup.bricks,
+            unit_distance=setup.unit_distance,
         )
         mean = self._rho_d[z0:z1, y0:y1]
         self._rho_d[z0:z1, y0:y1] = mean + (draw[z0:z1, y0:y1] - mean) / np.float32(
@@ -713,6 +721,7 @@ class GpuHybrid:
         prog.set_uniform("vv_origin", *grid.origin, kind="f")
         prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
         prog.set_uniform("vv_majorant", float(setup.sigma_t.max()), kind="f")
+        prog.set_uniform("vv_unitDistance", float(setup.unit_distance or 0.0), kind="f")
         prog.set_uniform("vv_iteration", iteration, kind="ui")
         prog.set_uniform("vv_seed", int(values["seed"]), kind="ui")
         prog.set_uniform("vv_numLights", len(setup.lights))

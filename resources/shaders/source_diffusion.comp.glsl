@@ -3,7 +3,8 @@
 // jacobi_sweep and source_term, operation by operation; the numpy path is the test oracle):
 //   -div(D grad phi) + sigma_a phi = sigma_s E_0,  E_0 = sum_l colour_l * falloff_l * direct_l.
 // Cell-centred finite volumes; harmonic mean of D between medium voxels; a Marshak vacuum face
-// (outflow phi / (2 + h / (2 D))) towards empty voxels and the box. D = 0 marks an empty voxel.
+// (outflow phi / (2 + h / (2 D))) towards empty voxels and the box. D = 0 marks an empty voxel;
+// one next to the medium shows the mean phi of its medium neighbours.
 // Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
 //
 // Defines: VV_CHANNELS 1, 2 or 4 (lights in vv_direct); VV_SOURCE_IMAGE 1: q is read from
@@ -44,7 +45,24 @@ void main()
   float d = k.x;
   if (d <= 0.0)
   {
-    imageStore(vv_phiOut, p, vec4(0.0));
+    // No unknown here. Next to the medium: the mean of the medium neighbours' phi (26-
+    // neighbourhood; diffusion.py's surface_fill), so that the trilinear fetch at the
+    // medium's surface does not blend towards 0; elsewhere 0.
+    vec3 acc = vec3(0.0);
+    float count = 0.0;
+    for (int dz = -1; dz <= 1; ++dz)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx)
+        {
+          ivec3 n = p + ivec3(dx, dy, dz);
+          if ((dx == 0 && dy == 0 && dz == 0) || outside(n)) continue;
+          if (imageLoad(vv_coefficients, n).x > 0.0)
+          {
+            acc += imageLoad(vv_phiIn, n).rgb;
+            count += 1.0;
+          }
+        }
+    imageStore(vv_phiOut, p, vec4(count > 0.0 ? acc / max(count, 1.0) : vec3(0.0), 0.0));
     imageStore(vv_residual, p, vec4(0.0));
     return;
   }

@@ -285,7 +285,9 @@ def jacobi_sweep(phi: np.ndarray, q: np.ndarray, coefficients: np.ndarray,
                  grid: Grid) -> tuple[np.ndarray, float, float]:
     """One Jacobi sweep of the source model's system (``phi``, ``q`` ``[z, y, x, 3]``):
     (new φ, Σ residual² of the old φ, Σ q²). Every coefficient is ≥ 0, so φ ≥ 0 whenever
-    q ≥ 0 and the old φ ≥ 0. ``shaders/source_diffusion.comp.glsl`` is its GPU twin."""
+    q ≥ 0 and the old φ ≥ 0. An empty voxel (no unknown) next to the medium gets the mean of
+    its medium neighbours' old φ (:func:`surface_fill`), the others 0.
+    ``shaders/source_diffusion.comp.glsl`` is its GPU twin."""
     d = coefficients[..., 0]
     inside = d > 0
     diag = coefficients[..., 1].copy()
@@ -305,10 +307,35 @@ def jacobi_sweep(phi: np.ndarray, q: np.ndarray, coefficients: np.ndarray,
             acc += cond[..., None] * pn
     safe = np.where(inside, diag, np.float32(1.0))[..., None]
     residual = np.where(inside[..., None], acc - safe * phi, np.float32(0.0))
-    new = np.where(inside[..., None], acc / safe, np.float32(0.0)).astype(np.float32)
+    new = np.where(inside[..., None], acc / safe, surface_fill(phi, inside)).astype(np.float32)
     q_in = np.where(inside[..., None], q, np.float32(0.0))
     return new, float((residual.astype(np.float64) ** 2).sum()), float(
         (q_in.astype(np.float64) ** 2).sum())
+
+
+def surface_fill(phi: np.ndarray, inside: np.ndarray) -> np.ndarray:
+    """φ (``[z, y, x, c]``) carried out of the medium one voxel: at every voxel the mean of φ
+    over its medium (``inside``) neighbours in the 26-neighbourhood, 0 without any (float32).
+    Why: the scattered light is sampled trilinearly at every visible point, and a point in the
+    medium's outer half voxel interpolates towards the empty voxels beside it; with φ = 0
+    there, every surface darkens (the Monte-Carlo reference's in-scattered light is about the
+    surface's value there). Issue 24's error split measured +0.7 to +5 dB in the image. The
+    empty voxels are no unknowns: the fill never feeds back into the medium's equations."""
+    nz, ny, nx = inside.shape
+    w = np.pad(inside.astype(np.float32), 1)
+    v = np.pad(np.where(inside[..., None], phi, np.float32(0.0)).astype(np.float32),
+               ((1, 1), (1, 1), (1, 1), (0, 0)))
+    acc = np.zeros(phi.shape, np.float32)
+    count = np.zeros(inside.shape, np.float32)
+    for dz in range(3):
+        for dy in range(3):
+            for dx in range(3):
+                if dz == dy == dx == 1:
+                    continue
+                acc += v[dz:dz + nz, dy:dy + ny, dx:dx + nx]
+                count += w[dz:dz + nz, dy:dy + ny, dx:dx + nx]
+    return np.where(count[..., None] > 0, acc / np.maximum(count, 1.0)[..., None],
+                    np.float32(0.0)).astype(np.float32)
 
 
 def relative_residual(residual2: float, source2: float) -> float:
@@ -330,7 +357,7 @@ def solve_source(q: np.ndarray, coefficients: np.ndarray, grid: Grid,
     return phi, max_sweeps
 
 
-# -- the published model's direct light: one propagation pass ------------------------------------
+# -- the upwind convection's steady state (KD's former warm start), the exact march -------------
 def steady_convection_sweep(rho: np.ndarray, sigma_a: np.ndarray, u: np.ndarray, grid: Grid,
                             source: np.ndarray | None = None) -> np.ndarray:
     """One sweep of the *steady state* of the split upwind convection (plugins'
@@ -353,6 +380,77 @@ def steady_convection_sweep(rho: np.ndarray, sigma_a: np.ndarray, u: np.ndarray,
     if source is not None:
         out[source] = 1.0
     return out.astype(np.float32)
+
+
+#: March step of :func:`marched_transmittance`, in smallest voxel edges.
+MARCH_STEP_EDGES = 0.5
+
+
+def _trilinear(field: np.ndarray, grid: Grid, px: np.ndarray, py: np.ndarray,
+               pz: np.ndarray) -> np.ndarray:
+    """``field`` (``[z, y, x]``) interpolated at dataset positions (µm), clamped to the box of
+    voxel centres — as ``march.comp.glsl``'s ``sigmaAt``."""
+    nz, ny, nx = field.shape
+    coords = []
+    for p, o, s, n in zip((px, py, pz), grid.origin, grid.spacing, (nx, ny, nz), strict=True):
+        f = np.clip((p - np.float32(o)) / np.float32(s), np.float32(0), np.float32(n - 1))
+        i0 = np.minimum(np.floor(f), np.float32(max(n - 2, 0))).astype(np.int64)
+        coords.append((i0, np.minimum(i0 + 1, n - 1), (f - i0).astype(np.float32)))
+    (x0, x1, wx), (y0, y1, wy), (z0, z1, wz) = coords
+
+    def lerp(a: np.ndarray, b: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return a + (b - a) * w
+
+    c0 = lerp(lerp(field[z0, y0, x0], field[z0, y0, x1], wx),
+              lerp(field[z0, y1, x0], field[z0, y1, x1], wx), wy)
+    c1 = lerp(lerp(field[z1, y0, x0], field[z1, y0, x1], wx),
+              lerp(field[z1, y1, x0], field[z1, y1, x1], wx), wy)
+    return lerp(c0, c1, wz)
+
+
+def marched_transmittance(sigma_t: np.ndarray, grid: Grid, light: LightSource,
+                          unit_distance: float, step: float = MARCH_STEP_EDGES) -> np.ndarray:
+    """The exact direct light's transmittance at every voxel centre towards the ideal
+    ``light``, ``[z, y, x]`` float32 in (0, 1]: exp(−∫σ_t ds) along the straight ray to the
+    light, σ_t (per µm) that of the trilinearly interpolated opacity α = 1 − exp(−σ_t·u)
+    (``unit_distance`` u µm, as the renderer and the exact reference interpolate), up to
+    where the ray leaves the box of voxel centres (directional) or reaches the light (point).
+    Midpoint rule with n = ⌈length/(step·h)⌉ equal steps per ray (h the smallest voxel edge,
+    no partial step). The source model's direct light (KD's warm start): unlike the upwind
+    convection's steady state it does not smear a shadow edge that is oblique to the grid
+    axes. ``march.comp.glsl`` is its GPU twin."""
+    f = np.float32
+    x, y, z = (np.broadcast_to(c, grid.shape_zyx).astype(f).ravel() for c in grid.centres())
+    if light.kind == "point":
+        d = np.stack([np.full_like(x, f(c)) for c in light.vector]) - np.stack([x, y, z])
+        dist = np.sqrt((d * d).sum(axis=0))
+        d = d / np.maximum(dist, f(1e-12))
+    else:
+        u = np.asarray(light.vector, np.float64)
+        u = (u / max(float(np.linalg.norm(u)), 1e-30)).astype(f)
+        d = np.broadcast_to(u.reshape(3, 1), (3, x.size)).astype(f)
+        dist = np.full_like(x, f(np.inf))
+    exit_t = np.full_like(x, f(np.inf))
+    for p, da, o, s, n in zip((x, y, z), d, grid.origin, grid.spacing, grid.shape_zyx[::-1],
+                              strict=True):
+        lo = f(o)
+        hi = lo + f(s) * f(n - 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = np.where(da > 0, (hi - p) / da, np.where(da < 0, (lo - p) / da, np.inf))
+        exit_t = np.minimum(exit_t, t.astype(f))
+    length = np.minimum(np.maximum(exit_t, f(0.0)), dist)
+    ds = f(step * min(grid.spacing))
+    steps = np.ceil(length / ds).astype(np.int64)
+    h = np.where(steps > 0, length / np.maximum(steps, 1).astype(f), f(0.0)).astype(f)
+    alpha = (-np.expm1(-np.asarray(sigma_t, np.float64) * unit_distance)).astype(f)
+    tau = np.zeros_like(x)
+    for k in range(int(steps.max(initial=0))):
+        live = steps > k
+        t = (f(k) + f(0.5)) * h[live]
+        a = _trilinear(alpha, grid, x[live] + t * d[0, live], y[live] + t * d[1, live],
+                       z[live] + t * d[2, live])
+        tau[live] += h[live] * -np.log1p(-np.minimum(a, f(MAX_OPACITY))) / f(unit_distance)
+    return np.exp(-tau).astype(f).reshape(grid.shape_zyx)
 
 
 def propagation_sweeps(grid: Grid) -> int:

@@ -23,6 +23,8 @@ uniform ivec2 vv_end;           // chunks: one sample drawn in z slabs and y ban
 uniform vec3 vv_origin;
 uniform vec3 vv_spacing;
 uniform float vv_majorant;      // max sigma_t (per µm)
+uniform float vv_unitDistance;  // µm: > 0 samples the extinction of the interpolated opacity
+                                // 1 - exp(-sigma_t u) (cpu.py's extinction_at); 0: sigma_t
 uniform uint vv_iteration;      // k: the running mean's sample index
 uniform uint vv_seed;
 uniform int vv_numLights;
@@ -53,6 +55,14 @@ float uniformDraw(uint key, uint draw)
 
 float lerp(float a, float b, float w) { return a * (1.0 - w) + b * w; }
 
+// What is interpolated at a voxel: sigma_t, or with vv_unitDistance > 0 the opacity of one
+// unit distance (as the ray caster and the exact reference sample the data).
+float cornerAt(ivec3 i)
+{
+  float s = imageLoad(vv_sigma, i).r;
+  return vv_unitDistance > 0.0 ? 1.0 - exp(-s * vv_unitDistance) : s;
+}
+
 float sigmaAt(vec3 p)
 {
   ivec3 i0, i1;
@@ -64,15 +74,13 @@ float sigmaAt(vec3 p)
     i1[a] = min(i0[a] + 1, vv_dims[a] - 1);
     w[a] = f - float(i0[a]);
   }
-  float c00 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i0.y, i0.z)).r,
-                   imageLoad(vv_sigma, ivec3(i1.x, i0.y, i0.z)).r, w.x);
-  float c01 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i1.y, i0.z)).r,
-                   imageLoad(vv_sigma, ivec3(i1.x, i1.y, i0.z)).r, w.x);
-  float c10 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i0.y, i1.z)).r,
-                   imageLoad(vv_sigma, ivec3(i1.x, i0.y, i1.z)).r, w.x);
-  float c11 = lerp(imageLoad(vv_sigma, ivec3(i0.x, i1.y, i1.z)).r,
-                   imageLoad(vv_sigma, ivec3(i1.x, i1.y, i1.z)).r, w.x);
-  return lerp(lerp(c00, c01, w.y), lerp(c10, c11, w.y), w.z);
+  float c00 = lerp(cornerAt(ivec3(i0.x, i0.y, i0.z)), cornerAt(ivec3(i1.x, i0.y, i0.z)), w.x);
+  float c01 = lerp(cornerAt(ivec3(i0.x, i1.y, i0.z)), cornerAt(ivec3(i1.x, i1.y, i0.z)), w.x);
+  float c10 = lerp(cornerAt(ivec3(i0.x, i0.y, i1.z)), cornerAt(ivec3(i1.x, i0.y, i1.z)), w.x);
+  float c11 = lerp(cornerAt(ivec3(i0.x, i1.y, i1.z)), cornerAt(ivec3(i1.x, i1.y, i1.z)), w.x);
+  float v = lerp(lerp(c00, c01, w.y), lerp(c10, c11, w.y), w.z);
+  if (vv_unitDistance <= 0.0) return v;
+  return -log(1.0 - min(v, 1.0 - 1e-6)) / vv_unitDistance;
 }
 
 #if VV_BRICKS
