@@ -62,7 +62,7 @@ def run(alpha: np.ndarray, spacing: tuple[float, float, float], direction: tuple
     sigma_a = kd.absorption_per_iteration(sigma_t, grid, albedo=ALBEDO, mapping="matched",
                                           convection_extinction="total", unit_distance=unit)
     t = kd.Transport(grid, [light], WHITE, sigma_a, lam, model="source",
-                     coefficients=coefficients)
+                     coefficients=coefficients, sigma_t=sigma_t, unit_distance=unit)
     while t.residual > 1e-4 and t.iteration < MAX_SWEEPS:
         t.step(16)
     out["KD source"] = negatives(t.rho_s)

@@ -59,8 +59,10 @@ def run_case(alpha: np.ndarray, spacing: Sequence[float], light: object, *,
     lam = kd.diffusion_rate(sigma_t, grid, ALBEDO)
     # The default ("source") diffusion model of both techniques, run to its residual tolerance.
     coefficients = kd.source_coefficients(sigma_t, grid, ALBEDO)
+    # With σ_t the direct light is ray-marched, as the technique's source model computes it.
     transport = kd.Transport(grid, [source], [(1.0, 1.0, 1.0)], sigma_a, lam, diffusion_steps=1,
-                             model="source", coefficients=coefficients)
+                             model="source", coefficients=coefficients, sigma_t=sigma_t,
+                             unit_distance=unit)
     while transport.residual > 1e-4:
         transport.step(16)
     kd_direct = transport.rho[0]
