@@ -37,9 +37,11 @@ PARAMETERS: tuple[Param, ...] = (
         "absorption_mapping", "matched", "Absorption",
         "matched: the per-iteration absorption is set so an axis-aligned light decays exactly as "
         "exp(−σ·distance) (tanh(σh)); vpt: half the opacity of a voxel, as the authors' code "
-        "does (for reproduction).",
+        "does (for reproduction). Published model only: the source model ray-marches its "
+        "direct light, with no convection to absorb in.",
         kind="choice", choices=("matched", "vpt"), invalidates=_RESTART, uniform=False,
         choice_labels=("Matched to exp(−σ·distance)", "As the authors' code (VPT)"),
+        applies_when=(("diffusion_model", ("published",)),),
     ),
     *diffusion_model_params(_RESTART),
     backend_param(_RESTART),
