@@ -24,6 +24,8 @@ uniform float vv_maxOpacity;
 uniform int vv_numLights;
 uniform vec4 vv_lightVec[4];
 
+//@include grid_cell.glsl
+
 float lerp(float a, float b, float w) { return a + (b - a) * w; }
 
 // sigma_t (per µm) of the trilinearly interpolated opacity at p (µm), clamped to the box.
@@ -31,13 +33,7 @@ float sigmaAt(vec3 p)
 {
   ivec3 i0, i1;
   vec3 w;
-  for (int a = 0; a < 3; ++a)
-  {
-    float f = clamp((p[a] - vv_origin[a]) / vv_spacing[a], 0.0, float(vv_dims[a] - 1));
-    i0[a] = int(min(floor(f), float(max(vv_dims[a] - 2, 0))));
-    i1[a] = min(i0[a] + 1, vv_dims[a] - 1);
-    w[a] = f - float(i0[a]);
-  }
+  vv_gridCell(p, i0, i1, w);
   float c0 = lerp(lerp(imageLoad(vv_alpha, ivec3(i0.x, i0.y, i0.z)).r,
                        imageLoad(vv_alpha, ivec3(i1.x, i0.y, i0.z)).r, w.x),
                   lerp(imageLoad(vv_alpha, ivec3(i0.x, i1.y, i0.z)).r,

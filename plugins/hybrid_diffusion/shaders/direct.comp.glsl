@@ -53,6 +53,8 @@ float uniformDraw(uint key, uint draw)
   return float(pcg(key + draw) >> 8u) * (1.0 / 16777216.0);
 }
 
+//@include grid_cell.glsl
+
 float lerp(float a, float b, float w) { return a * (1.0 - w) + b * w; }
 
 // What is interpolated at a voxel: sigma_t, or with vv_unitDistance > 0 the opacity of one
@@ -67,13 +69,7 @@ float sigmaAt(vec3 p)
 {
   ivec3 i0, i1;
   vec3 w;
-  for (int a = 0; a < 3; ++a)
-  {
-    float f = clamp((p[a] - vv_origin[a]) / vv_spacing[a], 0.0, float(vv_dims[a] - 1));
-    i0[a] = int(min(floor(f), float(max(vv_dims[a] - 2, 0))));
-    i1[a] = min(i0[a] + 1, vv_dims[a] - 1);
-    w[a] = f - float(i0[a]);
-  }
+  vv_gridCell(p, i0, i1, w);
   float c00 = lerp(cornerAt(ivec3(i0.x, i0.y, i0.z)), cornerAt(ivec3(i1.x, i0.y, i0.z)), w.x);
   float c01 = lerp(cornerAt(ivec3(i0.x, i1.y, i0.z)), cornerAt(ivec3(i1.x, i1.y, i0.z)), w.x);
   float c10 = lerp(cornerAt(ivec3(i0.x, i0.y, i1.z)), cornerAt(ivec3(i1.x, i0.y, i1.z)), w.x);
