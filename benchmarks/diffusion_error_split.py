@@ -67,14 +67,19 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
 
 
 def shown_fields(rig: Rig) -> tuple[np.ndarray, np.ndarray]:
-    """The active technique's (direct, scattered) textures read back: ``[z, y, x, c]``."""
+    """The active technique's (direct, scattered) light read back: ``[z, y, x, c]``; the
+    scattered light includes HD's traced orders (``traced_orders``) where it has them."""
     tech: Any = rig.illuminator.technique
     gpu = tech._gpu
     direct, scattered = gpu.shown if gpu is not None else (tech._direct, tech._scattered)
-    d, s = direct.download(), scattered.download()
+    traced = (getattr(gpu, "traced", None) if gpu is not None
+              else getattr(tech, "_traced_texture", None))
+    d, s = direct.download(), scattered.download()[..., :3]
+    if traced is not None:
+        s = s + traced.download()[..., :3]
     if d.ndim == 3:
         d = d[..., None]
-    return d, s[..., :3]
+    return d, s
 
 
 def technique_volumes(short: str, direct: np.ndarray, scattered: np.ndarray | None,

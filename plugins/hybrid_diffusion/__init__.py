@@ -59,6 +59,16 @@ PARAMETERS: tuple[Param, ...] = (
         "seed", 0, "Seed", "Random seed of the sample streams.",
         kind="int", range=(0, 2**31 - 1), step=1, invalidates=_RESTART, uniform=False,
     ),
+    Param(
+        "traced_orders", 2, "Traced orders",
+        "Source model: the first scattering orders traced per voxel (one path per iteration, "
+        "next-event estimation at each collision) before the diffusion takes over from the last "
+        "of them. Traced light crosses empty space (a cavity, the gap between two objects), "
+        "which a diffusion cannot; 0 = the diffusion from the direct light alone. Each order "
+        "costs about one more tracking per voxel and iteration.",
+        kind="int", range=(0, 4), step=1, invalidates=_RESTART, uniform=False,
+        applies_when=(("diffusion_model", ("source",)),),
+    ),
     *diffusion_model_params(_RESTART),
     backend_param(_RESTART),
 )
@@ -80,6 +90,7 @@ TECHNIQUE = TechniqueSpec(
         BenchSetting({"estimator": "delta"}, "HD delta tracking"),
         BenchSetting({"majorant": "global"}, "HD global majorant"),
         BenchSetting({"diffusion_model": "published"}, "HD published"),
+        BenchSetting({"traced_orders": 0}, "HD no traced orders"),
     ),
     stability=(BenchSetting({"max_iterations": 16}, "HD 16 samples", quick=True),
                BenchSetting({"max_iterations": 16, "diffusion_model": "published"},

@@ -23,7 +23,7 @@ published explicit step applied to ρ_d + ρ_s).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 
@@ -332,3 +332,52 @@ def _track(sigma_t: np.ndarray, grid: Grid, light: LightSource, keys: np.ndarray
             alive &= ~collide
         draw += 1  # both estimators use two draws per step, so their streams line up
     return np.where(alive, np.float32(0.0), throughput)  # too many steps: absorbed
+
+
+#: Offset of the traced orders' Monte-Carlo seeds (iteration k of seed s uses
+#: ORDERS_SEED_BASE + s·1000003 + k): the bench's references use seeds 0 and 1, and a technique
+#: measured against them must not share their paths.
+ORDERS_SEED_BASE = 1 << 21
+
+
+def traced_orders_sample(setup: Any, region: tuple[int, int, int, int], iteration: int,
+                         seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """One path per voxel of ``region`` (z0, z1, y0, y1; all x) for the traced orders 1 … k
+    (``setup.orders``): (E_1 + … + E_k, E_k), each ``[z1 − z0, y1 − y0, x, 3]`` float32 in the
+    lights' colours. The numpy path of ``direct.comp.glsl``'s ``VV_ORDERS``: the same estimator
+    (the Monte-Carlo reference, :func:`vtkvol.reference.inscattered_mc`: delta tracking to each
+    collision, next-event estimation, albedo and Henyey–Greenstein g) with other random
+    numbers — the two agree in the mean (tested), not sample by sample. A sized light is the
+    engine's quadrature of its extent (:func:`~vtkvol.engine.diffusion.light_quadrature`)."""
+    from vtkvol.engine.diffusion import light_quadrature
+    from vtkvol.reference import DirectionalLight, PointLight, inscattered_mc
+
+    grid = setup.grid
+    z0, z1, y0, y1 = region
+    nx = grid.shape_zyx[2]
+    origin = np.asarray(grid.origin, np.float64)
+    lights: list[DirectionalLight | PointLight] = []
+    colors: list[tuple[float, float, float]] = []
+    for light, color in zip(setup.lights, setup.colors, strict=True):
+        for part, weight in light_quadrature(light):
+            if part.kind == "point":
+                lights.append(PointLight(tuple(np.asarray(part.vector) - origin),
+                                         falloff_distance=part.falloff_distance))
+            else:
+                lights.append(DirectionalLight(part.vector))
+            colors.append(tuple(float(c) * weight for c in color))
+    zz, yy, xx = np.meshgrid(np.arange(z0, z1), np.arange(y0, y1), np.arange(nx),
+                             indexing="ij")
+    points = np.stack([xx, yy, zz], axis=-1).reshape(-1, 3) * np.asarray(grid.spacing)
+    unit = setup.unit_distance if setup.unit_distance else 1.0
+    alpha = -np.expm1(-np.asarray(setup.sigma_t, np.float64) * unit)
+    run_seed = ORDERS_SEED_BASE + seed * 1000003 + iteration
+    shape = (z1 - z0, y1 - y0, nx, 3)
+    out = []
+    for lowest in (1, setup.orders):
+        e = inscattered_mc(alpha, grid.spacing, lights, albedo=setup.albedo,
+                           phase_g=setup.phase_g, n_paths=1, seed=run_seed,
+                           unit_distance=unit, max_bounces=setup.orders, min_bounces=lowest,
+                           points=points, light_colors=colors)
+        out.append(np.asarray(e, np.float32).reshape(shape))
+    return out[0], out[1]

@@ -56,7 +56,8 @@ class Setup:
                  coefficients: np.ndarray | None = None,
                  bricks: np.ndarray | None = None, scatter: ScatterGrid | None = None,
                  scatter_coefficients: np.ndarray | None = None,
-                 unit_distance: float | None = None) -> None:
+                 unit_distance: float | None = None, orders: int = 0,
+                 albedo: float = 1.0, phase_g: float = 0.0) -> None:
         self.grid, self.sigma_t, self.lights, self.colors, self.lam = (
             grid, sigma_t, lights, colors, lam)
         #: The opacity's unit distance (µm): the tracker samples the extinction of the
@@ -67,6 +68,10 @@ class Setup:
         self.bricks = bricks
         self.scatter = scatter if scatter is not None else ScatterGrid(grid, 1)
         self.scatter_coefficients = scatter_coefficients
+        #: Scattering orders traced per voxel before the diffusion (source model only; 0:
+        #: the diffusion's source is the direct light), and the material they scatter in.
+        self.orders = orders if model == "source" else 0
+        self.albedo, self.phase_g = albedo, phase_g
 
     @property
     def solve(self) -> tuple[kd.Grid, np.ndarray]:
@@ -82,7 +87,7 @@ class Setup:
               albedo: float, model: str = "source", phase_g: float = 0.0,
               majorant: str = "global", scatter_grid: str = "full",
               coefficients: np.ndarray | None = None, lam: np.ndarray | None = None,
-              unit_distance: float | None = None) -> Setup:
+              unit_distance: float | None = None, orders: int = 0) -> Setup:
         """``coefficients`` and ``lam``: the per-voxel arrays when already computed (a restart
         builds them in z slabs, :meth:`HybridDiffusion._stages`), else computed here."""
         specs = specs[:4]
@@ -104,7 +109,7 @@ class Setup:
                                 if scatter.coarse else None)
         return cls(grid, sigma_t, lights, colors, lam, model,
                    coefficients if model == "source" else None, bricks, scatter,
-                   scatter_coefficients, unit_distance)
+                   scatter_coefficients, unit_distance, orders, albedo, phase_g)
 
 
 class HybridDiffusion(GridScattering):
@@ -119,6 +124,11 @@ class HybridDiffusion(GridScattering):
         super().__init__(host)
         self._rho_d: np.ndarray | None = None  # numpy path state
         self._rho_s: np.ndarray | None = None
+        #: Numpy path, traced orders: running means of E_1 + … + E_k and of E_k (rgb).
+        self._traced: np.ndarray | None = None
+        self._last: np.ndarray | None = None
+        #: Numpy path: the traced orders' texture the shader samples.
+        self._traced_texture: Texture3D | None = None
         #: Source model, numpy path: q (restricted to the scatter grid) of the current ρ_d.
         self._q: np.ndarray | None = None
         #: The current sample's next region's first (z layer, y row): not (0, 0) while a
@@ -162,6 +172,8 @@ class HybridDiffusion(GridScattering):
         shape = self.setup.grid.shape_zyx
         self._rho_d = np.zeros((*shape, 3), np.float32)
         self._rho_s = np.zeros((*self.setup.scatter.grid.shape_zyx, 3), np.float32)
+        self._traced = np.zeros((*shape, 3), np.float32) if self.setup.orders else None
+        self._last = np.zeros((*shape, 3), np.float32) if self.setup.orders else None
         self._q = None
         self._upload_cpu_state()
 
@@ -269,7 +281,8 @@ class HybridDiffusion(GridScattering):
         self.setup = Setup.build(grid, sigma_t, host.light_specs(), host.albedo, model,
                                  host.phase_g, str(values["majorant"]),
                                  str(values["scatter_grid"]), coefficients=coefficients,
-                                 lam=lam, unit_distance=host.unit_distance)
+                                 lam=lam, unit_distance=host.unit_distance,
+                                 orders=int(values["traced_orders"]))
         if gpu is not None:
             yield from self._gl_steps(gpu.state_steps(self.setup))
             gpu = self._gpu
@@ -309,10 +322,26 @@ class HybridDiffusion(GridScattering):
         elif gpu is None and self._direct is not None and self._scattered is not None:
             self._bind(None)
         else:
-            if self._placeholder is None:
-                self._placeholder = Texture3D(self.host.render_window, (1, 1, 1), channels=4,
-                                              data=np.zeros((1, 1, 1, 4), np.float32))
-            self._bind((self._placeholder, self._placeholder))
+            zero = self._zero_texel()
+            self._bind((zero, zero))
+
+    def _bind(self, gpu_textures: tuple[Texture3D, Texture3D] | None) -> None:
+        """The direct and scattered light (the base class's), and the traced orders' light
+        ``vv_hybrid_diffusion_traced`` (a zero texel when none is traced)."""
+        super()._bind(gpu_textures)
+        gpu = self._gpu
+        traced = gpu.traced if gpu is not None else self._traced_texture
+        if traced is None or (gpu_textures is not None
+                              and gpu_textures[0] is self._placeholder):
+            traced = self._zero_texel()
+        self.host.bind_texture(f"vv_{self.NAME}_traced", traced)
+
+    def _zero_texel(self) -> Texture3D:
+        """A 1³ zero RGBA texture: what is shown before anything is computed."""
+        if self._placeholder is None:
+            self._placeholder = Texture3D(self.host.render_window, (1, 1, 1), channels=4,
+                                          data=np.zeros((1, 1, 1, 4), np.float32))
+        return self._placeholder
 
     def advance(self, values: Mapping[str, Any]) -> None:
         """Up to ``iterations_per_frame`` samples before this frame. With the host's
@@ -444,7 +473,7 @@ class HybridDiffusion(GridScattering):
                        else int(budget_ms / max(self._sweep_layer_ms, 1e-6)))
                 z1 = min(nz, z0 + max(GROUP[2], fit // GROUP[2] * GROUP[2]))
             t0 = time.perf_counter()
-            gpu.source.sweep_slab(gpu.rho_d, RGB_AS_LIGHTS, z0, z1)
+            gpu.source.sweep_slab(gpu.source_light, RGB_AS_LIGHTS, z0, z1)
             if budget_ms is not None:
                 finish_gl(self.host.render_window)
             if self._sweeps_left == 1:  # the unit's last sweep: its residual, slab by slab
@@ -473,7 +502,10 @@ class HybridDiffusion(GridScattering):
 
     def release(self) -> None:
         super().release()
-        self._rho_d = self._rho_s = self._q = None
+        self._rho_d = self._rho_s = self._q = self._traced = self._last = None
+        if self._traced_texture is not None:
+            self._traced_texture.release()
+            self._traced_texture = None
         self._staging = None
         if self._placeholder is not None:
             self._placeholder.release()
@@ -515,9 +547,16 @@ class HybridDiffusion(GridScattering):
             light_sampling=values["light_sampling"], region=region, bricks=setup.bricks,
             unit_distance=setup.unit_distance,
         )
+        weight = np.float32(1.0 / (self.iteration + 1))
         mean = self._rho_d[z0:z1, y0:y1]
-        self._rho_d[z0:z1, y0:y1] = mean + (draw[z0:z1, y0:y1] - mean) / np.float32(
-            self.iteration + 1)
+        self._rho_d[z0:z1, y0:y1] = mean + (draw[z0:z1, y0:y1] - mean) * weight
+        if setup.orders:
+            assert self._traced is not None and self._last is not None
+            traced, last = cpu.traced_orders_sample(setup, region, self.iteration,
+                                                    int(values["seed"]))
+            for field, draw_orders in ((self._traced, traced), (self._last, last)):
+                mean = field[z0:z1, y0:y1]
+                field[z0:z1, y0:y1] = mean + (draw_orders - mean) * weight
         self._q = None  # ρ_d changed: the source model's q is stale
 
     def _whole_sweep(self, values: Mapping[str, Any]) -> None:
@@ -533,9 +572,11 @@ class HybridDiffusion(GridScattering):
         if setup.model == "source":
             assert setup.coefficients is not None
             if self._q is None:  # after a sample; the finishing sweeps reuse it
+                # the diffusion carries on from the last traced order (or the direct light)
+                light = self._last if setup.orders else self._rho_d
+                assert light is not None
                 self._q = setup.scatter.restrict(kd.source_term(
-                    setup.coefficients, np.moveaxis(self._rho_d, -1, 0), RGB_AS_LIGHTS,
-                    [1.0] * 3))
+                    setup.coefficients, np.moveaxis(light, -1, 0), RGB_AS_LIGHTS, [1.0] * 3))
             grid, coefficients = setup.solve
             new, r2, q2 = kd.jacobi_sweep(self._rho_s, self._q, coefficients, grid)
             self.residual = relative_residual(r2, q2)
@@ -548,6 +589,11 @@ class HybridDiffusion(GridScattering):
         assert self._rho_d is not None and self._rho_s is not None
         self._direct = self._show(self._direct, _rgba(self._rho_d), 4)
         self._scattered = self._show(self._scattered, _rgba(self._rho_s), 4)
+        if self._traced is not None:
+            self._traced_texture = self._show(self._traced_texture, _rgba(self._traced), 4)
+        elif self._traced_texture is not None:
+            self._traced_texture.release()
+            self._traced_texture = None
 
 
 def _rgba(rgb: np.ndarray) -> np.ndarray:
@@ -564,8 +610,12 @@ class GpuHybrid:
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
-        self._programs: dict[tuple[str, str], ComputeProgram] = {}
+        self._programs: dict[tuple[str, str, bool, int], ComputeProgram] = {}
         self.rho_d: Texture3D | None = None  # type: ignore[assignment]
+        #: Traced orders (source model): running means of E_1 + … + E_k (shown) and of E_k
+        #: (the diffusion's source), RGBA on the data grid; None without traced orders.
+        self.traced: Texture3D | None = None
+        self._last: Texture3D | None = None
         self._sigma: Texture3D | None = None
         self._bricks: Texture3D | None = None
         self.diffusion = GpuDiffusion(render_window)
@@ -577,7 +627,8 @@ class GpuHybrid:
 
     @property
     def textures(self) -> list[Texture3D]:
-        own = [t for t in (self.rho_d, self._sigma, self._bricks) if t is not None]
+        own = [t for t in (self.rho_d, self.traced, self._last, self._sigma, self._bricks)
+               if t is not None]
         return own + self.diffusion.textures + self.source.textures
 
     @property
@@ -592,8 +643,17 @@ class GpuHybrid:
         assert self._setup is not None
         return self.source.phi if self._setup.model == "source" else self.diffusion.rho_s
 
-    def program(self, estimator: str, light_sampling: str, bricks: bool) -> ComputeProgram:
-        key = (estimator, light_sampling, bricks)
+    @property
+    def source_light(self) -> Texture3D:
+        """What the source model's diffusion starts from: E_k of the last traced order, or
+        the direct light ρ_d without traced orders."""
+        light = self._last if self._last is not None else self.rho_d
+        assert light is not None
+        return light
+
+    def program(self, estimator: str, light_sampling: str, bricks: bool,
+                orders: int = 0) -> ComputeProgram:
+        key = (estimator, light_sampling, bricks, orders)
         prog = self._programs.get(key)
         if prog is None:
             defines = {
@@ -603,6 +663,7 @@ class GpuHybrid:
                 "VV_MIN_THROUGHPUT": repr(cpu.MIN_THROUGHPUT),
                 "VV_BRICKS": "1" if bricks else "0",
                 "VV_BRICK": str(cpu.BRICK),
+                "VV_ORDERS": str(orders),
             }
             source = compute_source("direct.comp.glsl", defines, __package__)
             prog = ComputeProgram(self.render_window, source, f"hybrid direct {key}")
@@ -637,6 +698,13 @@ class GpuHybrid:
             self._setup = None
             self.rho_d = kd.storage(self.rho_d, self.render_window, shape, 4)
             yield
+        if setup.orders:
+            for name in ("traced", "_last"):
+                if not kd.fits(getattr(self, name), shape, 4):
+                    self._setup = None
+                    setattr(self, name, kd.storage(getattr(self, name), self.render_window,
+                                                   shape, 4))
+                    yield
         if setup.model == "source":
             for _ in self.source.allocation_steps(setup.scatter.grid.shape_zyx):
                 self._setup = None
@@ -662,6 +730,14 @@ class GpuHybrid:
             self._bricks = Texture3D(rw, setup.bricks.shape, data=setup.bricks)
             self._bricks.tex.Deactivate()
         self.rho_d = kd.storage(self.rho_d, rw, shape, 4, zero=True)
+        if setup.orders:
+            self.traced = kd.storage(self.traced, rw, shape, 4, zero=True)
+            self._last = kd.storage(self._last, rw, shape, 4, zero=True)
+        else:
+            for tex in (self.traced, self._last):
+                if tex is not None:
+                    tex.release()
+            self.traced = self._last = None
         # The other model's storage goes (a switch of diffusion_model).
         if setup.model == "source":
             if self.diffusion.textures:
@@ -688,8 +764,7 @@ class GpuHybrid:
         """Before a unit of source-model sweeps on a reduced grid: q of the current ρ_d into
         the coarse source texture, when a sample changed ρ_d since the last restriction (one
         dispatch over the data grid, not split)."""
-        assert self.rho_d is not None
-        self.source.restrict(self.rho_d, RGB_AS_LIGHTS, self._sampled)
+        self.source.restrict(self.source_light, RGB_AS_LIGHTS, self._sampled)
         self._sampled = False
 
     def sample(self, iteration: int, values: Mapping[str, Any],
@@ -700,7 +775,8 @@ class GpuHybrid:
         grid = setup.grid
         nz, ny, nx = grid.shape_zyx
         bricks = self._bricks if setup.bricks is not None else None
-        prog = self.program(values["estimator"], values["light_sampling"], bricks is not None)
+        prog = self.program(values["estimator"], values["light_sampling"], bricks is not None,
+                            setup.orders)
         prog.use()
         vecs: list[float] = []
         for light in setup.lights:
@@ -737,10 +813,18 @@ class GpuHybrid:
             nbz, nby, nbx = setup.bricks.shape
             prog.set_uniform("vv_brickDims", nbx, nby, nbz)
             bricks.bind_image(2, "read")
+        if setup.orders:
+            assert self.traced is not None and self._last is not None
+            prog.set_uniform("vv_traced", 3)
+            prog.set_uniform("vv_last", 4)
+            prog.set_uniform("vv_albedo", float(setup.albedo), kind="f")
+            prog.set_uniform("vv_phaseG", float(setup.phase_g), kind="f")
+            self.traced.bind_image(3, "readwrite")
+            self._last.bind_image(4, "readwrite")
         groups = dispatch_groups(grid)
         prog.dispatch((groups[0], -(-(region[3] - region[2]) // GROUP[1]),
                        -(-(region[1] - region[0]) // GROUP[2])))
-        unbind_images(self.render_window, 3)
+        unbind_images(self.render_window, 5 if setup.orders else 3)
         prog.done()
         self._sampled = True
 
@@ -750,10 +834,10 @@ class GpuHybrid:
         return self.rho_d.download()[..., :3], self.rho_s.download()[..., :3]
 
     def _release_textures(self) -> None:
-        for tex in (self.rho_d, self._sigma, self._bricks):
+        for tex in (self.rho_d, self.traced, self._last, self._sigma, self._bricks):
             if tex is not None:
                 tex.release()
-        self.rho_d = self._sigma = self._bricks = None
+        self.rho_d = self.traced = self._last = self._sigma = self._bricks = None
 
     def release(self) -> None:
         self._release_textures()

@@ -7,6 +7,11 @@
 // Defines: VV_RATIO (1 = ratio tracking, 0 = delta tracking), VV_ALL_LIGHTS (1 = every light
 // per iteration, 0 = one chosen at random), VV_MAX_STEPS, VV_MIN_THROUGHPUT, VV_BRICKS (1 = the
 // per-brick majorant grid vv_bricks, bricks of VV_BRICK voxels; 0 = the global vv_majorant).
+// VV_ORDERS k > 0 (source model, `traced_orders`): one path per voxel also traces the first k
+// scattering orders (delta tracking to each collision, next-event estimation by the same
+// tracker), averaged into vv_traced (E_1 + … + E_k) and vv_last (E_k, the diffusion's source);
+// its numpy counterpart is the Monte-Carlo reference (vtkvol.reference.inscattered_mc, the
+// same estimator with other random numbers: compared statistically).
 // Grid: the data's voxel centres (dataset µm: vv_origin + vv_spacing * index).
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
@@ -32,6 +37,12 @@ uniform vec4 vv_lightVec[4];    // xyz: direction towards the light (unit) or po
 uniform vec3 vv_color[4];
 uniform float vv_lightSize[4];  // angular radius (rad, directional) or sphere radius (µm, point)
 uniform vec4 vv_falloff[4];     // position (µm) and d0 (µm; 0 = none): irradiance * (d0/r)^2
+#if VV_ORDERS > 0
+layout(rgba32f) uniform image3D vv_traced;             // E_1 + … + E_k (rgb), read and written
+layout(rgba32f) uniform image3D vv_last;               // E_k (rgb), read and written
+uniform float vv_albedo;        // single-scattering albedo a
+uniform float vv_phaseG;        // Henyey–Greenstein asymmetry g
+#endif
 
 uint pcg(uint v)
 {
@@ -179,6 +190,117 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
   return 0.0;  // too many tentative collisions: absorbed
 }
 
+#if VV_ORDERS > 0
+// Distance (µm) from pos along the unit d to the exit of the box of voxel centres.
+float boxExit(vec3 pos, vec3 d)
+{
+  float exitT = 1e30;
+  for (int a = 0; a < 3; ++a)
+  {
+    float lo = vv_origin[a];
+    float hi = vv_origin[a] + vv_spacing[a] * float(vv_dims[a] - 1);
+    float t = d[a] > 0.0 ? (hi - pos[a]) / d[a] : (d[a] < 0.0 ? (lo - pos[a]) / d[a] : 1e30);
+    exitT = min(exitT, t);
+  }
+  return max(exitT, 0.0);
+}
+
+// Delta tracking from pos along the unit d: true and the distance tHit (µm) of the first real
+// collision, false when the path leaves the box first (draws from firstDraw on, two a step).
+bool collide(uint key, vec3 pos, vec3 d, uint firstDraw, out float tHit)
+{
+  tHit = 0.0;
+  float tEnd = boxExit(pos, d);
+  if (vv_majorant <= 0.0) return false;
+  float minStep = 1e-4 * min(vv_spacing.x, min(vv_spacing.y, vv_spacing.z));
+  float t = 0.0;
+  uint draw = firstDraw;
+  for (int step = 0; step < VV_MAX_STEPS; ++step)
+  {
+    float xi = uniformDraw(key, draw);
+#if VV_BRICKS
+    vec2 brick = brickAt(pos + t * d, d);
+    float local = brick.x;
+    float toFace = max(brick.y, minStep);
+    float freeFlight = local > 0.0 ? -log(1.0 - xi) / local : 1e30;
+    bool event = freeFlight < toFace;
+    t = t + (event ? freeFlight : toFace);
+    if (t >= tEnd) return false;
+    float ratio = event ? min(sigmaAt(pos + t * d) / max(local, 1e-30), 1.0) : 0.0;
+#else
+    t = t - log(1.0 - xi) / vv_majorant;
+    if (t >= tEnd) return false;
+    float ratio = min(sigmaAt(pos + t * d) / vv_majorant, 1.0);
+#endif
+    if (uniformDraw(key, draw + 1u) < ratio)
+    {
+      tHit = t;
+      return true;
+    }
+    draw += 2u;
+  }
+  return false;  // too many tentative collisions: the path is dropped
+}
+
+// 4π × the Henyey–Greenstein phase function at scattering cosine mu (1 when g = 0).
+float phase4pi(float mu)
+{
+  float g = vv_phaseG;
+  return (1.0 - g * g) / pow(max(1.0 + g * g - 2.0 * g * mu, 1e-12), 1.5);
+}
+
+// A direction drawn from the Henyey–Greenstein phase function about the unit w.
+vec3 sampleHG(vec3 w, float u1, float u2)
+{
+  float g = vv_phaseG;
+  float c;
+  if (abs(g) < 1e-3)
+  {
+    c = 1.0 - 2.0 * u1;
+  }
+  else
+  {
+    float s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u1);
+    c = clamp((1.0 + g * g - s * s) / (2.0 * g), -1.0, 1.0);
+  }
+  return around(w, c, 6.2831853 * u2);
+}
+
+// Orders 1 … VV_ORDERS of the light arriving at pos from one path: (E_1 + … + E_k, E_k), rgb.
+// The path leaves pos in a uniform direction, then in directions drawn from the phase
+// function; at each collision every light is reached by the tracker (next-event estimation),
+// weighted by the albedo per collision and 4π p_g of the angle the light turns there.
+void tracedOrders(uint key, vec3 pos, out vec3 traced, out vec3 last)
+{
+  traced = vec3(0.0);
+  last = vec3(0.0);
+  vec3 x = pos;
+  vec3 dir = vec3(0.0, 0.0, 1.0);
+  float weight = 1.0;
+  for (int k = 1; k <= VV_ORDERS; ++k)
+  {
+    uint base = uint(k) * 65536u;
+    float u1 = uniformDraw(key, base);
+    float u2 = uniformDraw(key, base + 1u);
+    dir = k == 1 ? around(vec3(0.0, 0.0, 1.0), 1.0 - 2.0 * u1, 6.2831853 * u2)
+                 : sampleHG(dir, u1, u2);
+    float t;
+    if (!collide(key, x, dir, base + 2u, t)) return;
+    x = x + t * dir;
+    weight *= vv_albedo;
+    vec3 e = vec3(0.0);
+    for (int l = 0; l < vv_numLights; ++l)
+    {
+      vec3 towards = vv_lightVec[l].w > 0.5 ? normalize(vv_lightVec[l].xyz - x) : vv_lightVec[l].xyz;
+      float p = phase4pi(dot(towards, dir));
+      e += (track(key, x, l, base + 4096u * uint(l + 1)) * falloffAt(l, x) * p) * vv_color[l];
+    }
+    traced += weight * e;
+    if (k == VV_ORDERS) last = weight * e;
+  }
+}
+#endif
+
 void main()
 {
   ivec3 p = ivec3(gl_GlobalInvocationID) + ivec3(0, vv_first.y, vv_first.x);
@@ -203,4 +325,13 @@ void main()
   vec3 mean = imageLoad(vv_direct, p).rgb;
   mean = mean + (sampleRGB - mean) / float(vv_iteration + 1u);
   imageStore(vv_direct, p, vec4(mean, 0.0));
+#if VV_ORDERS > 0
+  vec3 traced, last;
+  tracedOrders(pcg(key ^ 0x68bc21ebu), pos, traced, last);
+  float w = 1.0 / float(vv_iteration + 1u);
+  vec3 tracedMean = imageLoad(vv_traced, p).rgb;
+  vec3 lastMean = imageLoad(vv_last, p).rgb;
+  imageStore(vv_traced, p, vec4(tracedMean + (traced - tracedMean) * w, 0.0));
+  imageStore(vv_last, p, vec4(lastMean + (last - lastMean) * w, 0.0));
+#endif
 }

@@ -6,6 +6,8 @@
 // Textures (bound by the host, retyped from int to sampler3D):
 //   vv_hybrid_diffusion_direct     rho_d: running mean of the direct light (rgb)
 //   vv_hybrid_diffusion_scattered  rho_s: diffused light (rgb)
+//   vv_hybrid_diffusion_traced     the traced scattering orders E_1 + … + E_k (rgb; a zero texel
+//     without traced orders), on the data grid
 //     on the data grid, or on the reduced grid of scatter_grid (⌈n/2⌉ or ⌈n/4⌉ texels per
 //     axis tiling the same extent): either way sampled at texPos, like the data
 
@@ -15,5 +17,6 @@ float vv_light_visibility(int light, vec3 texPos, vec3 dirDS) { return 0.0; }
 vec3 vv_irradiance(vec3 texPos)
 {
   return texture(vv_hybrid_diffusion_direct, texPos).rgb
-    + texture(vv_hybrid_diffusion_scattered, texPos).rgb;
+    + texture(vv_hybrid_diffusion_scattered, texPos).rgb
+    + texture(vv_hybrid_diffusion_traced, texPos).rgb;
 }
