@@ -25,7 +25,8 @@ direct light is RGB irradiance (its shader adds it to the in-scattered light, ph
 isotropic for these scenes), so it is rendered as irradiance with zero visibility.
 
 Run: ``nice -n 19 python benchmarks/diffusion_error_split.py [--size 20] [--image 64]
-[--lights 1] [--scenes sphere_over_slab,...] [--label before]`` (prints Markdown). ``--label``
+[--lights 1] [--scenes sphere_over_slab,...] [--traced-orders K] [--label before]`` (prints
+Markdown). ``--label``
 only names the rows; run it once with ``PYTHONPATH`` pointing at another checkout to get that
 code's figures in the same table.
 """
@@ -55,6 +56,7 @@ from vtkvol.bench.references import (
     ReferenceCache,
 )
 from vtkvol.bench.scenes import phantom_scenes
+from vtkvol.engine.technique import technique_class
 from vtkvol.reference import image_metrics
 
 TECHNIQUES = (("KD", "convection_diffusion"), ("HD", "hybrid_diffusion"))
@@ -107,6 +109,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--label", default="")
     ap.add_argument("--techniques", default="KD,HD")
     ap.add_argument("--scenes", default="", help="comma-separated scene names (default: all)")
+    ap.add_argument("--traced-orders", type=int, default=None,
+                    help="the source model's traced_orders where the technique has it "
+                         "(default: the technique's default; 0: the diffusion from the direct "
+                         "light alone, the code before traced orders)")
     args = ap.parse_args(argv)
     budget = ReferenceBudget(step=0.5, light_rays=8, scatter_paths=args.paths,
                              scatter_bounces=FULL_BUDGET.scatter_bounces)
@@ -144,7 +150,11 @@ def main(argv: list[str] | None = None) -> int:
                         continue
                     for model in MODELS:
                         t0 = time.perf_counter()
-                        rig.set_method(method, {"diffusion_model": model})
+                        values: dict[str, Any] = {"diffusion_model": model}
+                        if (args.traced_orders is not None and model == "source"
+                                and "traced_orders" in technique_class(method).defaults()):
+                            values["traced_orders"] = args.traced_orders
+                        rig.set_method(method, values)
                         iterations, _ = rig.refine(args.max_seconds)
                         image = rig.image()
                         direct, scattered = shown_fields(rig)

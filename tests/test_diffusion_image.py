@@ -58,3 +58,21 @@ def test_source_model_image_is_within_29_5_db_of_the_multiple_scattering_referen
     psnr = _psnr(image, refs["ms"])
     assert psnr > 29.5
     assert psnr > _psnr(refs["ss"], refs["ms"]) + 8.0
+
+
+def test_traced_orders_carry_light_across_empty_space(rig_and_refs):
+    """HD's ``traced_orders``: the first scattering orders traced per voxel reach the slab from
+    the sphere across the empty gap, which the diffusion alone cannot (issue 24). Measured on
+    this 16³ scene: 30.5 dB with the diffusion from the direct light (``traced_orders`` 0),
+    42.2 dB with two traced orders (the bench rig's PSNR; 16 Monte-Carlo paths × 2 seeds)."""
+    rig, refs = rig_and_refs
+    psnr = {}
+    for orders in (0, 2):
+        rig.set_method("hybrid_diffusion", {"diffusion_model": "source",
+                                            "traced_orders": orders})
+        rig.refine(90.0)
+        assert rig.illuminator.technique.converged
+        psnr[orders] = _psnr(rig.image(), refs["ms"])
+        assert rig.illuminator.technique.iteration == 256
+    assert psnr[2] > psnr[0] + 8.0
+    assert psnr[2] > 39.0

@@ -514,6 +514,10 @@ class Illuminator(ServedTechniqueHost):
         tech = self._technique
         if tech is None or self._detach_requested:
             return self.spec.has("progressive")
+        # A converged accumulation that a recorded change will restart (a parameter set since
+        # the last frame) is not final: its flag is stale until the next frame's prepare.
+        if tech.converged and self.changes.pending.reset_accumulation:
+            return self.spec.has("progressive")
         return not tech.converged
 
     def converge(self, max_frames: int | None = None, max_seconds: float | None = None, *,
