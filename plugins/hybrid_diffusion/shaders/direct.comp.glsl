@@ -326,6 +326,18 @@ void main()
   mean = mean + (sampleRGB - mean) / float(vv_iteration + 1u);
   imageStore(vv_direct, p, vec4(mean, 0.0));
 #if VV_ORDERS > 0
+  // Only where a visible sample can read it: a voxel whose 26 neighbours are all empty is a
+  // corner of no cell with opacity, so its traced light is never shown (nor a source of the
+  // diffusion, which has no unknown there); it stays 0 and costs no path.
+  bool readable = false;
+  for (int dz = -1; dz <= 1 && !readable; ++dz)
+    for (int dy = -1; dy <= 1 && !readable; ++dy)
+      for (int dx = -1; dx <= 1 && !readable; ++dx)
+      {
+        ivec3 n = clamp(p + ivec3(dx, dy, dz), ivec3(0), vv_dims - 1);
+        readable = imageLoad(vv_sigma, n).r > 0.0;
+      }
+  if (!readable) return;
   vec3 traced, last;
   tracedOrders(pcg(key ^ 0x68bc21ebu), pos, traced, last);
   float w = 1.0 / float(vv_iteration + 1u);
