@@ -58,3 +58,22 @@ def test_source_model_image_is_within_29_5_db_of_the_multiple_scattering_referen
     psnr = _psnr(image, refs["ms"])
     assert psnr > 29.5
     assert psnr > _psnr(refs["ss"], refs["ms"]) + 8.0
+
+
+def test_kd_traced_orders_bring_the_image_closer_to_the_multiple_scattering_reference(
+        rig_and_refs):
+    """Issue 24: a local diffusion cannot carry light across empty space (here the gap between
+    the sphere and the slab); KD's traced orders (the first two scattering orders traced per
+    voxel, the diffusion carrying on from the second) can. Measured on this 16³ scene: KD
+    source without traced orders 30.6 dB, with them 42.1 dB."""
+    rig, refs = rig_and_refs
+    psnr = {}
+    for orders in (0, 2):
+        rig.set_method("convection_diffusion",
+                       {"diffusion_model": "source", "traced_orders": orders})
+        rig.image()  # a frame: the parameter change restarts the accumulation
+        rig.refine(60.0)
+        tech = rig.illuminator.technique
+        assert tech.converged and tech.setup.orders == orders
+        psnr[orders] = _psnr(rig.image(), refs["ms"])
+    assert psnr[2] > psnr[0] + 6.0 and psnr[2] > 38.0
