@@ -7,13 +7,15 @@ neither technique declares that parameter). Per case, technique and model: the s
 field is run to its stopping point and its negative voxels are counted (any value < 0, RGB
 channels counted per voxel once), with the most negative value.
 
-* KD ``source``: warm-started direct light, Jacobi sweeps of φ until the relative residual
-  < 1e-4 (at most 4000 sweeps); the scattered field is φ.
+* KD ``source``: warm-started direct light, two traced orders (``--hd-samples`` paths per
+  voxel) and Jacobi sweeps of φ from σ_s·E_2 until the relative residual < 1e-4 (at most 4000
+  sweeps); the scattered field counted is what is shown, the traced light + φ.
 * KD ``published``: one field (convection then the explicit diffusion step),
   2 × :func:`~vtkvol.engine.diffusion.iterations_to_cross` iterations; the field is counted
   (it holds direct and scattered light together).
-* HD: ``--hd-samples`` ratio-tracked direct samples averaged (ρ_d), then ``source``:
-  :func:`~vtkvol.engine.diffusion.solve_source` from ρ_d; ``published``: the explicit step
+* HD: ``--hd-samples`` ratio-tracked direct samples averaged (ρ_d), then ``source``: as many
+  paths of two traced orders, :func:`~vtkvol.engine.diffusion.solve_source` from σ_s·E_2, the
+  traced light + φ counted; ``published`` (from ρ_d, no traced orders): the explicit step
   ρ_s ← ρ_s + λ∇²(ρ_d + ρ_s) in its own volume, 2 × iterations_to_cross steps; ρ_s is counted.
 
 Albedo 0.9, σ_t from the opacity per unit of the smallest voxel edge, as the techniques do.
@@ -24,15 +26,19 @@ from __future__ import annotations
 
 import argparse
 import time
+from types import SimpleNamespace
 
 import numpy as np
 
 from vtkvol.bench.scenes import stability_cases
 from vtkvol.engine import diffusion as D
+from vtkvol.engine.traced_orders import traced_orders_sample
 from vtkvol.plugins.convection_diffusion import cpu as kd
 from vtkvol.plugins.hybrid_diffusion import cpu as hd
 
 ALBEDO = 0.9
+#: The source model's traced orders (the techniques' default).
+ORDERS = 2
 MAX_SWEEPS = 4000
 WHITE = ((1.0, 1.0, 1.0),)
 
@@ -62,10 +68,12 @@ def run(alpha: np.ndarray, spacing: tuple[float, float, float], direction: tuple
     sigma_a = kd.absorption_per_iteration(sigma_t, grid, albedo=ALBEDO, mapping="matched",
                                           convection_extinction="total", unit_distance=unit)
     t = kd.Transport(grid, [light], WHITE, sigma_a, lam, model="source",
-                     coefficients=coefficients, sigma_t=sigma_t, unit_distance=unit)
-    while t.residual > 1e-4 and t.iteration < MAX_SWEEPS:
+                     coefficients=coefficients, sigma_t=sigma_t, unit_distance=unit,
+                     orders=ORDERS, albedo=ALBEDO, traced_paths=hd_samples)
+    while (t.residual > 1e-4 or t.samples < hd_samples) and t.iteration < MAX_SWEEPS:
         t.step(16)
-    out["KD source"] = negatives(t.rho_s)
+    assert t.traced is not None
+    out["KD source"] = negatives(t.traced + t.rho_s)  # the traced orders and φ, as shown
 
     # KD, published: absorption-only convection (eq. 8) and the explicit diffusion of one field.
     sigma_a = kd.absorption_per_iteration(sigma_t, grid, albedo=ALBEDO, mapping="matched",
@@ -79,9 +87,18 @@ def run(alpha: np.ndarray, spacing: tuple[float, float, float], direction: tuple
         sample = hd.direct_sample(sigma_t, grid, [light], WHITE, iteration=k, seed=0,
                                   estimator="ratio", light_sampling="one")
         rho_d += (sample[..., 0] - rho_d) / np.float32(k + 1)
-    q = kd.source_term(coefficients, rho_d[None], WHITE, [1.0])
+    setup = SimpleNamespace(grid=grid, sigma_t=sigma_t, lights=[light], colors=WHITE,
+                            unit_distance=unit, bricks=None, orders=ORDERS, albedo=ALBEDO,
+                            phase_g=0.0)
+    traced = np.zeros((*alpha.shape, 3), np.float32)
+    last = np.zeros_like(traced)
+    for k in range(hd_samples):
+        t_k, l_k = traced_orders_sample(setup, (0, alpha.shape[0], 0, alpha.shape[1]), k, 0)
+        traced += (t_k - traced) / np.float32(k + 1)
+        last += (l_k - last) / np.float32(k + 1)
+    q = kd.source_term(coefficients, last[None, ..., 0], WHITE, [1.0])
     phi, _ = D.solve_source(q, coefficients, grid, tolerance=1e-4)
-    out["HD source"] = negatives(phi)
+    out["HD source"] = negatives(traced[..., 0:1] + phi)  # the traced orders and φ, as shown
     rho_s = np.zeros_like(rho_d)
     for _ in range(steps):
         rho_s = D.diffusion_step(rho_d + rho_s, rho_s, lam, grid)

@@ -159,8 +159,11 @@ def test_gpu_transport_matches_numpy(model, size, scatter_grid):
                     falloff="inverse_square", size=4.0 * size)]
     states = {}
     for backend in ("auto", "cpu"):
+        # Bit for bit: without traced orders (their paths differ between the paths, compared
+        # statistically in test_gpu_traced_orders_match_numpy_in_the_mean).
         rw, _ren, il = kd_scene(backend, lights=lights, diffusion_steps=2, diffusion_model=model,
-                                scatter_grid=scatter_grid)
+                                scatter_grid=scatter_grid,
+                                **({"traced_orders": 0} if model == "source" else {}))
         for _ in range(3):
             grab(rw)
         tech = il.technique
@@ -189,6 +192,87 @@ def test_gpu_transport_matches_numpy(model, size, scatter_grid):
     # float64 full weighting; 15 sweeps later that is at most 1e-5 of the peak.
     np.testing.assert_allclose(g_s, c_s, atol=1e-6 if scatter_grid == "full"
                                else 1e-5 * float(c_s.max()))
+
+
+@pytest.mark.gl
+def test_gpu_traced_orders_match_numpy_in_the_mean():
+    """Traced orders (source model): the GPU's tracker (tracker.comp.glsl, VV_DIRECT 0) and
+    the numpy path (the Monte-Carlo reference) are the same estimator with other random
+    numbers. After 64 paths per voxel their running means of E_1 + E_2 and E_2 and the light
+    diffused from E_2 agree within 3 % over the cloud (measured at 32 paths: < 1.7 %), and
+    in the empty layer above it (light the cloud scatters back out, which a trilinear sample
+    at its surface reads); voxels no visible sample reads, further up, cost no path (0)."""
+    from vtkvol.engine.offscreen import grab
+
+    states = {}
+    for backend in ("auto", "cpu"):
+        rw, _ren, il = kd_scene(backend, traced_paths=64, max_iterations=64,
+                                iterations_per_frame=16, diffusion_steps=2)
+        il.set_material(albedo=0.8, phase_g=0.4)
+        il.converge(max_frames=20)
+        tech = il.technique
+        assert tech.iteration == 64 and tech.stats()["backend"] == (
+            "gpu" if backend == "auto" else "cpu")
+        grab(rw)
+        rw.MakeCurrent()
+        if backend == "auto":
+            gpu = tech._gpu
+            assert gpu._samples == 64
+            states[backend] = (gpu.traced.download()[..., :3], gpu._last.download()[..., :3],
+                               gpu.rho_s.download()[..., :3])
+        else:
+            transport = tech._transport
+            assert transport.samples == 64
+            states[backend] = (transport.traced, transport.last, transport.rho_s)
+        il.release()
+        rw.Finalize()
+    cloud_region = np.s_[6:18, 6:18, 6:18]
+    above = np.s_[18, 6:18, 6:18]  # the empty layer on the cloud: light it scatters out
+    far = np.s_[20:24, :, :]  # empty, no opacity within a voxel: never read, never traced
+    for g, c in zip(states["auto"], states["cpu"], strict=True):
+        g_mean, c_mean = g[cloud_region].mean(axis=(0, 1, 2)), c[cloud_region].mean(axis=(0, 1, 2))
+        assert c_mean.min() > 0.05
+        np.testing.assert_allclose(g_mean, c_mean, rtol=0.03)
+    (g_traced, _, _g_s), (c_traced, _, _c_s) = states["auto"], states["cpu"]
+    g_above, c_above = g_traced[above].mean(), c_traced[above].mean()
+    assert c_above > 0.02 and g_above == pytest.approx(c_above, rel=0.1)
+    assert np.abs(g_traced[far]).max() == 0.0 and np.abs(c_traced[far]).max() == 0.0
+
+
+@pytest.mark.gl
+@pytest.mark.parametrize("backend", ["auto", "cpu"])
+def test_traced_orders_converge_only_after_their_paths(backend):
+    """With traced orders the source model is final only when traced_paths paths are drawn
+    and the residual is below the tolerance: a loose tolerance alone stops it earlier."""
+    iterations = {}
+    for orders in (0, 2):
+        paths = {"traced_paths": 30} if orders else {}
+        rw, _ren, il = kd_scene(backend, traced_orders=orders, tolerance=0.05, diffusion_steps=8,
+                                **paths)
+        il.converge(max_frames=100)
+        tech = il.technique
+        assert tech.converged and not il.wants_frame and tech.residual < 0.05
+        iterations[orders] = tech.iteration
+        il.release()
+        rw.Finalize()
+    assert iterations[0] < 30 <= iterations[2] < 35  # 5 iterations a frame
+
+
+@pytest.mark.gl
+def test_a_work_budget_bounds_a_frames_traced_orders():
+    """Each iteration with traced orders draws a path per voxel: under the host's work budget
+    a frame stops after the first, and the accumulation still ends after its paths."""
+    from vtkvol.engine.offscreen import grab
+
+    rw, _ren, il = kd_scene("auto", traced_paths=12, max_iterations=12)
+    il.work_budget_ms = 1e-3
+    grab(rw)
+    tech = il.technique
+    assert tech.iteration == 1  # not iterations_per_frame = 5
+    frames = 1 + il.converge(max_frames=100)
+    assert tech.iteration == 12 and frames == 12 and tech._gpu._samples == 12
+    il.release()
+    rw.Finalize()
 
 
 @pytest.mark.gl
@@ -316,12 +400,14 @@ def test_no_gl_objects_outlive_a_restart_or_release():
         grab(rw)
         gpu = il.technique._gpu
         handles |= {t.handle for t in gpu.textures}
-        programs |= {int(p.prog.GetHandle()) for p in gpu._programs.values()}
+        programs |= {int(p.prog.GetHandle())
+                     for p in (*gpu._programs.values(), *gpu.tracker.programs.values())}
     rw.MakeCurrent()
     live = {h for h in handles if GL.glIsTexture(h)}
-    # ρ ×2, σ_a, λ, the published model's empty ρ_s, φ ×2, coefficients, residual: the
-    # current restart's only.
-    assert len(live) == 9
+    # ρ ×2, σ_a, λ, the published model's empty ρ_s, φ ×2, coefficients, residual, and the
+    # traced orders' E_1 + … + E_k, E_k, σ_t and brick majorants: the current restart's only.
+    assert len(live) == 13
+    assert len(gpu.tracker.programs) == 1  # compiled once, not per restart
     il.release()
     rw.MakeCurrent()
     assert not any(GL.glIsTexture(h) for h in handles)

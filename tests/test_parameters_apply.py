@@ -65,7 +65,12 @@ NO_CHANGE: dict[tuple[str, str], str] = {
 #: is reached in a few frames at 24³ (progressive techniques end at a fixed, small number of
 #: iterations; the path tracer's paths are short). These parameters are tested too, from here.
 BASE: dict[str, dict[str, Any]] = {
-    "hybrid_diffusion": {"max_iterations": 4},
+    # traced_orders 0: the traced orders draw other random numbers on the GPU and in numpy
+    # (compared in the mean in their own tests), so "backend" could not leave the image
+    # unchanged with them; traced_orders and traced_paths are tested from their own enabling
+    # values (traced_orders 1 for traced_paths)
+    "convection_diffusion": {"traced_paths": 4, "traced_orders": 0},
+    "hybrid_diffusion": {"max_iterations": 4, "traced_orders": 0},
     "path_traced": {"max_iterations": 2, "max_bounces": 4, "paths_per_iteration": 1},
 }
 
@@ -73,6 +78,7 @@ BASE: dict[str, dict[str, Any]] = {
 #: Values to change to where the range's ends would only cost time (a path tracer with 64
 #: paths per iteration or 256 bounces on llvmpipe).
 CHEAP: dict[tuple[str, str], tuple[Any, ...]] = {
+    ("convection_diffusion", "traced_paths"): (2,),
     ("hybrid_diffusion", "max_iterations"): (2,),
     ("path_traced", "max_iterations"): (1,),
     ("path_traced", "paths_per_iteration"): (2,),

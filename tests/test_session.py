@@ -461,7 +461,7 @@ def test_strings_are_data_never_code(tmp_path: Path) -> None:
          "alpha must lie in 0…1"),
         ("broken_future_version.vtkvol.json",
          "broken_future_version.vtkvol.json: written by a newer vtkvol "
-         "(format version 99; this version reads up to 11)"),
+         f"(format version 99; this version reads up to {VERSION})"),
         ("broken_not_a_session.vtkvol.json",
          "broken_not_a_session.vtkvol.json: not a vtkvol session"),
         ("broken_parameter.vtkvol.json",
@@ -876,7 +876,7 @@ def test_migrate_v6_to_v7_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[6](raw)
     assert out == load_fixture("v6_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[10](MIGRATIONS[9](MIGRATIONS[8](MIGRATIONS[7](out))))
+    assert migrate(raw) == migrate(out)  # the later steps follow
     # v6 lit every channel with its own normal: the file renders as it did.
     assert out["scene"]["render"]["multichannel_lighting"] == "per_channel"
     assert raw == untouched
@@ -896,7 +896,7 @@ def test_migrate_v7_to_v8_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[7](raw)
     assert out == load_fixture("v7_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[10](MIGRATIONS[9](MIGRATIONS[8](out)))
+    assert migrate(raw) == migrate(out)  # the later steps follow
     # VTK's ray caster drew every v7 volume: the file renders as it did.
     assert out["scene"]["render"]["renderer"] == "raycast"
     assert raw == untouched
@@ -914,7 +914,7 @@ def test_migrate_v8_to_v9_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[8](raw)
     assert out == load_fixture("v8_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[10](MIGRATIONS[9](out))
+    assert migrate(raw) == migrate(out)  # the later steps follow
     # v8 had no exposure and no fill light: the file renders as it did.
     render = out["scene"]["render"]
     assert (render["exposure"], render["auto_exposure"], render["fill"]) == (1.0, False, 0.0)
@@ -962,7 +962,7 @@ def test_a_session_with_a_bad_multichannel_lighting_is_refused_in_one_line(tmp_p
 
 
 def test_migrate_current_version_is_identity() -> None:
-    doc = load_fixture("v11_complete.vtkvol.json")
+    doc = load_fixture("v12_complete.vtkvol.json")
     out = migrate(doc)
     assert out == doc and out is not doc
 
@@ -996,7 +996,7 @@ def test_migrate_v9_to_v10_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[9](raw)
     assert out == load_fixture("v9_complete.migrated.vtkvol.json")
-    assert migrate(raw) == MIGRATIONS[10](out)
+    assert migrate(raw) == migrate(out)  # the later steps follow
     # v9 had no gamma and no labels display: every channel is shown as it was.
     assert [(c["gamma"], c["labels"]) for c in out["scene"]["channels"]] == [(1.0, None)] * 2
     assert raw == untouched
@@ -1067,8 +1067,9 @@ def test_version_detection_errors() -> None:
         detect_version({"hello": 1})
     with pytest.raises(ValueError, match="whole number"):
         detect_version({"format": FORMAT, "version": True})
-    with pytest.raises(ValueError, match="format version 12; this version reads up to 11"):
-        migrate({"format": FORMAT, "version": 12})
+    with pytest.raises(ValueError, match=f"format version {VERSION + 1}; this version reads "
+                                         f"up to {VERSION}"):
+        migrate({"format": FORMAT, "version": VERSION + 1})
 
 
 @pytest.mark.parametrize(
@@ -1106,7 +1107,7 @@ def test_migrate_v10_to_v11_matches_fixture() -> None:
     untouched = copy.deepcopy(raw)
     out = MIGRATIONS[10](raw)
     assert out == load_fixture("v10_complete.migrated.vtkvol.json")
-    assert migrate(raw) == out
+    assert migrate(raw) == migrate(out)  # the later steps follow
     # v10 post-classified every sample: the migrated file renders the same image.
     assert out["scene"]["render"]["preintegration"] is False
     assert out["scene"]["render"]["adaptive_sampling"] is False
@@ -1135,3 +1136,32 @@ def test_a_session_with_a_bad_preintegration_is_refused_in_one_line(tmp_path, fi
     with pytest.raises(SessionError, match=r"^v\.vtkvol\.json: ") as info:
         read_session(path)
     assert f"render.{field}" in str(info.value) and "\n" not in str(info.value)
+
+
+def test_migrate_v11_to_v12_matches_fixture() -> None:
+    raw = load_fixture("v11_diffusion.vtkvol.json")
+    untouched = copy.deepcopy(raw)
+    out = MIGRATIONS[11](raw)
+    assert out == load_fixture("v11_diffusion.migrated.vtkvol.json")
+    assert migrate(raw) == out
+    parameters = out["scene"]["illumination"]["parameters"]
+    # v11 diffused the scattered light from the direct light alone: the same image
+    assert parameters["hybrid_diffusion"]["traced_orders"] == 0
+    # the published model has no traced orders: nothing added (it would be inert)
+    assert "traced_orders" not in parameters["convection_diffusion"]
+    assert raw == untouched
+
+
+def test_v11_diffusion_session_reads_without_warnings_and_traces_no_orders() -> None:
+    session = read_session(FIXTURES / "v11_diffusion.vtkvol.json")
+    assert session.warnings == []
+    illumination = session.model.illumination
+    assert illumination.method == "hybrid_diffusion"
+    assert illumination.parameters["hybrid_diffusion"]["traced_orders"] == 0
+
+
+def test_v12_fixture_reads_cleanly() -> None:
+    """The checked-in current-version file keeps reading without warnings."""
+    session = read_session(FIXTURES / "v12_complete.vtkvol.json")
+    assert session.warnings == []
+    assert session.model.render.preintegration is True

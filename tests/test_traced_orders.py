@@ -1,6 +1,7 @@
-"""Hybrid diffusion's traced scattering orders (``traced_orders``, issue 24): the GPU tracker
-(``direct.comp.glsl`` with ``VV_ORDERS``) against its numpy path, the Monte-Carlo reference
-estimator (:func:`vtkvol.plugins.hybrid_diffusion.cpu.traced_orders_sample`). The two draw
+"""Hybrid diffusion's traced scattering orders (``traced_orders``, issue 24): the engine's GPU
+tracker (``tracker.comp.glsl`` with ``VV_DIRECT`` and ``VV_ORDERS``) against its numpy path,
+the Monte-Carlo reference estimator (:func:`vtkvol.engine.traced_orders.traced_orders_sample`);
+convection–diffusion's are tested in tests/test_convection_diffusion.py. The two draw
 different random numbers, so they are compared in the mean over regions (128 paths per voxel;
 at 256 paths every region mean agreed within 1.3 %)."""
 

@@ -32,6 +32,14 @@ the paper leaves open and how it is decided (docs/multiple-scattering.md has the
   ``diffusion_steps`` Jacobi sweeps of the source model for the scattered light ρ_s — on the
   data grid, or with a coarse ``scatter`` grid (``scatter_grid`` "half"/"quarter",
   :mod:`vtkvol.engine.coarse_diffusion`) on its cells, from the restricted source.
+* **traced orders** (source model, ``traced_orders`` k > 0): each iteration first draws one
+  Monte-Carlo path per voxel for the first k scattering orders
+  (:func:`vtkvol.engine.traced_orders.traced_orders_sample`; the GPU's ``tracker.comp.glsl``
+  draws other random numbers: the two agree in the mean) into running means of
+  E_1 + … + E_k (shown beside the direct and the diffused light) and of E_k; the sweeps' source
+  is then σ_s·E_k instead of σ_s·E_0 — the diffusion carries on from the last traced order, and
+  light crosses empty space (a cavity, the gap between two objects), which it cannot. After
+  ``traced_paths`` paths the traced light is final and the sweeps go on alone.
 """
 
 from __future__ import annotations
@@ -64,6 +72,7 @@ from vtkvol.engine.diffusion import (  # noqa: F401  (re-exported: KD's numpy AP
     source_term,
     steady_convection_sweep,
 )
+from vtkvol.engine.traced_orders import RGB_AS_LIGHTS, traced_orders_sample
 
 AbsorptionMapping = Literal["matched", "vpt"]
 ConvectionExtinction = Literal["total", "paper"]
@@ -114,7 +123,11 @@ class Transport:
     :func:`vtkvol.engine.diffusion.source_coefficients`, and computes the direct light at once).
     With a coarse ``scatter`` grid the source model's ρ_s lives on its cells (``[m_z, m_y,
     m_x, 3]``), solved with ``scatter_coefficients`` (:meth:`ScatterGrid.coefficients`) from
-    the restricted source.
+    the restricted source. With ``orders`` > 0 (the source model's traced orders, which need
+    ``sigma_t``) each iteration first draws one path per voxel of the first ``orders``
+    scattering orders (until ``traced_paths`` are drawn; ``albedo``, ``phase_g`` and ``seed``
+    are the paths') and the sweeps' source is σ_s·E_k of their running mean (see the module
+    docstring).
     """
 
     grid: Grid
@@ -132,11 +145,21 @@ class Transport:
     #: the steady state of the upwind convection instead (smeared at oblique shadow edges).
     sigma_t: np.ndarray | None = None
     unit_distance: float = 1.0
+    orders: int = 0
+    albedo: float = 1.0
+    phase_g: float = 0.0
+    traced_paths: int = 256
+    seed: int = 0
     rho: np.ndarray = field(init=False)
     rho_s: np.ndarray = field(init=False)
     iteration: int = field(init=False, default=0)
     #: Relative residual ‖b − Aφ‖/‖b‖ of the source model's last sweep (inf before the first).
     residual: float = field(init=False, default=float("inf"))
+    #: Traced orders: running means of E_1 + … + E_k and of E_k, ``[z, y, x, 3]`` (lights'
+    #: colours, fall-off included), and the paths drawn; None without traced orders.
+    traced: np.ndarray | None = field(init=False, default=None)
+    last: np.ndarray | None = field(init=False, default=None)
+    samples: int = field(init=False, default=0)
 
     def __post_init__(self) -> None:
         n = len(self.lights)
@@ -148,8 +171,16 @@ class Transport:
             if self.coefficients is None:
                 raise ValueError("the source model needs its coefficients")
             self.warm_start()
-            q = source_term(self.coefficients, self.rho[:n], self.colors,
-                            [falloff(self.grid, light) for light in self.lights])
+            if self.orders:
+                if self.sigma_t is None:
+                    raise ValueError("traced orders need the extinction sigma_t")
+                self.traced = np.zeros((*self.grid.shape_zyx, 3), np.float32)
+                self.last = np.zeros_like(self.traced)
+                # the source is E_k of the traced paths: nothing before the first
+                q = np.zeros((*self.grid.shape_zyx, 3), np.float32)
+            else:
+                q = source_term(self.coefficients, self.rho[:n], self.colors,
+                                [falloff(self.grid, light) for light in self.lights])
             self._solve_grid, self._solve_coefficients = self.grid, self.coefficients
             if self.scatter is not None and self.scatter.coarse:
                 if self.scatter_coefficients is None:
@@ -190,9 +221,12 @@ class Transport:
     def step(self, iterations: int = 1) -> None:
         """Run ``iterations`` iterations: published, one convection step per light then
         ``diffusion_steps`` diffusion steps of the same field; source, ``diffusion_steps``
-        Jacobi sweeps of the scattered light."""
+        Jacobi sweeps of the scattered light (with traced orders, after one path per voxel
+        while fewer than ``traced_paths`` are drawn)."""
         for _ in range(iterations):
             if self.model == "source":
+                if self.orders and self.samples < self.traced_paths:
+                    self.sample_orders()
                 for _ in range(self.diffusion_steps):
                     new, r2, q2 = jacobi_sweep(self.rho_s, self._q, self._solve_coefficients,
                                                self._solve_grid)
@@ -205,3 +239,20 @@ class Transport:
                         rho = diffusion_step(rho, rho, self.lam, self.grid)
                     self.rho[i] = rho
             self.iteration += 1
+
+    def sample_orders(self) -> None:
+        """One path per voxel of the traced orders into their running means, and the sweeps'
+        source σ_s·E_k from the new mean of E_k (restricted to a coarse scatter grid)."""
+        assert self.traced is not None and self.last is not None
+        assert self.coefficients is not None
+        nz, ny, _nx = self.grid.shape_zyx
+        traced, last = traced_orders_sample(self, (0, nz, 0, ny), self.samples, self.seed)
+        weight = np.float32(1.0 / (self.samples + 1))
+        self.traced += (traced - self.traced) * weight
+        self.last += (last - self.last) * weight
+        self.samples += 1
+        q = source_term(self.coefficients, np.moveaxis(self.last, -1, 0), RGB_AS_LIGHTS,
+                        [1.0] * 3)
+        if self.scatter is not None and self.scatter.coarse:
+            q = self.scatter.restrict(q)
+        self._q = q

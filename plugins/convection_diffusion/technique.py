@@ -7,7 +7,12 @@ State lives on the data grid: ρ_l for up to four lights (one per channel of one
 the scattered RGB light ρ_s. ``diffusion_model = "source"`` computes ρ_l at the restart by
 ray-marching every voxel's transmittance to the light (the first frame shows the final direct
 light) and then refines ρ_s by Jacobi
-sweeps until the residual tolerance; ``"published"`` convects and diffuses ρ_l together.
+sweeps until the residual tolerance; with ``traced_orders`` k > 0 each iteration first draws one
+path per voxel of the first k scattering orders (the engine's tracker,
+:mod:`vtkvol.engine.traced_orders`) into the running means E_1 + … + E_k (shown: the shader's
+third texture ``vv_convection_diffusion_traced``) and E_k (the sweeps' source, σ_s·E_k instead
+of σ_s·E_0), until ``traced_paths`` are drawn. ``"published"`` convects and diffuses ρ_l
+together.
 It restarts when the opacity, the lights, the material or a parameter marked ACCUMULATION
 changes (``Changes.reset_accumulation``), never for the camera.
 """
@@ -36,6 +41,13 @@ from vtkvol.engine.diffusion import (
 )
 from vtkvol.engine.gl import ComputeProgram, Texture3D, unbind_images
 from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.technique import finish_gl
+from vtkvol.engine.traced_orders import (
+    RGB_AS_LIGHTS,
+    RGB_LIGHTS,
+    GpuTracker,
+    brick_majorants,
+)
 from vtkvol.plugins.convection_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
@@ -52,6 +64,9 @@ class ConvectionDiffusion(GridScattering):
     def __init__(self, host: Illuminator) -> None:
         super().__init__(host)
         self._transport: cpu.Transport | None = None  # numpy path state
+        #: Numpy path: the traced orders' light the shader samples (None without them).
+        self._traced_texture: Texture3D | None = None
+        self._placeholder: Texture3D | None = None  # a 1³ zero texel: no traced orders
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuTransport:
         return GpuTransport(window)
@@ -73,16 +88,22 @@ class ConvectionDiffusion(GridScattering):
 
     def advance(self, values: Mapping[str, Any]) -> None:
         """Up to ``iterations_per_frame`` iterations: the source model stops on the residual
-        tolerance (a non-zero ``max_iterations`` still caps it), the published one after
-        ``max_iterations`` (0: :meth:`automatic_iterations`)."""
+        tolerance, with traced orders once ``traced_paths`` paths are drawn too (a non-zero
+        ``max_iterations`` still caps it), the published one after ``max_iterations`` (0:
+        :meth:`automatic_iterations`). With traced orders each iteration draws a path per
+        voxel; with the host's :attr:`~vtkvol.engine.technique.TechniqueHost.work_budget_ms`
+        (the app sets one) the frame's iterations stop once it is spent (at least one runs)."""
         setup = self.setup
         assert setup is not None
         source = setup.model == "source"
         steps = int(values["diffusion_steps"])
+        paths = setup.traced_paths if setup.orders else 0
         if source:
-            # Stopped by the residual, not a count; a non-zero max_iterations still caps it.
+            # Stopped by the residual (and the traced paths), not a count; a non-zero
+            # max_iterations still caps it.
             limit = int(values["max_iterations"]) or None
-            done = steps == 0 or self.residual < float(values["tolerance"])
+            done = steps == 0 or (self.residual < float(values["tolerance"])
+                                  and self.iteration >= paths)
         else:
             limit = int(values["max_iterations"]) or self.automatic_iterations()
             done = False
@@ -91,27 +112,58 @@ class ConvectionDiffusion(GridScattering):
             count = min(count, limit - self.iteration)
         if count > 0 and not done:
             t0 = time.perf_counter()
+            budget = self.host.work_budget_ms if setup.orders else None
+            # Without traced orders an iteration is a few sweeps: the frame's run at once.
+            # With them each draws paths through the volume: one at a time within a budget.
+            batches = [count] if budget is None else [1] * count
+            for batch in batches:
+                if self._gpu is not None:
+                    self._gpu.step(batch, steps)
+                    if budget is not None:
+                        finish_gl(self.host.render_window)  # the cost, not the queue
+                else:
+                    assert self._transport is not None
+                    self._transport.step(batch)
+                self.iteration += batch
+                if budget is not None and (time.perf_counter() - t0) * 1e3 >= budget:
+                    break
             if self._gpu is not None:
-                self._gpu.step(count, steps)
                 if source:
                     self.residual = self._gpu.residual()
             else:
                 assert self._transport is not None
-                self._transport.step(count)
                 self.residual = self._transport.residual
                 self._upload_cpu_state()
-            self.iteration += count
             self._last_ms = (time.perf_counter() - t0) * 1e3
         if source:
-            self.converged = (steps == 0 or self.residual < float(values["tolerance"])
+            self.converged = (steps == 0
+                              or (self.residual < float(values["tolerance"])
+                                  and self.iteration >= paths)
                               or (limit is not None and self.iteration >= limit))
         else:
             assert limit is not None
             self.converged = self.iteration >= limit
 
+    def _bind(self, gpu_textures: tuple[Texture3D, Texture3D] | None) -> None:
+        """The direct and scattered light (the base class's), and the traced orders' light
+        ``vv_convection_diffusion_traced`` (a zero texel without traced orders)."""
+        super()._bind(gpu_textures)
+        gpu = self._gpu
+        traced = gpu.traced if gpu is not None else self._traced_texture
+        if traced is None:
+            if self._placeholder is None:
+                self._placeholder = Texture3D(self.host.render_window, (1, 1, 1), channels=4,
+                                              data=np.zeros((1, 1, 1, 4), np.float32))
+            traced = self._placeholder
+        self.host.bind_texture(f"vv_{self.NAME}_traced", traced)
+
     def release(self) -> None:
         super().release()
         self._transport = None
+        for tex in (self._traced_texture, self._placeholder):
+            if tex is not None:
+                tex.release()
+        self._traced_texture = self._placeholder = None
 
     def automatic_iterations(self) -> int:
         """Iterations of ``max_iterations = 0`` in the published model: four times what the
@@ -153,6 +205,13 @@ class ConvectionDiffusion(GridScattering):
         scattered[..., :3] = transport.rho_s
         self._direct = self._show(self._direct, _squeeze(direct), channels)
         self._scattered = self._show(self._scattered, scattered, 4)
+        if transport.traced is not None:
+            traced = np.zeros((*shape, 4), np.float32)
+            traced[..., :3] = transport.traced
+            self._traced_texture = self._show(self._traced_texture, traced, 4)
+        elif self._traced_texture is not None:
+            self._traced_texture.release()
+            self._traced_texture = None
 
 
 def _squeeze(a: np.ndarray) -> np.ndarray:
@@ -163,15 +222,23 @@ class Setup:
     """What one accumulation runs on: grid, lights, the model, per-voxel absorption per
     iteration, diffusion rate (published) and source-model coefficients (source) on the data
     grid, and the grid the scattered light is solved on (``scatter``: the data grid, or the
-    source model's reduced ``scatter_grid`` with its own ``scatter_coefficients``)."""
+    source model's reduced ``scatter_grid`` with its own ``scatter_coefficients``). The source
+    model's traced orders: ``orders`` (0: none), ``traced_paths``, the medium's ``albedo`` and
+    ``phase_g`` and the per-brick majorants ``bricks`` (``[bz, by, bx]`` per µm,
+    :func:`~vtkvol.engine.traced_orders.brick_majorants`: paths cross empty bricks in one
+    step, so sparse stacks do not crawl; None without traced orders)."""
 
     def __init__(self, grid: cpu.Grid, lights: list[cpu.LightSource],
                  colors: list[tuple[float, float, float]], sigma_a: np.ndarray,
                  lam: np.ndarray, model: str, coefficients: np.ndarray | None,
                  scatter: ScatterGrid | None = None,
                  scatter_coefficients: np.ndarray | None = None,
-                 sigma_t: np.ndarray | None = None, unit_distance: float = 1.0) -> None:
+                 sigma_t: np.ndarray | None = None, unit_distance: float = 1.0,
+                 orders: int = 0, traced_paths: int = 256, albedo: float = 1.0,
+                 phase_g: float = 0.0, bricks: np.ndarray | None = None) -> None:
         self.grid, self.lights, self.colors = grid, lights, colors
+        self.orders, self.traced_paths = orders, traced_paths
+        self.albedo, self.phase_g, self.bricks = albedo, phase_g, bricks
         #: Extinction (per µm) and unit distance (µm) the source model's direct light is
         #: ray-marched through.
         self.sigma_t, self.unit_distance = sigma_t, unit_distance
@@ -205,22 +272,35 @@ class Setup:
                                     else "full")
         scatter_coefficients = (scatter.coefficients(sigma_t, albedo, phase_g)
                                 if scatter.coarse else None)
+        # Traced orders: the source model's, and only with its diffusion (diffusion_steps 0
+        # is the direct light alone).
+        orders = (int(values.get("traced_orders", 0))
+                  if model == "source" and int(values.get("diffusion_steps", 1)) > 0 else 0)
         return cls(grid, lights, colors, sigma_a, lam, model,  # type: ignore[arg-type]
                    coefficients, scatter, scatter_coefficients,
-                   sigma_t if model == "source" else None, unit_distance)
+                   sigma_t if model == "source" else None, unit_distance, orders=orders,
+                   traced_paths=int(values.get("traced_paths", 256)), albedo=albedo,
+                   phase_g=phase_g, bricks=brick_majorants(sigma_t) if orders else None)
 
     def transport(self, diffusion_steps: int) -> cpu.Transport:
         return cpu.Transport(self.grid, self.lights, self.colors, self.sigma_a, self.lam,
                              diffusion_steps=diffusion_steps, model=self.model,  # type: ignore[arg-type]
                              coefficients=self.coefficients, scatter=self.scatter,
                              scatter_coefficients=self.scatter_coefficients,
-                             sigma_t=self.sigma_t, unit_distance=self.unit_distance)
+                             sigma_t=self.sigma_t, unit_distance=self.unit_distance,
+                             orders=self.orders if diffusion_steps else 0, albedo=self.albedo,
+                             phase_g=self.phase_g, traced_paths=self.traced_paths)
 
 
 class GpuTransport:
     """The compute-shader path: ρ ping-pongs between two textures (a GPU updating in place
     would depend on invocation order; ping-pong matches numpy to float rounding); the scattered
-    light is the engine's source-model driver (source) or a zero texture (published)."""
+    light is the engine's source-model driver (source) or a zero texture (published). With
+    traced orders (source model) the engine's tracker (:class:`~vtkvol.engine.traced_orders.
+    GpuTracker`, ``VV_DIRECT 0``) draws one path per voxel and iteration into the running means
+    :attr:`traced` (E_1 + … + E_k, shown) and E_k, the sweeps' source (read as three "lights"
+    r, g, b without fall-off: it is in the traced light already); σ_t (r32f) and the per-brick
+    majorants are images for it."""
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
@@ -231,6 +311,15 @@ class GpuTransport:
         self._zero: Texture3D | None = None  # the published model's (empty) scattered volume
         self.source = GpuSourceDiffusion(render_window)
         self.field = GpuFieldDiffusion(render_window)
+        self.tracker = GpuTracker(render_window, "convection_diffusion")
+        #: Traced orders: running means of E_1 + … + E_k (shown) and of E_k (the sweeps'
+        #: source), RGBA on the data grid; None without traced orders.
+        self.traced: Texture3D | None = None
+        self._last: Texture3D | None = None
+        self._sigma: Texture3D | None = None  # σ_t per µm (r32f), the tracker's medium
+        self._bricks: Texture3D | None = None  # per-brick majorants per µm (r32f)
+        self._setup: Setup | None = None
+        self._samples = 0  # traced paths drawn per voxel
         self._model = "published"
         self._grid = cpu.Grid((1, 1, 1), (1.0, 1.0, 1.0))
         self._channels = 1
@@ -256,8 +345,13 @@ class GpuTransport:
 
     @property
     def textures(self) -> list[Texture3D]:
-        own = [*self._rho, *(t for t in (self._sigma_a, self._lam, self._zero) if t)]
+        own = [*self._rho, *(t for t in (self._sigma_a, self._lam, self._zero, *self._traced_set)
+                             if t)]
         return own + self.source.textures
+
+    @property
+    def _traced_set(self) -> tuple[Texture3D | None, ...]:
+        return (self.traced, self._last, self._sigma, self._bricks)
 
     def program(self, kind: str, channels: int, steady: bool = False) -> ComputeProgram:
         key = (kind, channels, steady)
@@ -285,15 +379,32 @@ class GpuTransport:
             tex.tex.Deactivate()  # created bound to units; image units are separate
         self._grid, self._lights, self._colors = setup.grid, setup.lights, setup.colors
         self._channels, self._model = channels, setup.model
+        self._setup, self._samples = setup, 0
         if setup.model == "source":
             assert setup.coefficients is not None
+            # With traced orders the sweeps' source is E_k (rgb): three "lights" r, g, b.
+            source_channels, source_lights = ((4, list(RGB_LIGHTS)) if setup.orders
+                                              else (channels, setup.lights))
             if setup.scatter.coarse:
                 assert setup.scatter_coefficients is not None
-                self.source.reset(setup.grid, setup.scatter_coefficients, channels, setup.lights,
-                                  setup.scatter, fine_sigma_s=setup.coefficients[..., 2])
+                self.source.reset(setup.grid, setup.scatter_coefficients, source_channels,
+                                  source_lights, setup.scatter,
+                                  fine_sigma_s=setup.coefficients[..., 2])
             else:
-                self.source.reset(setup.grid, setup.coefficients, channels, setup.lights)
+                self.source.reset(setup.grid, setup.coefficients, source_channels,
+                                  source_lights)
             self._warm_start(setup)
+            if setup.orders:
+                assert setup.sigma_t is not None and setup.bricks is not None
+                self.tracker.program(direct=False, orders=setup.orders, bricks=True)  # fail now
+                self._sigma = Texture3D(rw, shape, data=setup.sigma_t.astype(np.float32))
+                self._bricks = Texture3D(rw, setup.bricks.shape, data=setup.bricks)
+                zeros4 = np.zeros((*shape, 4), np.float32)
+                self.traced = Texture3D(rw, shape, channels=4, data=zeros4)
+                self._last = Texture3D(rw, shape, channels=4, data=zeros4)
+                for tex in self._traced_set:
+                    assert tex is not None
+                    tex.tex.Deactivate()
 
     def _warm_start(self, setup: Setup) -> None:
         """The source model's final direct light: every voxel's transmittance ray-marched to
@@ -402,7 +513,24 @@ class GpuTransport:
                 self._rho.reverse()
 
     def step(self, iterations: int, diffusion_steps: int) -> None:
-        """``iterations`` iterations of the accumulation's model (see :mod:`.cpu`)."""
+        """``iterations`` iterations of the accumulation's model (see :mod:`.cpu`); with traced
+        orders each first draws one path per voxel (while fewer than ``traced_paths`` are
+        drawn), then its sweeps start from the new E_k."""
+        setup = self._setup
+        if self._model == "source" and setup is not None and setup.orders:
+            assert self._sigma is not None and self._last is not None
+            nz, ny, _nx = setup.grid.shape_zyx
+            for _ in range(iterations):
+                sampled = self._samples < setup.traced_paths
+                if sampled:
+                    self.tracker.sample(setup, self._samples, 0, (0, nz, 0, ny), self._sigma,
+                                        bricks=self._bricks, traced=self.traced,
+                                        last=self._last)
+                    self._samples += 1
+                if diffusion_steps:
+                    self.source.run(self._last, RGB_AS_LIGHTS, diffusion_steps,
+                                    source_changed=sampled)
+            return
         if self._model == "source":
             if diffusion_steps:
                 # The direct light is final after the warm start: q is restricted once.
@@ -420,15 +548,18 @@ class GpuTransport:
         return self._rho[0].download(), self.rho_s.download()
 
     def _release_textures(self) -> None:
-        for tex in [*self._rho, *(t for t in (self._sigma_a, self._lam, self._zero) if t)]:
+        for tex in [*self._rho, *(t for t in (self._sigma_a, self._lam, self._zero,
+                                              *self._traced_set) if t)]:
             tex.release()
         self._rho = []
         self._sigma_a = self._lam = self._zero = None
+        self.traced = self._last = self._sigma = self._bricks = None
 
     def release(self) -> None:
         self._release_textures()
         self.source.release()
         self.field.release()
+        self.tracker.release()
         for prog in self._programs.values():
             prog.release()
         self._programs.clear()

@@ -9,7 +9,7 @@ memory does not grow with the number of lights. Engine part :mod:`.technique`, n
 
 from __future__ import annotations
 
-from vtkvol.model.diffusion import diffusion_model_params
+from vtkvol.model.diffusion import diffusion_model_params, traced_orders_param
 from vtkvol.model.params import Invalidates, Param, backend_param
 from vtkvol.model.techniques import BenchSetting, TechniqueSpec
 
@@ -59,16 +59,7 @@ PARAMETERS: tuple[Param, ...] = (
         "seed", 0, "Seed", "Random seed of the sample streams.",
         kind="int", range=(0, 2**31 - 1), step=1, invalidates=_RESTART, uniform=False,
     ),
-    Param(
-        "traced_orders", 2, "Traced orders",
-        "Source model: the first scattering orders traced per voxel (one path per iteration, "
-        "next-event estimation at each collision) before the diffusion takes over from the last "
-        "of them. Traced light crosses empty space (a cavity, the gap between two objects), "
-        "which a diffusion cannot; 0 = the diffusion from the direct light alone. Each order "
-        "costs about one more tracking per voxel and iteration.",
-        kind="int", range=(0, 4), step=1, invalidates=_RESTART, uniform=False,
-        applies_when=(("diffusion_model", ("source",)),),
-    ),
+    traced_orders_param(_RESTART),
     *diffusion_model_params(_RESTART),
     backend_param(_RESTART),
 )

@@ -1,6 +1,6 @@
 """Hybrid diffusion (seed 003 §3.3, "HD"): the direct light estimated per voxel by tracking
 towards a light, averaged over iterations — the numpy path (fallback and test oracle of
-``shaders/direct.comp.glsl``, which mirrors it operation by operation in float32).
+the engine's ``tracker.comp.glsl``, which mirrors it operation by operation in float32).
 
 Per iteration k and voxel x: a counter-based random stream (a 32-bit PCG hash of the voxel's
 index, k and the seed, so the CPU and the GPU draw the same numbers) picks one light uniformly
@@ -23,18 +23,20 @@ published explicit step applied to ρ_d + ρ_s).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
 from vtkvol.engine.diffusion import Grid, LightSource, falloff
+from vtkvol.engine.traced_orders import (  # noqa: F401  (re-exported: HD's numpy API)
+    BRICK,
+    MAX_STEPS,
+    MIN_THROUGHPUT,
+    ORDERS_SEED_BASE,
+    brick_majorants,
+    traced_orders_sample,
+)
 
-#: Tentative collisions after which a path counts as absorbed.
-MAX_STEPS = 512
-#: Ratio tracking stops once the throughput is this small (its remaining contribution).
-MIN_THROUGHPUT = 1e-6
-#: Edge (voxels) of the bricks of the per-brick majorant grid.
-BRICK = 8
 #: Largest interpolated opacity :func:`extinction_at` converts (the engine's MAX_OPACITY).
 MAX_ALPHA = 1.0 - 1e-6
 
@@ -133,7 +135,7 @@ def extinction_at(sigma: np.ndarray, grid: Grid, px: np.ndarray, py: np.ndarray,
 
 def around(w: np.ndarray, c: np.ndarray, phi: np.ndarray) -> np.ndarray:
     """Unit vectors ``[3, n]`` at cosine ``c`` and azimuth ``phi`` about the unit vectors ``w``
-    (``[3, n]`` or ``[3]``), float32 — ``around`` in ``direct.comp.glsl``."""
+    (``[3, n]`` or ``[3]``), float32 — ``around`` in ``tracker.comp.glsl``."""
     f = np.float32
     w = np.broadcast_to(np.asarray(w, f).reshape(3, -1), (3, c.size))
     s = np.sqrt(np.maximum(f(0.0), f(1.0) - c * c))
@@ -198,8 +200,9 @@ def direct_sample(
     ``region`` (z0, z1, y0, y1) only the voxels with z0 ≤ z < z1 and y0 ≤ y < y1 are sampled
     (the others stay 0):
     each voxel's random stream depends only on its index, so a sample drawn in z slabs equals
-    the whole one (the GPU's bounded chunks, ``direct.comp.glsl``'s ``vv_first``). With
-    ``bricks`` (:func:`brick_majorants`) the tracking uses each brick's majorant instead of the
+    the whole one (the GPU's bounded chunks, ``tracker.comp.glsl``'s ``vv_first``). With
+    ``bricks`` (:func:`~vtkvol.engine.traced_orders.brick_majorants`) the tracking uses each
+    brick's majorant instead of the
     global one: the same mean, fewer steps through sparse data. ``unit_distance``: σ_t is
     sampled as the extinction of the interpolated opacity (:func:`extinction_at`; the
     techniques pass the host's), None: interpolated linearly."""
@@ -233,28 +236,11 @@ def direct_sample(
     return out
 
 
-def brick_majorants(sigma_t: np.ndarray) -> np.ndarray:
-    """The per-brick majorant grid ``[bz, by, bx]`` (float32, per µm): the largest σ_t any
-    trilinear sample inside each brick of :data:`BRICK`³ voxels can take — the maximum over the
-    brick's voxels and the next voxel along each axis (a sample between the brick's last voxel
-    centre and the next one interpolates both)."""
-    out = sigma_t.astype(np.float32)
-    for axis in range(3):
-        n = out.shape[axis]
-        bricks = -(-n // BRICK)
-        pad = bricks * BRICK + 1 - n  # room for the next voxel of the last brick
-        padded = np.concatenate([out, np.take(out, [n - 1] * pad, axis=axis)], axis=axis)
-        # Brick b covers voxels [B·b, B·b + B]: a sliding maximum over B + 1 voxels, every B.
-        windows = np.lib.stride_tricks.sliding_window_view(padded, BRICK + 1, axis=axis)
-        out = np.take(windows.max(axis=-1), np.arange(bricks) * BRICK, axis=axis)
-    return np.ascontiguousarray(out, np.float32)
-
-
 def _brick_step(grid: Grid, bricks: np.ndarray, px: np.ndarray, py: np.ndarray, pz: np.ndarray,
                 dx: np.ndarray, dy: np.ndarray, dz: np.ndarray,
                 ) -> tuple[np.ndarray, np.ndarray]:
     """(majorant, distance µm to the brick's exit along d) of the brick holding each point
-    (``direct.comp.glsl``'s ``brickAt``): the brick is looked up a thousandth of a voxel
+    (``tracker.comp.glsl``'s ``brickAt``): the brick is looked up a thousandth of a voxel
     further along d, so a point on a face belongs to the brick the path enters."""
     f = np.float32
     nb = bricks.shape[::-1]  # x, y, z
@@ -280,7 +266,8 @@ def _track(sigma_t: np.ndarray, grid: Grid, light: LightSource, keys: np.ndarray
            bricks: np.ndarray | None = None,
            unit_distance: float | None = None) -> np.ndarray:
     """Throughput from each point towards ``light``: tracking against the global
-    ``majorant``, or with ``bricks`` (:func:`brick_majorants`) against each brick's own —
+    ``majorant``, or with ``bricks`` (:func:`~vtkvol.engine.traced_orders.brick_majorants`)
+    against each brick's own —
     a flight that would leave its brick stops at the face without an event (the exponential
     flight is memoryless, so restarting it there with the next brick's majorant is exact) and
     an empty brick is crossed in one step."""
@@ -332,68 +319,3 @@ def _track(sigma_t: np.ndarray, grid: Grid, light: LightSource, keys: np.ndarray
             alive &= ~collide
         draw += 1  # both estimators use two draws per step, so their streams line up
     return np.where(alive, np.float32(0.0), throughput)  # too many steps: absorbed
-
-
-#: Offset of the traced orders' Monte-Carlo seeds (iteration k of seed s uses
-#: ORDERS_SEED_BASE + s·1000003 + k): the bench's references use seeds 0 and 1, and a technique
-#: measured against them must not share their paths.
-ORDERS_SEED_BASE = 1 << 21
-
-
-def traced_orders_sample(setup: Any, region: tuple[int, int, int, int], iteration: int,
-                         seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """One path per voxel of ``region`` (z0, z1, y0, y1; all x) for the traced orders 1 … k
-    (``setup.orders``): (E_1 + … + E_k, E_k), each ``[z1 − z0, y1 − y0, x, 3]`` float32 in the
-    lights' colours. The numpy path of ``direct.comp.glsl``'s ``VV_ORDERS``: the same estimator
-    (the Monte-Carlo reference, :func:`vtkvol.reference.inscattered_mc`: delta tracking to each
-    collision, next-event estimation, albedo and Henyey–Greenstein g) with other random
-    numbers — the two agree in the mean (tested), not sample by sample. A sized light is the
-    engine's quadrature of its extent (:func:`~vtkvol.engine.diffusion.light_quadrature`).
-    Voxels no visible sample reads (:func:`_readable`) stay 0 and cost nothing."""
-    from vtkvol.engine.diffusion import light_quadrature
-    from vtkvol.reference import DirectionalLight, PointLight, inscattered_mc
-
-    grid = setup.grid
-    z0, z1, y0, y1 = region
-    nx = grid.shape_zyx[2]
-    origin = np.asarray(grid.origin, np.float64)
-    lights: list[DirectionalLight | PointLight] = []
-    colors: list[tuple[float, float, float]] = []
-    for light, color in zip(setup.lights, setup.colors, strict=True):
-        for part, weight in light_quadrature(light):
-            if part.kind == "point":
-                lights.append(PointLight(tuple(np.asarray(part.vector) - origin),
-                                         falloff_distance=part.falloff_distance))
-            else:
-                lights.append(DirectionalLight(part.vector))
-            colors.append(tuple(float(c) * weight for c in color))
-    readable = _readable(setup)[z0:z1, y0:y1]
-    zz, yy, xx = np.nonzero(readable)
-    points = np.stack([xx, yy + y0, zz + z0], axis=-1) * np.asarray(grid.spacing)
-    unit = setup.unit_distance if setup.unit_distance else 1.0
-    alpha = -np.expm1(-np.asarray(setup.sigma_t, np.float64) * unit)
-    run_seed = ORDERS_SEED_BASE + seed * 1000003 + iteration
-    out = []
-    for lowest in (1, setup.orders):
-        field = np.zeros((z1 - z0, y1 - y0, nx, 3), np.float32)
-        if len(points):
-            field[readable] = inscattered_mc(
-                alpha, grid.spacing, lights, albedo=setup.albedo, phase_g=setup.phase_g,
-                n_paths=1, seed=run_seed, unit_distance=unit, max_bounces=setup.orders,
-                min_bounces=lowest, points=points, light_colors=colors)
-        out.append(field)
-    return out[0], out[1]
-
-
-def _readable(setup: Any) -> np.ndarray:
-    """Voxels a visible sample can read (``[z, y, x]`` bool, cached on ``setup``): σ_t > 0 in
-    the 26-neighbourhood. The others are a corner of no cell with opacity; the traced orders
-    leave them 0 (as ``direct.comp.glsl`` does)."""
-    readable = getattr(setup, "_readable", None)
-    if readable is None:
-        from scipy.ndimage import binary_dilation
-
-        readable = binary_dilation(np.asarray(setup.sigma_t) > 0.0,
-                                   structure=np.ones((3, 3, 3), bool))
-        setup._readable = readable
-    return readable

@@ -1,5 +1,5 @@
 """Hybrid diffusion (seed 003 HD), engine part: the direct light's running mean ρ_d and the
-diffused light ρ_s, on the GPU (``direct.comp.glsl`` + convection–diffusion's diffusion step)
+diffused light ρ_s, on the GPU (the engine's ``tracker.comp.glsl`` and diffusion)
 or in numpy (:mod:`.cpu`). Restarts like every progressive technique: on opacity, light,
 material and ACCUMULATION-parameter changes, never on camera moves.
 
@@ -27,19 +27,16 @@ from vtkvol.engine.diffusion import (
     GpuDiffusion,
     GpuSourceDiffusion,
     GridScattering,
-    dispatch_groups,
     relative_residual,
 )
-from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D, unbind_images
-from vtkvol.engine.shaders import compute_source
+from vtkvol.engine.gl import ComputeProgram, GLUnavailableError, Texture3D
 from vtkvol.engine.technique import finish_gl
+from vtkvol.engine.traced_orders import RGB_AS_LIGHTS, RGB_LIGHTS, GpuTracker
 from vtkvol.plugins.hybrid_diffusion import TECHNIQUE, cpu
 
 if TYPE_CHECKING:
     from vtkvol.engine.illuminator import Changes, Illuminator, LightSpec
 
-#: The diffusion step reads the direct light as three "lights" with these colours: ρ_d's r, g, b.
-RGB_AS_LIGHTS = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 #: Source model: sweeps between residual checks after the last sample, and their cap (a
 #: safety bound only: Jacobi on this M-matrix converges; 64³ thin media need ~10³ sweeps).
 FINISH_BATCH = 16
@@ -282,7 +279,9 @@ class HybridDiffusion(GridScattering):
                                  host.phase_g, str(values["majorant"]),
                                  str(values["scatter_grid"]), coefficients=coefficients,
                                  lam=lam, unit_distance=host.unit_distance,
-                                 orders=int(values["traced_orders"]))
+                                 # diffusion_steps 0 is the direct light alone: no orders
+                                 orders=(int(values["traced_orders"])
+                                         if int(values["diffusion_steps"]) > 0 else 0))
         if gpu is not None:
             yield from self._gl_steps(gpu.state_steps(self.setup))
             gpu = self._gpu
@@ -610,7 +609,8 @@ class GpuHybrid:
 
     def __init__(self, render_window: vtk.vtkRenderWindow) -> None:
         self.render_window = render_window
-        self._programs: dict[tuple[str, str, bool, int], ComputeProgram] = {}
+        #: The engine's tracker (direct light and traced orders, ``tracker.comp.glsl``).
+        self.tracker = GpuTracker(render_window, "hybrid")
         self.rho_d: Texture3D | None = None  # type: ignore[assignment]
         #: Traced orders (source model): running means of E_1 + … + E_k (shown) and of E_k
         #: (the diffusion's source), RGBA on the data grid; None without traced orders.
@@ -653,22 +653,9 @@ class GpuHybrid:
 
     def program(self, estimator: str, light_sampling: str, bricks: bool,
                 orders: int = 0) -> ComputeProgram:
-        key = (estimator, light_sampling, bricks, orders)
-        prog = self._programs.get(key)
-        if prog is None:
-            defines = {
-                "VV_RATIO": "1" if estimator == "ratio" else "0",
-                "VV_ALL_LIGHTS": "1" if light_sampling == "all" else "0",
-                "VV_MAX_STEPS": str(cpu.MAX_STEPS),
-                "VV_MIN_THROUGHPUT": repr(cpu.MIN_THROUGHPUT),
-                "VV_BRICKS": "1" if bricks else "0",
-                "VV_BRICK": str(cpu.BRICK),
-                "VV_ORDERS": str(orders),
-            }
-            source = compute_source("direct.comp.glsl", defines, __package__)
-            prog = ComputeProgram(self.render_window, source, f"hybrid direct {key}")
-            self._programs[key] = prog
-        return prog
+        """The engine's tracker with the direct light (``tracker.comp.glsl``) in this variant."""
+        return self.tracker.program(direct=True, orders=orders, estimator=estimator,
+                                    light_sampling=light_sampling, bricks=bricks)
 
     @property
     def ready(self) -> bool:
@@ -743,7 +730,7 @@ class GpuHybrid:
             if self.diffusion.textures:
                 self.diffusion.release()
             # ρ_d's r, g, b as three "lights"; their fall-off is in the tracked samples already.
-            lights = [kd.LightSource("directional", (0.0, 0.0, 1.0))] * 3
+            lights = list(RGB_LIGHTS)
             if setup.scatter.coarse:  # the sweeps' coefficients are the coarse cells'
                 _grid, coarse = setup.solve
                 self.source.allocate_coefficients(coarse.shape[:3])
@@ -769,63 +756,15 @@ class GpuHybrid:
 
     def sample(self, iteration: int, values: Mapping[str, Any],
                region: tuple[int, int, int, int]) -> None:
-        """Sample ``iteration`` of the direct light in ``region`` (z0, z1, y0, y1) into ρ_d."""
+        """Sample ``iteration`` of the direct light (and the traced orders) in ``region``
+        (z0, z1, y0, y1) into ρ_d (and the orders' running means): the engine's tracker."""
         setup = self._setup
         assert setup is not None and self.rho_d is not None and self._sigma is not None
-        grid = setup.grid
-        nz, ny, nx = grid.shape_zyx
         bricks = self._bricks if setup.bricks is not None else None
-        prog = self.program(values["estimator"], values["light_sampling"], bricks is not None,
-                            setup.orders)
-        prog.use()
-        vecs: list[float] = []
-        for light in setup.lights:
-            vecs += [*light.vector, 1.0 if light.kind == "point" else 0.0]
-        vecs += [0.0] * (16 - len(vecs))
-        colors = [c for color in setup.colors for c in color]
-        colors += [0.0] * (12 - len(colors))
-        falloffs: list[float] = []
-        for light in setup.lights:
-            d0 = light.falloff_distance if light.kind == "point" else 0.0
-            falloffs += [*light.vector, d0]
-        falloffs += [0.0] * (16 - len(falloffs))
-        for name, unit in (("vv_sigma", 0), ("vv_direct", 1)):
-            prog.set_uniform(name, unit)
-        prog.set_uniform("vv_dims", nx, ny, nz)
-        prog.set_uniform("vv_first", region[0], region[2])
-        prog.set_uniform("vv_end", region[1], region[3])
-        prog.set_uniform("vv_origin", *grid.origin, kind="f")
-        prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
-        prog.set_uniform("vv_majorant", float(setup.sigma_t.max()), kind="f")
-        prog.set_uniform("vv_unitDistance", float(setup.unit_distance or 0.0), kind="f")
-        prog.set_uniform("vv_iteration", iteration, kind="ui")
-        prog.set_uniform("vv_seed", int(values["seed"]), kind="ui")
-        prog.set_uniform("vv_numLights", len(setup.lights))
-        prog.set_uniform_array("vv_lightVec", vecs, size=4)
-        prog.set_uniform_array("vv_color", colors, size=3)
-        prog.set_uniform_array("vv_falloff", falloffs, size=4)
-        sizes = [float(light.size) for light in setup.lights]
-        prog.set_uniform_array("vv_lightSize", sizes + [0.0] * (4 - len(sizes)), size=1)
-        self._sigma.bind_image(0, "read")
-        self.rho_d.bind_image(1, "readwrite")
-        if bricks is not None:
-            prog.set_uniform("vv_bricks", 2)
-            nbz, nby, nbx = setup.bricks.shape
-            prog.set_uniform("vv_brickDims", nbx, nby, nbz)
-            bricks.bind_image(2, "read")
-        if setup.orders:
-            assert self.traced is not None and self._last is not None
-            prog.set_uniform("vv_traced", 3)
-            prog.set_uniform("vv_last", 4)
-            prog.set_uniform("vv_albedo", float(setup.albedo), kind="f")
-            prog.set_uniform("vv_phaseG", float(setup.phase_g), kind="f")
-            self.traced.bind_image(3, "readwrite")
-            self._last.bind_image(4, "readwrite")
-        groups = dispatch_groups(grid)
-        prog.dispatch((groups[0], -(-(region[3] - region[2]) // GROUP[1]),
-                       -(-(region[1] - region[0]) // GROUP[2])))
-        unbind_images(self.render_window, 5 if setup.orders else 3)
-        prog.done()
+        self.tracker.sample(setup, iteration, int(values["seed"]), region, self._sigma,
+                            bricks=bricks, direct=self.rho_d, traced=self.traced,
+                            last=self._last, estimator=values["estimator"],
+                            light_sampling=values["light_sampling"])
         self._sampled = True
 
     def download(self) -> tuple[np.ndarray, np.ndarray]:
@@ -843,6 +782,4 @@ class GpuHybrid:
         self._release_textures()
         self.diffusion.release()
         self.source.release()
-        for prog in self._programs.values():
-            prog.release()
-        self._programs.clear()
+        self.tracker.release()

@@ -1,7 +1,7 @@
 // vtkvol engine: the trilinear cell of a point on a grid of voxel centres, clamped to the box
 // (clamp-to-edge sampling, as VTK's textures and the numpy twins sample), for compute shaders
 // that interpolate an image3D by hand (image loads do not filter). Shared by
-// convection_diffusion's march.comp.glsl and hybrid_diffusion's direct.comp.glsl. The
+// convection_diffusion's march.comp.glsl and the engine's tracker.comp.glsl. The
 // including shader declares vv_dims (voxels), vv_origin and vv_spacing (µm).
 
 // Corners i0, i1 (voxel indices, i1 = i0 + 1 inside the box) and weights w of p (µm).

@@ -1,5 +1,6 @@
 """The declared parameters both grid-diffusion techniques (convection–diffusion and hybrid
-diffusion) share: which diffusion model runs and when the source model stops. No VTK here;
+diffusion) share: which diffusion model runs, when the source model stops and how many of its
+first scattering orders are traced. No VTK here;
 the models themselves are in :mod:`vtkvol.engine.diffusion` and docs/multiple-scattering.md."""
 
 from __future__ import annotations
@@ -44,4 +45,31 @@ def diffusion_model_params(invalidates: Invalidates) -> tuple[Param, ...]:
             choice_labels=("Data grid", "½ per axis", "¼ per axis"),
             applies_when=(("diffusion_model", ("source",)),),
         ),
+    )
+
+
+#: Scattering orders traced per voxel by default (``traced_orders``) and the most allowed.
+DEFAULT_TRACED_ORDERS = 2
+MAX_TRACED_ORDERS = 4
+
+
+#: The ``diffusion_steps`` values with scattered light (0 is the direct light alone, which
+#: traces no orders either); the techniques' range is 0…16.
+DIFFUSING_STEPS = tuple(range(1, 17))
+
+
+def traced_orders_param(invalidates: Invalidates) -> Param:
+    """``traced_orders`` (source model): the first scattering orders traced per voxel before the
+    diffusion takes over (:mod:`vtkvol.engine.traced_orders`), restarting the accumulation
+    (``invalidates``)."""
+    return Param(
+        "traced_orders", DEFAULT_TRACED_ORDERS, "Traced orders",
+        "Source model: the first scattering orders traced per voxel (one path per iteration, "
+        "next-event estimation at each collision) before the diffusion takes over from the last "
+        "of them. Traced light crosses empty space (a cavity, the gap between two objects), "
+        "which a diffusion cannot; 0 = the diffusion from the direct light alone. Each order "
+        "costs about one more tracking per voxel and iteration.",
+        kind="int", range=(0, MAX_TRACED_ORDERS), step=1, invalidates=invalidates,
+        uniform=False, applies_when=(("diffusion_model", ("source",)),
+                                     ("diffusion_steps", DIFFUSING_STEPS)),
     )

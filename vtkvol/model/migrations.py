@@ -21,7 +21,7 @@ __all__ = ["FORMAT", "MIGRATIONS", "V0_SCENE_KEYS", "VERSION", "detect_version",
 FORMAT = "vtkvol-session"
 """The value of the top-level ``"format"`` key: what makes a JSON file a vtkvol session."""
 
-VERSION = 11
+VERSION = 12
 """The format version this vtkvol writes, and the newest it reads."""
 
 V0_SCENE_KEYS: tuple[str, ...] = (
@@ -268,10 +268,30 @@ def _v10_to_v11(raw: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _v11_to_v12(raw: dict[str, Any]) -> dict[str, Any]:
+    """v11 → v12: the grid-diffusion techniques gained ``traced_orders`` (default 2: the first
+    scattering orders traced per voxel). Their parameters in a v11 file get ``traced_orders:
+    0`` where it applies (the source model, the default, with diffusion steps), the diffusion
+    from the direct light alone: how v11 rendered them."""
+    out = copy.deepcopy(raw)
+    out["version"] = 12
+    scene = out.get("scene")
+    illumination = scene.get("illumination") if isinstance(scene, dict) else None
+    parameters = illumination.get("parameters") if isinstance(illumination, dict) else None
+    if isinstance(parameters, dict):
+        for method in ("convection_diffusion", "hybrid_diffusion"):
+            values = parameters.get(method)
+            if (isinstance(values, dict)
+                    and values.get("diffusion_model", "source") == "source"
+                    and values.get("diffusion_steps", 1) != 0):
+                values.setdefault("traced_orders", 0)
+    return out
+
+
 MIGRATIONS: dict[int, Migration] = {0: _v0_to_v1, 1: _v1_to_v2, 2: _v2_to_v3, 3: _v3_to_v4,
                                     4: _v4_to_v5, 5: _v5_to_v6, 6: _v6_to_v7, 7: _v7_to_v8,
                                     8: _v8_to_v9, 9: _v9_to_v10,
-                                    10: _v10_to_v11}
+                                    10: _v10_to_v11, 11: _v11_to_v12}
 """``{from_version: step}``: each step turns version ``n`` into version ``n + 1``."""
 
 

@@ -1,23 +1,34 @@
 #version 430
-// vtkvol technique "hybrid_diffusion": one sample of the direct light per voxel, averaged into
-// the running mean rho_d (in place: each invocation touches only its own voxel). Mirrors
-// plugins/hybrid_diffusion/cpu.py operation by operation in float32 (the numpy path is the
-// test oracle). Tested with VTK 9.7.1 on Mesa llvmpipe (GL 4.5).
+// vtkvol engine: per-voxel tracking towards the lights, shared by the grid-diffusion techniques
+// (hybrid_diffusion's direct light, both techniques' traced scattering orders; driver
+// vtkvol/engine/traced_orders.py:GpuTracker). In place: each invocation touches only its own
+// voxel of the running means. The direct light mirrors plugins/hybrid_diffusion/cpu.py
+// operation by operation in float32 (the numpy path is the test oracle). Tested with VTK 9.7.1
+// on Mesa llvmpipe (GL 4.5).
 //
-// Defines: VV_RATIO (1 = ratio tracking, 0 = delta tracking), VV_ALL_LIGHTS (1 = every light
-// per iteration, 0 = one chosen at random), VV_MAX_STEPS, VV_MIN_THROUGHPUT, VV_BRICKS (1 = the
-// per-brick majorant grid vv_bricks, bricks of VV_BRICK voxels; 0 = the global vv_majorant).
+// Defines: VV_DIRECT (1 = one sample of the direct light per voxel averaged into the running
+// mean vv_direct, hybrid_diffusion; 0 = no direct light and no vv_direct image, only the traced
+// orders, convection_diffusion, which ray-marches its direct light), VV_RATIO (1 = ratio
+// tracking, 0 = delta tracking), VV_ALL_LIGHTS (1 = every light per iteration, 0 = one chosen at
+// random), VV_MAX_STEPS, VV_MIN_THROUGHPUT, VV_BRICKS (1 = the per-brick majorant grid
+// vv_bricks, bricks of VV_BRICK voxels; 0 = the global vv_majorant).
 // VV_ORDERS k > 0 (source model, `traced_orders`): one path per voxel also traces the first k
 // scattering orders (delta tracking to each collision, next-event estimation by the same
 // tracker), averaged into vv_traced (E_1 + … + E_k) and vv_last (E_k, the diffusion's source);
-// its numpy counterpart is the Monte-Carlo reference (vtkvol.reference.inscattered_mc, the
-// same estimator with other random numbers: compared statistically).
+// its numpy counterpart is the Monte-Carlo reference (vtkvol.reference.inscattered_mc through
+// vtkvol.engine.traced_orders.traced_orders_sample, the same estimator with other random
+// numbers: compared statistically). VV_DIRECT 0 needs VV_ORDERS > 0.
+// Image units: 0 vv_sigma, 1 vv_direct, 2 vv_bricks, 3 vv_traced, 4 vv_last.
 // Grid: the data's voxel centres (dataset µm: vv_origin + vv_spacing * index).
 
 layout(local_size_x = 8, local_size_y = 8, local_size_z = 4) in;
 
 layout(r32f) uniform readonly image3D vv_sigma;        // extinction sigma_t per µm
+#if VV_DIRECT
 layout(rgba32f) uniform image3D vv_direct;             // rho_d (rgb), read and written
+#elif VV_ORDERS <= 0
+#error "VV_DIRECT 0 traces only the scattering orders: VV_ORDERS must be > 0"
+#endif
 uniform ivec3 vv_dims;
 #if VV_BRICKS
 layout(r32f) uniform readonly image3D vv_bricks;       // majorant per brick (per µm)
@@ -308,6 +319,7 @@ void main()
   uint index = uint(p.x + vv_dims.x * (p.y + vv_dims.y * p.z));
   uint key = pcg(index ^ pcg(vv_iteration + pcg(vv_seed)));
   vec3 pos = vv_origin + vv_spacing * vec3(p);
+#if VV_DIRECT
   vec3 sampleRGB = vec3(0.0);
 #if VV_ALL_LIGHTS
   for (int l = 0; l < vv_numLights; ++l)
@@ -325,6 +337,7 @@ void main()
   vec3 mean = imageLoad(vv_direct, p).rgb;
   mean = mean + (sampleRGB - mean) / float(vv_iteration + 1u);
   imageStore(vv_direct, p, vec4(mean, 0.0));
+#endif
 #if VV_ORDERS > 0
   // Only where a visible sample can read it: a voxel whose 26 neighbours are all empty is a
   // corner of no cell with opacity, so its traced light is never shown (nor a source of the
