@@ -37,7 +37,7 @@ from vtkvol.plugins.convection_diffusion import cpu as kd
 from vtkvol.plugins.hybrid_diffusion import cpu as hd
 
 ALBEDO = 0.9
-#: The source model's traced orders (the techniques' default).
+#: Traced orders in the source rows (positivity holds for any number: every path scores ≥ 0).
 ORDERS = 2
 MAX_SWEEPS = 4000
 WHITE = ((1.0, 1.0, 1.0),)

@@ -49,7 +49,7 @@ def diffusion_model_params(invalidates: Invalidates) -> tuple[Param, ...]:
 
 
 #: Scattering orders traced per voxel by default (``traced_orders``) and the most allowed.
-DEFAULT_TRACED_ORDERS = 2
+DEFAULT_TRACED_ORDERS = 3
 MAX_TRACED_ORDERS = 4
 
 

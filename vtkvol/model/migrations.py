@@ -269,7 +269,7 @@ def _v10_to_v11(raw: dict[str, Any]) -> dict[str, Any]:
 
 
 def _v11_to_v12(raw: dict[str, Any]) -> dict[str, Any]:
-    """v11 → v12: the grid-diffusion techniques gained ``traced_orders`` (default 2: the first
+    """v11 → v12: the grid-diffusion techniques gained ``traced_orders`` (default 3: the first
     scattering orders traced per voxel). Their parameters in a v11 file get ``traced_orders:
     0`` where it applies (the source model, the default, with diffusion steps), the diffusion
     from the direct light alone: how v11 rendered them."""
