@@ -28,6 +28,7 @@ import vtk
 
 from vtkvol.engine.coarse_diffusion import ScatterGrid
 from vtkvol.engine.diffusion import (
+    GROUP,
     MARCH_STEP_EDGES,
     MAX_OPACITY,
     GpuFieldDiffusion,
@@ -67,6 +68,10 @@ class ConvectionDiffusion(GridScattering):
         #: Numpy path: the traced orders' light the shader samples (None without them).
         self._traced_texture: Texture3D | None = None
         self._placeholder: Texture3D | None = None  # a 1³ zero texel: no traced orders
+        #: GPU traced orders under a work budget: where the current path's next region
+        #: starts (z layer, y row), and the measured cost (ms) of one row of one layer.
+        self._orders_next = (0, 0)
+        self._row_ms: float | None = None
 
     def make_driver(self, window: vtk.vtkRenderWindow) -> GpuTransport:
         return GpuTransport(window)
@@ -80,6 +85,7 @@ class ConvectionDiffusion(GridScattering):
     def start_gpu(self, gpu: GpuTransport, values: Mapping[str, Any]) -> None:
         assert self.setup is not None
         gpu.reset(self.setup)
+        self._orders_next = (0, 0)  # a new accumulation draws its first path from (0, 0)
 
     def start_cpu(self, values: Mapping[str, Any]) -> None:
         assert self.setup is not None
@@ -110,7 +116,10 @@ class ConvectionDiffusion(GridScattering):
         count = int(values["iterations_per_frame"])
         if limit is not None:
             count = min(count, limit - self.iteration)
-        if count > 0 and not done:
+        if (count > 0 and not done and setup.orders and self._gpu is not None
+                and self.host.work_budget_ms is not None):
+            self._advance_in_parts(count, steps, self.host.work_budget_ms)
+        elif count > 0 and not done:
             t0 = time.perf_counter()
             budget = self.host.work_budget_ms if setup.orders else None
             # Without traced orders an iteration is a few sweeps: the frame's run at once.
@@ -143,6 +152,57 @@ class ConvectionDiffusion(GridScattering):
         else:
             assert limit is not None
             self.converged = self.iteration >= limit
+
+    def _advance_in_parts(self, count: int, steps: int, budget_ms: float) -> None:
+        """GPU, traced orders, under the host's work budget: up to ``count`` iterations, each
+        path drawn in parts sized from the measured cost per row (one y line of one z layer):
+        whole slabs of 4 z layers while they fit, else a band of y rows of one slab (at least
+        one work group); an iteration ends (its sweeps run, ``iteration`` advances) when its
+        path is drawn everywhere. The next frame resumes where this one stopped, so one frame
+        never holds the event loop for a whole path of every voxel (seconds on llvmpipe at
+        10⁶ voxels)."""
+        gpu = self._gpu
+        setup = self.setup
+        assert gpu is not None and setup is not None
+        nz, ny, _nx = setup.grid.shape_zyx
+        t0 = time.perf_counter()
+        worked = False
+        done = 0
+        while done < count:
+            spent = (time.perf_counter() - t0) * 1e3
+            if worked and spent >= budget_ms:
+                break
+            worked = True
+            sampled = gpu.sampling
+            if sampled:
+                z0, y0 = self._orders_next
+                rows_fit = (GROUP[1] * GROUP[2] if self._row_ms is None
+                            else int(max(budget_ms - spent, 0.0) / max(self._row_ms, 1e-6)))
+                if y0 == 0 and rows_fit >= ny * GROUP[2]:  # whole slabs of 4 layers
+                    z1 = min(nz, z0 + max(1, rows_fit // (ny * GROUP[2])) * GROUP[2])
+                    region = (z0, z1, 0, ny)
+                else:  # a band of rows of one slab
+                    z1 = min(nz, z0 + GROUP[2])
+                    rows = max(GROUP[1], rows_fit // (z1 - z0) // GROUP[1] * GROUP[1])
+                    region = (z0, z1, y0, min(ny, y0 + rows))
+                t_part = time.perf_counter()
+                gpu.sample_region(region)
+                finish_gl(self.host.render_window)  # the cost must be measured, not queued
+                rows_drawn = (region[1] - region[0]) * (region[3] - region[2])
+                self._row_ms = (time.perf_counter() - t_part) * 1e3 / rows_drawn
+                if region[3] < ny:
+                    self._orders_next = (region[0], region[3])
+                    continue
+                self._orders_next = (region[1], 0) if region[1] < nz else (0, 0)
+                if region[1] < nz:
+                    continue
+                gpu.end_sample()
+            gpu.sweeps(steps, sampled)
+            self.iteration += 1
+            done += 1
+        if setup.model == "source":
+            self.residual = gpu.residual()
+        self._last_ms = (time.perf_counter() - t0) * 1e3
 
     def _bind(self, gpu_textures: tuple[Texture3D, Texture3D] | None) -> None:
         """The direct and scattered light (the base class's), and the traced orders' light
@@ -512,24 +572,48 @@ class GpuTransport:
                 self.field.run(self._rho[0], self._rho[1], self._lam, grid, self._channels)
                 self._rho.reverse()
 
+    @property
+    def sampling(self) -> bool:
+        """Traced orders whose paths are not all drawn yet (an iteration draws one)."""
+        setup = self._setup
+        return (self._model == "source" and setup is not None and bool(setup.orders)
+                and self._samples < setup.traced_paths)
+
+    def sample_region(self, region: tuple[int, int, int, int]) -> None:
+        """The current path of every voxel in ``region`` (z0, z1, y0, y1; all x) into the
+        traced orders' running means; :meth:`end_sample` once the regions cover the grid.
+        Each voxel's stream depends on its index and the path number only, so a path drawn
+        in regions equals one drawn whole, bit for bit."""
+        setup = self._setup
+        assert setup is not None and self._sigma is not None and self._last is not None
+        self.tracker.sample(setup, self._samples, 0, region, self._sigma, bricks=self._bricks,
+                            traced=self.traced, last=self._last)
+
+    def end_sample(self) -> None:
+        """The current path is drawn everywhere: the next iteration draws the next one."""
+        self._samples += 1
+
+    def sweeps(self, diffusion_steps: int, source_changed: bool) -> None:
+        """One iteration's ``diffusion_steps`` sweeps from the traced orders' E_k (restricted
+        again on a reduced grid when ``source_changed``)."""
+        assert self._last is not None
+        if diffusion_steps:
+            self.source.run(self._last, RGB_AS_LIGHTS, diffusion_steps,
+                            source_changed=source_changed)
+
     def step(self, iterations: int, diffusion_steps: int) -> None:
         """``iterations`` iterations of the accumulation's model (see :mod:`.cpu`); with traced
         orders each first draws one path per voxel (while fewer than ``traced_paths`` are
         drawn), then its sweeps start from the new E_k."""
         setup = self._setup
         if self._model == "source" and setup is not None and setup.orders:
-            assert self._sigma is not None and self._last is not None
             nz, ny, _nx = setup.grid.shape_zyx
             for _ in range(iterations):
-                sampled = self._samples < setup.traced_paths
+                sampled = self.sampling
                 if sampled:
-                    self.tracker.sample(setup, self._samples, 0, (0, nz, 0, ny), self._sigma,
-                                        bricks=self._bricks, traced=self.traced,
-                                        last=self._last)
-                    self._samples += 1
-                if diffusion_steps:
-                    self.source.run(self._last, RGB_AS_LIGHTS, diffusion_steps,
-                                    source_changed=sampled)
+                    self.sample_region((0, nz, 0, ny))
+                    self.end_sample()
+                self.sweeps(diffusion_steps, sampled)
             return
         if self._model == "source":
             if diffusion_steps:
