@@ -133,6 +133,29 @@ vec3 around(vec3 w, float c, float phi)
   return normalize(s * cos(phi) * t1 + s * sin(phi) * t2 + c * w);
 }
 
+// One tentative collision of a flight from pos along the unit d, from the distance t (µm) on
+// with the uniform number xi: t advances to it and the result is the probability that it is
+// real, σ/majorant there (0 when, with bricks, the flight stopped at its brick's face without
+// an event: the exponential flight is memoryless; an empty brick is crossed in one step). The
+// caller checks t against the end of its ray before using the result.
+float tentativeCollision(vec3 pos, vec3 d, float xi, inout float t)
+{
+#if VV_BRICKS
+  float minStep = 1e-4 * min(vv_spacing.x, min(vv_spacing.y, vv_spacing.z));
+  vec2 brick = brickAt(pos + t * d, d);
+  float local = brick.x;
+  float toFace = max(brick.y, minStep);
+  float freeFlight = local > 0.0 ? -log(1.0 - xi) / local : 1e30;
+  bool event = freeFlight < toFace;
+  t = t + (event ? freeFlight : toFace);
+  return event ? min(sigmaAt(pos + t * d) / max(local, 1e-30), 1.0) : 0.0;
+#else
+  float invMajorant = 1.0 / vv_majorant;
+  t = t - log(1.0 - xi) * invMajorant;
+  return min(sigmaAt(pos + t * d) * invMajorant, 1.0);
+#endif
+}
+
 // Throughput from pos towards light l (draws start at firstDraw). A sized light is sampled
 // per path: a point on its sphere, or a direction in its cone (draws firstDraw + 4094, 4095).
 float track(uint key, vec3 pos, int l, uint firstDraw)
@@ -155,18 +178,8 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
     d = vv_lightVec[l].xyz;
     if (size > 0.0) d = around(d, 1.0 - u1 * (1.0 - cos(size)), 6.2831853 * u2);
   }
-  float exitT = 1e30;
-  for (int a = 0; a < 3; ++a)
-  {
-    float lo = vv_origin[a];
-    float hi = vv_origin[a] + vv_spacing[a] * float(vv_dims[a] - 1);
-    float t = d[a] > 0.0 ? (hi - pos[a]) / d[a] : (d[a] < 0.0 ? (lo - pos[a]) / d[a] : 1e30);
-    exitT = min(exitT, t);
-  }
-  float tEnd = min(max(exitT, 0.0), dist);
+  float tEnd = min(vv_boxExit(pos, d), dist);
   if (vv_majorant <= 0.0) return 1.0;
-  float invMajorant = 1.0 / vv_majorant;
-  float minStep = 1e-4 * min(vv_spacing.x, min(vv_spacing.y, vv_spacing.z));
   float throughput = 1.0;
   float t = 0.0;
   uint draw = firstDraw;
@@ -174,22 +187,8 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
   {
     float xi = uniformDraw(key, draw);
     draw += 1u;
-#if VV_BRICKS
-    // A flight that would leave its brick stops at the face without an event (the exponential
-    // flight is memoryless); an empty brick is crossed in one step.
-    vec2 brick = brickAt(pos + t * d, d);
-    float local = brick.x;
-    float toFace = max(brick.y, minStep);
-    float freeFlight = local > 0.0 ? -log(1.0 - xi) / local : 1e30;
-    bool event = freeFlight < toFace;
-    t = t + (event ? freeFlight : toFace);
+    float ratio = tentativeCollision(pos, d, xi, t);
     if (t >= tEnd) return throughput;
-    float ratio = event ? min(sigmaAt(pos + t * d) / max(local, 1e-30), 1.0) : 0.0;
-#else
-    t = t - log(1.0 - xi) * invMajorant;
-    if (t >= tEnd) return throughput;
-    float ratio = min(sigmaAt(pos + t * d) * invMajorant, 1.0);
-#endif
 #if VV_RATIO
     throughput = throughput * (1.0 - ratio);
     if (throughput < VV_MIN_THROUGHPUT) return throughput;
@@ -202,47 +201,19 @@ float track(uint key, vec3 pos, int l, uint firstDraw)
 }
 
 #if VV_ORDERS > 0
-// Distance (µm) from pos along the unit d to the exit of the box of voxel centres.
-float boxExit(vec3 pos, vec3 d)
-{
-  float exitT = 1e30;
-  for (int a = 0; a < 3; ++a)
-  {
-    float lo = vv_origin[a];
-    float hi = vv_origin[a] + vv_spacing[a] * float(vv_dims[a] - 1);
-    float t = d[a] > 0.0 ? (hi - pos[a]) / d[a] : (d[a] < 0.0 ? (lo - pos[a]) / d[a] : 1e30);
-    exitT = min(exitT, t);
-  }
-  return max(exitT, 0.0);
-}
-
 // Delta tracking from pos along the unit d: true and the distance tHit (µm) of the first real
 // collision, false when the path leaves the box first (draws from firstDraw on, two a step).
 bool collide(uint key, vec3 pos, vec3 d, uint firstDraw, out float tHit)
 {
   tHit = 0.0;
-  float tEnd = boxExit(pos, d);
+  float tEnd = vv_boxExit(pos, d);
   if (vv_majorant <= 0.0) return false;
-  float minStep = 1e-4 * min(vv_spacing.x, min(vv_spacing.y, vv_spacing.z));
   float t = 0.0;
   uint draw = firstDraw;
   for (int step = 0; step < VV_MAX_STEPS; ++step)
   {
-    float xi = uniformDraw(key, draw);
-#if VV_BRICKS
-    vec2 brick = brickAt(pos + t * d, d);
-    float local = brick.x;
-    float toFace = max(brick.y, minStep);
-    float freeFlight = local > 0.0 ? -log(1.0 - xi) / local : 1e30;
-    bool event = freeFlight < toFace;
-    t = t + (event ? freeFlight : toFace);
+    float ratio = tentativeCollision(pos, d, uniformDraw(key, draw), t);
     if (t >= tEnd) return false;
-    float ratio = event ? min(sigmaAt(pos + t * d) / max(local, 1e-30), 1.0) : 0.0;
-#else
-    t = t - log(1.0 - xi) / vv_majorant;
-    if (t >= tEnd) return false;
-    float ratio = min(sigmaAt(pos + t * d) / vv_majorant, 1.0);
-#endif
     if (uniformDraw(key, draw + 1u) < ratio)
     {
       tHit = t;

@@ -120,6 +120,16 @@ def traced_orders_sample(setup: TracedSetup, region: tuple[int, int, int, int], 
     return out[0], out[1]
 
 
+def global_majorant(setup: TracedSetup) -> float:
+    """The largest σ_t (per µm) of ``setup``, cached on it: a sample is drawn in many regions
+    per accumulation, and the grid does not change within one."""
+    majorant = getattr(setup, "max_sigma_t", None)
+    if majorant is None:
+        majorant = float(np.asarray(setup.sigma_t).max())
+        setup.max_sigma_t = majorant
+    return majorant
+
+
 def readable_voxels(setup: TracedSetup) -> np.ndarray:
     """Voxels a visible sample can read (``[z, y, x]`` bool, cached on ``setup``): σ_t > 0 in
     the 26-neighbourhood. The others are a corner of no cell with opacity, so their traced
@@ -203,7 +213,7 @@ class GpuTracker:
         prog.set_uniform("vv_end", region[1], region[3])
         prog.set_uniform("vv_origin", *grid.origin, kind="f")
         prog.set_uniform("vv_spacing", *grid.spacing, kind="f")
-        prog.set_uniform("vv_majorant", float(np.asarray(setup.sigma_t).max()), kind="f")
+        prog.set_uniform("vv_majorant", global_majorant(setup), kind="f")
         prog.set_uniform("vv_unitDistance", float(setup.unit_distance or 0.0), kind="f")
         prog.set_uniform("vv_iteration", iteration, kind="ui")
         prog.set_uniform("vv_seed", int(seed), kind="ui")

@@ -62,15 +62,7 @@ void main()
       dist = length(d);
       d = d / max(dist, 1e-12);
     }
-    float exitT = 1e30;
-    for (int a = 0; a < 3; ++a)
-    {
-      float lo = vv_origin[a];
-      float hi = vv_origin[a] + vv_spacing[a] * float(vv_dims[a] - 1);
-      float t = d[a] > 0.0 ? (hi - pos[a]) / d[a] : (d[a] < 0.0 ? (lo - pos[a]) / d[a] : 1e30);
-      exitT = min(exitT, t);
-    }
-    float len = min(max(exitT, 0.0), dist);
+    float len = min(vv_boxExit(pos, d), dist);
     int steps = int(ceil(len / vv_step));
     float h = steps > 0 ? len / float(steps) : 0.0;
     float tau = 0.0;
