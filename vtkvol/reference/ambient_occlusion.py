@@ -23,7 +23,7 @@ import numpy as np
 from vtkvol.reference.raymarch import (
     RAY_CHUNK,
     EvalPoints,
-    ExtinctionField,
+    as_field,
     check_count,
     check_distance,
     optical_depth,
@@ -87,7 +87,7 @@ def ambient_occlusion_mc(
     d_max = check_distance(max_distance, "max_distance")
     d_min = check_distance(min_distance, "min_distance")
     n_rays = check_count(n_rays, "n_rays")
-    field = ExtinctionField(opacity, spacing, unit_distance)
+    field = as_field(opacity, spacing, unit_distance)
     where = EvalPoints.of(field, points)
     h = step_um(field, step)
     nrm = where.per_point(normals, "normals")

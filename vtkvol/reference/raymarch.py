@@ -70,10 +70,18 @@ class ExtinctionField:
     are ``[z, y, x]``; ``spacing`` and ``box_max`` are (x, y, z) in µm; ``majorant`` is max σ
     over the voxels, an upper bound of σ(x) everywhere (the interpolated α never exceeds the
     largest voxel α, and σ grows with α; used by delta and ratio tracking).
+
+    With ``transfer`` (a piecewise-linear opacity transfer function, ``(value, α)`` points in
+    increasing value) the first argument is the **scalar data** instead, and the medium is
+    classified after interpolation, as VTK's ray caster and the camera path tracer draw a
+    one-channel volume: α(x) = TF(trilinear data(x)), constant beyond the end points.
+    ``alpha`` is then the data's classification at the voxel centres and ``majorant`` the σ of
+    the TF's largest α over the data's range (the interpolated value stays in that range).
     """
 
     def __init__(
-        self, opacity: np.ndarray, spacing: Sequence[float], unit_distance: float | None = None
+        self, opacity: np.ndarray, spacing: Sequence[float], unit_distance: float | None = None,
+        *, transfer: Sequence[tuple[float, float]] | None = None,
     ) -> None:
         a = np.asarray(opacity)
         if a.ndim != 3 or min(a.shape) < 1:
@@ -82,24 +90,48 @@ class ExtinctionField:
         self.unit_distance = (
             float(self.spacing.min()) if unit_distance is None else float(unit_distance)
         )
+        values = np.asarray(a, dtype=np.float64)
+        self._tf: tuple[np.ndarray, np.ndarray] | None = None
+        if transfer is not None:
+            tf = np.asarray(transfer, dtype=np.float64)
+            if (tf.ndim != 2 or tf.shape[1] != 2 or tf.shape[0] < 1
+                    or not np.all(np.isfinite(tf)) or np.any(np.diff(tf[:, 0]) < 0)):
+                raise ValueError("transfer must be (value, alpha) points in increasing value")
+            if not np.all(np.isfinite(values)):
+                raise ValueError("the data must be finite")
+            self._tf = (tf[:, 0], np.clip(tf[:, 1], 0.0, MAX_OPACITY))
+            a = self.classify(values)
         self.sigma = extinction(a, self.unit_distance)
         self.alpha = np.clip(np.asarray(a, dtype=np.float64), 0.0, MAX_OPACITY)
         self.shape = self.sigma.shape  # (nz, ny, nx)
         nz, ny, nx = self.shape
         self.box_max = np.array([nx - 1, ny - 1, nz - 1], dtype=np.float64) * self.spacing
         self.majorant = float(self.sigma.max())
+        if self._tf is not None:
+            xs, ys = self._tf
+            lo, hi = float(values.min()), float(values.max())
+            inside = ys[(xs > lo) & (xs < hi)]
+            top = max(float(self.classify(np.array([lo, hi])).max()),
+                      float(inside.max()) if inside.size else 0.0)
+            self.majorant = float(extinction(np.array(top), self.unit_distance))
         self._inv_unit = 1.0 / self.unit_distance
-        # Pair table: entry i holds (α[i], α[i+1]) of the flattened array as one complex128, so a
+        # Pair table: entry i holds (v[i], v[i+1]) of the flattened array as one complex128, so a
         # single gather fetches both x-neighbours; four gathers replace trilinear's eight. The
         # zero tail keeps the +x/+y/+z neighbour offsets in range for points on the box's upper
-        # faces and on degenerate (size-1) axes, where those neighbours' weights are 0.
-        flat = self.alpha.ravel()
+        # faces and on degenerate (size-1) axes, where those neighbours' weights are 0. v is α,
+        # or the data when the field is classified after interpolation.
+        flat = (values if self._tf is not None else self.alpha).ravel()
         pad = nx * ny + nx + 2
         pairs = np.zeros((flat.size + pad, 2), dtype=np.float64)
         pairs[: flat.size, 0] = flat
         pairs[: flat.size - 1, 1] = flat[1:]
         self._pairs = pairs.view(np.complex128).ravel()
         self._strides = (nx * ny, nx)
+
+    def classify(self, values: np.ndarray) -> np.ndarray:
+        """α of scalar ``values`` through the transfer function (post-classified fields)."""
+        assert self._tf is not None
+        return np.interp(values, *self._tf)
 
     def sample_index(self, cx: np.ndarray, cy: np.ndarray, cz: np.ndarray) -> np.ndarray:
         """σ of the trilinear α at index-space coordinates, which must lie inside [0, n−1]
@@ -128,6 +160,8 @@ class ExtinctionField:
         c0 = rows[0] + (rows[1] - rows[0]) * fy
         c1 = rows[2] + (rows[3] - rows[2]) * fy
         alpha = c0 + (c1 - c0) * fz
+        if self._tf is not None:
+            alpha = self.classify(alpha)
         # α ≤ MAX_OPACITY by construction; the clip only absorbs rounding of the weights.
         np.clip(alpha, 0.0, MAX_OPACITY, out=alpha)
         out = np.log1p(np.negative(alpha, out=alpha), out=alpha)
@@ -144,6 +178,17 @@ class ExtinctionField:
         if c.shape[0]:
             out[inside] = self.sample_index(c[:, 0], c[:, 1], c[:, 2])
         return out
+
+
+def as_field(
+    opacity: np.ndarray | ExtinctionField, spacing: Sequence[float], unit_distance: float | None
+) -> ExtinctionField:
+    """The :class:`ExtinctionField` of per-voxel ``opacity``, or ``opacity`` itself when it is
+    a field already (e.g. one classified after interpolation), whose spacing and unit distance
+    then apply."""
+    if isinstance(opacity, ExtinctionField):
+        return opacity
+    return ExtinctionField(opacity, spacing, unit_distance)
 
 
 def voxel_centres(

@@ -63,6 +63,7 @@ from vtkvol.reference.lights import Light, PointLight, as_light_list, light_rays
 from vtkvol.reference.raymarch import (
     EvalPoints,
     ExtinctionField,
+    as_field,
     check_count,
     clip_to_box,
 )
@@ -109,7 +110,9 @@ def inscattered_mc(
     Parameters
     ----------
     opacity
-        Transfer-function opacity α ∈ [0, 1] per voxel, ``[z, y, x]``.
+        Transfer-function opacity α ∈ [0, 1] per voxel, ``[z, y, x]``, or an
+        :class:`~vtkvol.reference.raymarch.ExtinctionField` (then ``spacing`` and
+        ``unit_distance`` are the field's), e.g. one classified after interpolation.
     spacing
         Voxel edge (x, y, z) in µm.
     lights
@@ -162,7 +165,7 @@ def inscattered_mc(
     n_paths = check_count(n_paths, "n_paths")
     if int(min_bounces) != min_bounces or int(max_bounces) != max_bounces or min_bounces < 0:
         raise ValueError("min_bounces and max_bounces must be integers >= 0")
-    field = ExtinctionField(opacity, spacing, unit_distance)
+    field = as_field(opacity, spacing, unit_distance)
     where = EvalPoints.of(field, points)
     out = np.zeros((where.n, channels))
     if max_bounces >= min_bounces:

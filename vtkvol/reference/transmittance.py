@@ -17,7 +17,7 @@ from vtkvol.reference.lights import DirectionalLight, Light, PointLight, light_r
 from vtkvol.reference.raymarch import (
     RAY_CHUNK,
     EvalPoints,
-    ExtinctionField,
+    as_field,
     check_count,
     check_distance,
     optical_depth,
@@ -53,7 +53,9 @@ def transmittance(
     Parameters
     ----------
     opacity
-        Transfer-function opacity α ∈ [0, 1] per voxel, ``[z, y, x]``.
+        Transfer-function opacity α ∈ [0, 1] per voxel, ``[z, y, x]``, or an
+        :class:`~vtkvol.reference.raymarch.ExtinctionField` (then ``spacing`` and
+        ``unit_distance`` are the field's), e.g. one classified after interpolation.
     spacing
         Voxel edge (x, y, z) in µm.
     light
@@ -75,7 +77,7 @@ def transmittance(
     -------
     float32 transmittance in [0, 1]: ``[z, y, x]``, or (N,) when ``points`` is given.
     """
-    field = ExtinctionField(opacity, spacing, unit_distance)
+    field = as_field(opacity, spacing, unit_distance)
     where = EvalPoints.of(field, points)
     t_min = check_distance(min_distance, "min_distance")
     h = step_um(field, step)
@@ -118,7 +120,7 @@ def cone_transmittance_mc(
     if not (0.0 <= half_angle_deg <= 180.0):
         raise ValueError(f"half_angle_deg {half_angle_deg} must be in [0, 180] degrees")
     n_rays = check_count(n_rays, "n_rays")
-    field = ExtinctionField(opacity, spacing, unit_distance)
+    field = as_field(opacity, spacing, unit_distance)
     where = EvalPoints.of(field, points)
     t_min = check_distance(min_distance, "min_distance")
     h = step_um(field, step)
@@ -208,7 +210,7 @@ def extended_transmittance(
         return transmittance(opacity, spacing, light, unit_distance=unit_distance, step=step,
                              points=points, min_distance=min_distance)
     n_rays = check_count(n_rays, "n_rays")
-    field = ExtinctionField(opacity, spacing, unit_distance)
+    field = as_field(opacity, spacing, unit_distance)
     where = EvalPoints.of(field, points)
     t_min = check_distance(min_distance, "min_distance")
     h = step_um(field, step)
