@@ -22,6 +22,7 @@ Per bench phantom scene, light count (1, 3) and mode (single, multiple scatterin
 Run: ``python benchmarks/two_truths_pixels.py [--size 24] [--image 64] [--paths 1024]
 [--pixels 256] [--rays 3] [--points 8] [--scatter-paths 32] [--scenes ...] [--lights 1,3]
 [--modes single,multiple] [--refined]``; one JSON line per setting on stdout.
+``--chart OUT.png --records RUN.jsonl`` draws a finished run's records instead.
 """
 
 from __future__ import annotations
@@ -36,13 +37,12 @@ import numpy as np
 
 from vtkvol.bench.convergence import with_lights
 from vtkvol.bench.measure import Rig, VtkErrors
+from vtkvol.bench.pointwise import PointwiseBudget, camera_setup, compare
 from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
 from vtkvol.bench.references import MediumReference, ReferenceBudget, ReferenceCache
 from vtkvol.bench.refine import RefinedReferences, Refinement, render_refined
 from vtkvol.bench.scenes import Scene, phantom_scenes
 from vtkvol.engine.renderers import set_renderer
-from vtkvol.reference.medium_pixels import medium_radiance, pixel_rays, reference_lights
-from vtkvol.reference.raymarch import ExtinctionField
 
 SEEDS = (7, 8)
 
@@ -54,7 +54,7 @@ def psnr(mse: float) -> float:
 
 def camera_runs(rig: Rig, mode: str, paths: int) -> tuple[list[np.ndarray], dict[str, Any]]:
     """The path tracer's two float images (h, w, 4: radiance × exposure, coverage; bottom row
-    first) and what the reference needs of the set-up (uniforms, lights, shading)."""
+    first) and what the reference needs of the set-up."""
     host = rig.illuminator
     images = []
     setup: dict[str, Any] = {}
@@ -65,15 +65,7 @@ def camera_runs(rig: Rig, mode: str, paths: int) -> tuple[list[np.ndarray], dict
         if pt.iteration != paths or pt.last_error is not None:
             raise RuntimeError(f"the path tracer stopped at {pt.iteration}: {pt.last_error}")
         images.append(pt.read_result().astype(np.float64))
-        setup = {
-            "uniforms": pt._uniform_base(rig.rw),
-            "post": pt.classification_reason is None,
-            "lights": [(s.kind, s.vector, s.color, s.size, s.falloff_distance)
-                       for s in host.light_specs()],
-            "ambient": float(rig.volume.GetProperty().GetAmbient(0)) + host.fill,
-            "exposure": float(host.exposure), "albedo": float(host.albedo),
-            "g": float(host.phase_g), "opacity": host.opacity_volume(),
-        }
+        setup = camera_setup(rig, pt)
         set_renderer(host, "raycast")
     return images, setup
 
@@ -102,6 +94,7 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache
           ) -> list[dict[str, Any]]:
     """Every mode's comparison for one (lit) scene."""
     out = []
+    budget = PointwiseBudget(args.pixels, args.rays, args.points, args.scatter_paths, args.seed)
     rig = Rig(args.image)
     try:
         rig.rw.Render()
@@ -111,67 +104,61 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache
             t0 = time.perf_counter()
             (a, b), setup = camera_runs(rig, mode, args.paths)
             camera_seconds = time.perf_counter() - t0
-            m = (a + b) / 2.0
-            u = setup["uniforms"]
-            h, w = m.shape[:2]
-            rng = np.random.default_rng(args.seed)
-            seen = np.argwhere(m[..., 3] > 0.02)  # (y, x), bottom row first
-            pick = seen[rng.choice(len(seen), size=min(args.pixels, len(seen)), replace=False)]
-            pixels = pick[:, ::-1]
-            if setup["post"]:
-                field = ExtinctionField(scene.data, scene.spacing, scene.unit_distance,
-                                        transfer=scene.opacity_points)
-            else:
-                field = ExtinctionField(setup["opacity"], scene.spacing, scene.unit_distance)
-            t0 = time.perf_counter()
-            origin = u["dOrigin"]
-            halves = []
-            for seed in (args.seed, args.seed + 1):
-                o, d = pixel_rays(u["ndcToData"], (w, h), pixels, args.rays,
-                                  np.random.default_rng(seed), origin)
-                radiance = medium_radiance(
-                    field, o, d, reference_lights(setup["lights"], origin),
-                    albedo=setup["albedo"], phase_g=setup["g"], ambient=setup["ambient"],
-                    orders=mode, emission_points=args.points,
-                    scatter_paths=args.scatter_paths, seed=seed)
-                halves.append(255.0 * setup["exposure"]
-                              * radiance.reshape(len(pixels), args.rays ** 2, 3).mean(axis=1))
-            ref_seconds = time.perf_counter() - t0
-            # Two independent halves (the rays are stratified, so their spread would overstate
-            # the noise): the mean of two has a quarter of their squared difference.
-            ref = (halves[0] + halves[1]) / 2.0
-            ref_var = (halves[0] - halves[1]) ** 2 / 4.0
+            fields, pick = compare(scene, setup, a, b, mode, budget)
+            rec: dict[str, Any] = {"scene": scene.name, "lights": len(scene.lights),
+                                   "mode": mode, "paths": args.paths}
+            rec.update({k: round(v, 3) if isinstance(v, float) else v
+                        for k, v in fields.items()})
+            rec["camera_seconds"] = round(camera_seconds, 1)
+            h = a.shape[0]
             y, x = pick[:, 0], pick[:, 1]
-            cam = 255.0 * m[y, x, :3]
-            cam_var = (255.0 * (a[y, x, :3] - b[y, x, :3])) ** 2 / 4.0
-            err = float(np.mean((cam - ref) ** 2))
-            noise = float(np.mean(cam_var)) + float(np.mean(ref_var))
-            rec: dict[str, Any] = {
-                "scene": scene.name, "lights": len(scene.lights), "mode": mode,
-                "paths": args.paths, "pixels": len(pixels),
-                "psnr": round(psnr(err), 2),
-                "camera_floor": round(psnr(float(np.mean(cam_var))), 2),
-                "reference_floor": round(psnr(float(np.mean(ref_var))), 2),
-                "combined_floor": round(psnr(noise), 2),
-                "ratio": round(err / noise, 3),
-                "agree": bool(psnr(err) >= psnr(noise) - 1.0),
-                "mean_difference": round(float(np.mean(cam - ref)), 3),
-                "mean_difference_se": round(float(np.sqrt(np.sum(cam_var + ref_var)
-                                                          / 3.0)) / len(pixels), 3),
-                "mean_level": round(float(np.mean(ref)), 2),
-                "camera_seconds": round(camera_seconds, 1),
-                "reference_seconds": round(ref_seconds, 1),
-            }
-            clipped = np.clip(cam, 0.0, 255.0)
+            clipped = np.clip(255.0 * (a[y, x, :3] + b[y, x, :3]) / 2.0, 0.0, 255.0)
             for name, images in grids.items():
                 img = images[mode][h - 1 - y, x]
                 rec[f"psnr_{name}"] = round(psnr(float(np.mean((clipped - img) ** 2))), 2)
-            rec["psnr_pointwise_clipped"] = round(psnr(float(np.mean(
-                (clipped - np.clip(ref, 0.0, 255.0)) ** 2))), 2)
             out.append(rec)
     finally:
         rig.close()
     return out
+
+
+def chart(path: str, records: list[dict[str, Any]]) -> None:
+    """Two panels per setting: left, PSNR(M, pointwise) against the combined floor − 1 dB
+    (radiance, unclamped: the estimators' agreement); right, the display levels (clamped) at
+    the same pixels for the bench's grid reference, the refined one and the pointwise one."""
+    from vtkvol.bench.report_charts import _pyplot
+
+    plt = _pyplot()
+    labels = [f"{r['scene'].replace('_', ' ')}\n{r['lights']} light{'s' if r['lights'] > 1 else ''}"
+              f", {r['mode']}" for r in records]
+    x = np.arange(len(records))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(14, 4.8), sharey=False)
+    left.bar(x, [r["psnr"] for r in records], 0.6, label="PSNR(camera, pointwise)",
+             color="#4c72b0")
+    left.plot(x, [r["combined_floor"] - 1.0 for r in records], "k_", markersize=22,
+              markeredgewidth=2, label="combined floor − 1 dB")
+    left.set_ylim(min(r["psnr"] for r in records) - 5, max(r["combined_floor"]
+                                                            for r in records) + 3)
+    left.set_title("the two truths, radiance (agree: bar reaches the line)")
+    right_series = [("psnr_bench", "bench's grid reference", "#dd8452"),
+                    ("psnr_refined", "refined grid reference", "#55a868"),
+                    ("psnr_clipped", "pointwise reference", "#4c72b0")]
+    shown = [s for s in right_series if all(s[0] in r for r in records)]
+    width = 0.8 / max(1, len(shown))
+    for i, (key, label, colour) in enumerate(shown):
+        right.bar(x + (i - (len(shown) - 1) / 2) * width, [r[key] for r in records], width,
+                  label=label, color=colour)
+    right.set_ylim(min(r[k] for r in records for k, _l, _c in shown) - 5,
+                   max(r[k] for r in records for k, _l, _c in shown) + 3)
+    right.set_title("against the camera path tracer, display levels, same pixels")
+    for ax in (left, right):
+        ax.set_xticks(x, labels, rotation=60, ha="right", fontsize=7)
+        ax.set_ylabel("PSNR (dB)")
+        ax.legend(fontsize=8, loc="lower left")
+        ax.grid(axis="y", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
 
 
 def main() -> None:
@@ -190,15 +177,30 @@ def main() -> None:
     parser.add_argument("--modes", default="single,multiple")
     parser.add_argument("--refined", action="store_true",
                         help="also compare the refined grid reference at the same pixels")
+    parser.add_argument("--chart", help="draw the records of --records into this PNG")
+    parser.add_argument("--records", help="a finished run's JSON lines (with --chart)")
     args = parser.parse_args()
+    if args.chart:
+        if not args.records:
+            raise SystemExit("vtkvol: --chart needs --records RUN.jsonl")
+        try:
+            with open(args.records, encoding="utf-8") as fh:
+                records = [json.loads(line) for line in fh if line.strip()]
+        except (OSError, ValueError) as exc:
+            raise SystemExit(f"vtkvol: --records {args.records}: {exc}") from None
+        if not records:
+            raise SystemExit(f"vtkvol: --records {args.records}: no records")
+        chart(args.chart, records)
+        return
     args.modes = args.modes.split(",")
     if not set(args.modes) <= {"single", "multiple"}:
         raise SystemExit(f"vtkvol: --modes: {args.modes} must be single and/or multiple")
-    for name, value in (("--paths", args.paths), ("--pixels", args.pixels),
-                        ("--rays", args.rays), ("--points", args.points),
-                        ("--scatter-paths", args.scatter_paths)):
-        if value < 1:
-            raise SystemExit(f"vtkvol: {name}: {value} must be at least 1")
+    if args.paths < 1:
+        raise SystemExit(f"vtkvol: --paths: {args.paths} must be at least 1")
+    try:
+        PointwiseBudget(args.pixels, args.rays, args.points, args.scatter_paths, args.seed)
+    except ValueError as exc:
+        raise SystemExit(f"vtkvol: {exc}") from None
     cache = ReferenceCache(ReferenceBudget(step=0.5, light_rays=32, scatter_paths=32))
     names = args.scenes.split(",")
     with VtkErrors(), registered():

@@ -503,12 +503,15 @@ def test_medium_reference_adds_path_traced_inscattered_light_scaled_by_the_light
 
 def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     from vtkvol.bench.convergence import StudyConfig, checkpoints, run, summary
+    from vtkvol.bench.pointwise import PointwiseBudget
     from vtkvol.bench.references import ReferenceBudget
 
     assert checkpoints(10) == [1, 2, 4, 8, 10] and checkpoints(8) == [1, 2, 4, 8]
     scene = phantom_scenes(16)[0]
     result = run(StudyConfig(mode="test", size=16, image_size=64, max_seconds=30.0,
-                             camera_paths=16), tmp_path,
+                             camera_paths=16,
+                             pointwise=PointwiseBudget(pixels=24, rays=2, points=4,
+                                                       scatter_paths=4)), tmp_path,
                  [scene], ["convection_diffusion", "hybrid_diffusion", "translucency"],
                  budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
                  stream=io.StringIO())
@@ -526,6 +529,14 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
         assert last["combined_floor_psnr"] < min(last["floor_psnr"], last["camera_floor_psnr"])
         assert last["agree"] == (last["psnr_two_truths"] >= last["floor_psnr"] - 1.0)
         assert "psnr_two_truths" not in rows[0]
+        # ... and at seeded pixels against the reference without its grid: 24 pixels, the
+        # combined noise below each side's, a mean difference with its standard error
+        assert last["pointwise_pixels"] == 24 and 10.0 < last["pointwise_psnr"] < 80.0
+        assert last["pointwise_combined_floor"] < min(last["pointwise_camera_floor"],
+                                                      last["pointwise_reference_floor"])
+        assert last["pointwise_agree"] == (last["pointwise_psnr"]
+                                           >= last["pointwise_combined_floor"] - 1.0)
+        assert last["pointwise_mean_difference_se"] > 0 and last["pointwise_seconds"] > 0
     # Half-angle slicing (one light only: it refuses more) beside them, its frames as
     # iterations.
     half = [r for r in result["records"] if r["method"] == "half_angle_slicing"]
@@ -579,6 +590,7 @@ def test_convergence_study_records_checkpoints_noise_floor_and_memory(tmp_path):
     assert "| camera PT | " in md and "| T + indirect | " in md and "| half-angle | " in md
     assert "| KD published | " in md and "| HD published | " in md
     assert "**The two truths**" in md and f"| {scene.name} | 3 | 16 | " in md
+    assert "**The two truths at seeded pixels**" in md and f"| {scene.name} | 3 | 24 | " in md
     assert result["paths"]["scattering"].exists() and result["paths"]["two_truths"].exists()
     doc = report.load(tmp_path / "benchmarks.json")
     assert len(doc["scattering"]) == len(result["records"]) and len(doc["scattering_runs"]) == 1

@@ -136,7 +136,8 @@ def test_convergence_study_compares_the_two_truths_with_the_refined_reference(tm
 
     scene = next(s for s in phantom_scenes(16) if s.name == "sphere_over_slab")
     result = run(StudyConfig(mode="test", size=16, image_size=32, light_counts=(1,),
-                             max_seconds=10.0, camera_paths=8, half_angle_frames=0),
+                             max_seconds=10.0, camera_paths=8, half_angle_frames=0,
+                             pointwise=None),
                  tmp_path, [scene], ["translucency"],
                  budget=ReferenceBudget(step=0.5, light_rays=4, scatter_paths=4),
                  stream=io.StringIO())

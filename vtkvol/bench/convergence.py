@@ -30,6 +30,12 @@ recomputed on the fine grid within one voxel of a box face), which removes most 
 reference's discretisation bias (docs/benchmarks.md, "The two truths with a refined
 reference"); the bench's own reference stays what every technique is measured against,
 and its two-truths PSNR is kept as ``psnr_two_truths_bench``.
+With ``StudyConfig.pointwise`` (on by default, 128 pixels) the camera runs' float results are
+also compared at seeded pixels with the reference evaluated without any grid
+(:mod:`vtkvol.bench.pointwise`): the same light estimators at each camera ray's own points.
+That comparison has no discretisation on either side, so it tests the two estimators
+themselves; its fields are ``pointwise_*`` (``pointwise_agree``: PSNR ≥ their combined floor
+− 1 dB).
 Half-angle slicing (``half_angle_slicing``, :func:`study_half_angle`) is measured the same
 way with one light only (it refuses more): its jittered frames are its iterations.
 
@@ -50,6 +56,7 @@ from typing import Any
 import numpy as np
 
 from vtkvol.bench import report
+from vtkvol.bench.pointwise import PointwiseBudget, camera_setup, compare
 from vtkvol.bench.references import MediumReference, ReferenceCache
 from vtkvol.bench.refine import RefinedReferences, Refinement, render_refined
 from vtkvol.bench.report import summary  # noqa: F401  (the study's summary, kept importable here)
@@ -95,6 +102,9 @@ class StudyConfig:
     #: Only the two-truths comparison uses it; every technique is measured against the
     #: bench's reference either way.
     refined_reference: Refinement | None = field(default_factory=Refinement)
+    #: The two truths also at seeded pixels against the reference without its grid
+    #: (:mod:`vtkvol.bench.pointwise`, issue 23), or None.
+    pointwise: PointwiseBudget | None = field(default_factory=lambda: PointwiseBudget(128))
 
 
 def checkpoints(limit: int) -> list[int]:
@@ -397,6 +407,8 @@ def study_camera_paths(rig: Any, refs: dict[str, np.ndarray], config: StudyConfi
     limit = int(config.camera_paths)
     records: list[dict[str, Any]] = []
     finals: list[np.ndarray] = []
+    radiance: list[np.ndarray] = []  # the runs' float results, for the pointwise comparison
+    setup: dict[str, Any] = {}
     try:
         for run_index, seed in enumerate(CAMERA_SEEDS):
             rig.reset_view()
@@ -427,11 +439,18 @@ def study_camera_paths(rig: Any, refs: dict[str, np.ndarray], config: StudyConfi
                 })
             assert image is not None
             finals.append(image)
+            if config.pointwise is not None:
+                radiance.append(pt.read_result())
+                setup = camera_setup(rig, pt)
             set_renderer(rig.illuminator, "raycast")
     finally:
         set_renderer(rig.illuminator, "raycast")
     mean, agreement = two_truths(finals[0], finals[1], refs)
     records[-1].update(agreement, final=True)
+    if config.pointwise is not None and rig.scene is not None:
+        fields, _pixels = compare(rig.scene, setup, radiance[0], radiance[1], "multiple",
+                                  config.pointwise)
+        records[-1].update({f"pointwise_{k}": v for k, v in fields.items()})
     return records, mean
 
 

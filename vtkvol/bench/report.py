@@ -673,6 +673,29 @@ def _two_truths_markdown(run: Mapping[str, Any], recs: Sequence[Mapping[str, Any
             f"{'yes' if r.get('agree') else 'no'} | {_fmt(r.get('camera_floor_psnr'), 1)} | "
             f"{_fmt(r['combined_floor_psnr'] - 1.0, 1)} | "
             f"{'yes' if r.get('agree_combined') else 'no'} |")
+    pointwise = [r for r in rows if r.get("pointwise_pixels")]
+    if pointwise:
+        out += ["", "**The two truths at seeded pixels** (`vtkvol.bench.pointwise`): the camera "
+                "runs' float radiance against the reference evaluated without its grid — the "
+                "same light estimators at each camera ray's own points — at pixels drawn among "
+                "those that see the medium, in unclamped levels (255 × radiance). Both sides "
+                "are unbiased estimates of the same pixels, so the ratio of their mean squared "
+                "difference to their combined noise is 1 when they agree; they agree "
+                "(issue 23's criterion) at PSNR ≥ combined floor − 1 dB, a ratio ≤ 1.26.", "",
+                "| scene | lights | pixels | PSNR camera PT vs pointwise reference | camera "
+                "floor | reference floor | combined floor − 1 dB | MSE / combined noise | "
+                "agree | mean difference (levels) | seconds |",
+                "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in pointwise:
+            out.append(
+                f"| {r['scene']} | {r['lights']} | {r['pointwise_pixels']} | "
+                f"{_fmt(r['pointwise_psnr'], 1)} | {_fmt(r['pointwise_camera_floor'], 1)} | "
+                f"{_fmt(r['pointwise_reference_floor'], 1)} | "
+                f"{_fmt(r['pointwise_combined_floor'] - 1.0, 1)} | "
+                f"{_fmt(r['pointwise_ratio'], 2)} | "
+                f"{'yes' if r.get('pointwise_agree') else 'no'} | "
+                f"{r['pointwise_mean_difference']:+.2f} ± "
+                f"{r['pointwise_mean_difference_se']:.2f} | {_fmt(r['pointwise_seconds'], 0)} |")
     return [*out, ""]
 
 
