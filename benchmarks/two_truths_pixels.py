@@ -35,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from vtkvol.bench.convergence import with_lights
+from vtkvol.bench.convergence import CAMERA_SEEDS, with_lights
 from vtkvol.bench.measure import Rig, VtkErrors
 from vtkvol.bench.pointwise import PointwiseBudget, camera_setup, compare
 from vtkvol.bench.reference_technique import MEDIUM_NAME, ReferenceVolume, registered
@@ -43,8 +43,6 @@ from vtkvol.bench.references import MediumReference, ReferenceBudget, ReferenceC
 from vtkvol.bench.refine import RefinedReferences, Refinement, render_refined
 from vtkvol.bench.scenes import Scene, phantom_scenes
 from vtkvol.engine.renderers import set_renderer
-
-SEEDS = (7, 8)
 
 
 def psnr(mse: float) -> float:
@@ -58,7 +56,7 @@ def camera_runs(rig: Rig, mode: str, paths: int) -> tuple[list[np.ndarray], dict
     host = rig.illuminator
     images = []
     setup: dict[str, Any] = {}
-    for seed in SEEDS:
+    for seed in CAMERA_SEEDS:
         rig.reset_view()
         pt = set_renderer(host, "path_tracer", scattering=mode, samples=paths, seed=seed)
         host.converge(max_frames=paths + 8)
@@ -70,23 +68,22 @@ def camera_runs(rig: Rig, mode: str, paths: int) -> tuple[list[np.ndarray], dict
     return images, setup
 
 
-def grid_images(rig: Rig, cache: ReferenceCache, scene: Scene, refined: bool
-                ) -> dict[str, dict[str, np.ndarray]]:
-    """The bench's reference images (uint8, top row first) per mode, and the refined ones."""
+def grid_images(rig: Rig, cache: ReferenceCache, scene: Scene, refined: bool,
+                modes: list[str]) -> dict[str, dict[str, np.ndarray]]:
+    """The bench's reference images (uint8, top row first) of ``modes``, and the refined ones."""
     out: dict[str, dict[str, np.ndarray]] = {}
     rig.volume.GetMapper().SetSampleDistance(0.5 * scene.unit_distance)
-    wanted = {"single": MediumReference(orders="single", seeds=(0,)),
-              "multiple": MediumReference(orders="multiple", seeds=(0, 1))}
+    wanted = {mode: MediumReference(orders=mode, seeds=(0,) if mode == "single" else (0, 1))
+              for mode in modes}
     for mode, ref in wanted.items():
         ReferenceVolume.use(ref.volumes(cache, scene))
         rig.set_method(MEDIUM_NAME, {})
         out.setdefault("bench", {})[mode] = rig.image().astype(np.float64)
     if refined:
         fine = RefinedReferences(cache, scene, Refinement())
-        imgs = render_refined(fine, rig.rw.GetSize()[0],
-                              {"ss": wanted["single"], "ms": wanted["multiple"]})
+        imgs = render_refined(fine, rig.rw.GetSize()[0], wanted)
         fine.release()
-        out["refined"] = {"single": imgs["ss"], "multiple": imgs["ms"]}
+        out["refined"] = imgs
     return out
 
 
@@ -99,7 +96,7 @@ def study(scene: Scene, args: argparse.Namespace, cache: ReferenceCache
     try:
         rig.rw.Render()
         rig.load(scene)
-        grids = grid_images(rig, cache, scene, args.refined)
+        grids = grid_images(rig, cache, scene, args.refined, args.modes)
         for mode in args.modes:
             t0 = time.perf_counter()
             (a, b), setup = camera_runs(rig, mode, args.paths)
