@@ -134,8 +134,8 @@ def chart(path: str, records: list[dict[str, Any]]) -> None:
              color="#4c72b0")
     left.plot(x, [r["combined_floor"] - 1.0 for r in records], "k_", markersize=22,
               markeredgewidth=2, label="combined floor − 1 dB")
-    left.set_ylim(min(r["psnr"] for r in records) - 5, max(r["combined_floor"]
-                                                            for r in records) + 3)
+    left.set_ylim(min(r["psnr"] for r in records) - 5,
+                  max(max(r["psnr"], r["combined_floor"]) for r in records) + 6)
     left.set_title("the two truths, radiance (agree: bar reaches the line)")
     right_series = [("psnr_bench", "bench's grid reference", "#dd8452"),
                     ("psnr_refined", "refined grid reference", "#55a868"),
@@ -146,12 +146,12 @@ def chart(path: str, records: list[dict[str, Any]]) -> None:
         right.bar(x + (i - (len(shown) - 1) / 2) * width, [r[key] for r in records], width,
                   label=label, color=colour)
     right.set_ylim(min(r[k] for r in records for k, _l, _c in shown) - 5,
-                   max(r[k] for r in records for k, _l, _c in shown) + 3)
+                   max(r[k] for r in records for k, _l, _c in shown) + 6)
     right.set_title("against the camera path tracer, display levels, same pixels")
     for ax in (left, right):
         ax.set_xticks(x, labels, rotation=60, ha="right", fontsize=7)
         ax.set_ylabel("PSNR (dB)")
-        ax.legend(fontsize=8, loc="lower left")
+        ax.legend(fontsize=8, loc="upper center", ncol=3)
         ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
