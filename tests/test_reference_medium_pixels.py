@@ -91,3 +91,23 @@ def test_pixel_rays_are_stratified_in_the_pixel():
     frag = (o[:, :2] + [1.0, 0.0]) / 10.0 * 2.0 + 2.0  # back to window pixels (w = h = 4)
     cells = np.floor((frag - [1.0, 2.0]) * 3).astype(int)
     assert sorted(map(tuple, cells)) == [(i, j) for i in range(3) for j in range(3)]
+
+
+def test_bad_inputs_of_the_pointwise_reference_are_refused_in_one_sentence():
+    """Non-finite data under a TF, an unknown order, a budget count below 1 and a camera that
+    sees no medium: each a ValueError naming what is wrong."""
+    from vtkvol.bench.pointwise import PointwiseBudget, compare
+
+    data = np.zeros((2, 2, 2))
+    data[0, 0, 0] = np.nan
+    with pytest.raises(ValueError, match="the data must be finite"):
+        ExtinctionField(data, (1.0, 1.0, 1.0), 1.0, transfer=[(0.0, 0.0), (1.0, 0.5)])
+    field = ExtinctionField(np.full((3, 3, 3), 0.2), (1.0, 1.0, 1.0), 1.0)
+    with pytest.raises(ValueError, match="orders 'double'"):
+        medium_radiance(field, np.zeros((1, 3)), np.array([[0.0, 0.0, 1.0]]), [],
+                        albedo=0.5, orders="double")
+    with pytest.raises(ValueError, match="rays must be at least 1, not 0"):
+        PointwiseBudget(rays=0)
+    empty = np.zeros((4, 4, 4))
+    with pytest.raises(ValueError, match="the camera sees no medium"):
+        compare(None, {}, empty, empty, "single")  # type: ignore[arg-type]
