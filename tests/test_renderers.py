@@ -37,6 +37,20 @@ def scene(n: int = 24, size: int = 48, opacity=((0.0, 0.0), (1.0, 0.5)), lights=
     return rw, ren, vol, host
 
 
+def white_medium_scene(n, size, opacity, ambient, albedo, lights=None):
+    """A ball of a white transfer function with the ambient coefficient and the medium's
+    albedo set (g = 0): the scenes where the camera path tracer and the medium model's
+    references estimate the same image."""
+    rw, ren, vol, host = scene(n=n, size=size, opacity=opacity, lights=lights)
+    ctf = vol.GetProperty().GetRGBTransferFunction(0)
+    ctf.RemoveAllPoints()
+    ctf.AddRGBPoint(0.0, 1.0, 1.0, 1.0)
+    ctf.AddRGBPoint(1.0, 1.0, 1.0, 1.0)
+    vol.GetProperty().SetAmbient(ambient)
+    host.set_material(albedo=albedo, phase_g=0.0)
+    return rw, ren, vol, host
+
+
 def light_tuples(host):
     return [(s.kind, s.vector, s.color, s.size, s.falloff_distance) for s in host.light_specs()]
 
@@ -673,14 +687,9 @@ def test_two_truths_agree_on_a_bright_ball_within_their_noise():
     independent halves: the mean of two has a quarter of their squared difference)."""
     from vtkvol.bench.convergence import two_truths
 
-    rw, _ren, vol, host = scene(n=16, size=48, opacity=((0.0, 0.0), (1.0, 0.9)))
+    rw, _ren, _vol, host = white_medium_scene(16, 48, ((0.0, 0.0), (1.0, 0.9)), ambient=0.3,
+                                              albedo=0.95)
     needs_compute(rw)
-    ctf = vol.GetProperty().GetRGBTransferFunction(0)
-    ctf.RemoveAllPoints()
-    ctf.AddRGBPoint(0.0, 1.0, 1.0, 1.0)
-    ctf.AddRGBPoint(1.0, 1.0, 1.0, 1.0)
-    vol.GetProperty().SetAmbient(0.3)
-    host.set_material(albedo=0.95, phase_g=0.0)
     halves = []
     for seed in (3, 4):
         host.set_method("path_traced", {"scattering": "multiple", "paths_per_iteration": 16,
@@ -727,14 +736,8 @@ def test_two_truths_agree_at_seeded_pixels_without_the_reference_grid(scattering
     lights = [vtkvol.Light(direction=(0.3, -0.6, 0.75), size=3.0),
               vtkvol.Light(kind="point", position=(30.0, -10.0, 30.0), falloff="inverse_square")]
     tf = ((0.0, 0.0), (0.3, 0.0), (0.35, 0.8), (1.0, 0.8))
-    rw, _ren, vol, host = scene(n=16, size=32, opacity=tf, lights=lights)
+    rw, _ren, _vol, host = white_medium_scene(16, 32, tf, ambient=0.2, albedo=0.9, lights=lights)
     needs_compute(rw)
-    ctf = vol.GetProperty().GetRGBTransferFunction(0)
-    ctf.RemoveAllPoints()
-    ctf.AddRGBPoint(0.0, 1.0, 1.0, 1.0)
-    ctf.AddRGBPoint(1.0, 1.0, 1.0, 1.0)
-    vol.GetProperty().SetAmbient(0.2)
-    host.set_material(albedo=0.9, phase_g=0.0)
     runs = []
     for seed in (1, 2):
         pt = set_renderer(host, "path_tracer", scattering=scattering, samples=128, seed=seed)

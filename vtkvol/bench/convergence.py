@@ -441,7 +441,8 @@ def study_camera_paths(rig: Any, refs: dict[str, np.ndarray], config: StudyConfi
             finals.append(image)
             if config.pointwise is not None:
                 radiance.append(pt.read_result())
-                setup = camera_setup(rig, pt)
+                if run_index == len(CAMERA_SEEDS) - 1:  # the same set-up for both runs
+                    setup = camera_setup(rig, pt)
             set_renderer(rig.illuminator, "raycast")
     finally:
         set_renderer(rig.illuminator, "raycast")
